@@ -1,0 +1,1 @@
+"""Aircraft aeromagnetic compensation: simulator, compensators, tuning environment."""

@@ -1,0 +1,149 @@
+"""Earth field along a track: IGRF-14 core field (via ``ppigrf``) and external variation.
+
+IGRF varies slowly along a flight, so it is evaluated on a coarse time grid along the track and
+interpolated; the small altitude excursions between grid points (pitch maneuvers) are carried by
+the vertical gradient, evaluated on the same grid. The interpolation agrees with a direct
+``ppigrf`` call to well under 0.1 nT (tested).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+
+import numpy as np
+
+from aeromag_env.noise import fogm
+
+#: Altitude step for the finite-difference vertical gradient [m].
+_DH_M = 100.0
+
+
+def parse_date(date: str | _dt.date | _dt.datetime) -> _dt.datetime:
+    """ISO date/datetime string or date object → naive UTC ``datetime``."""
+    if isinstance(date, _dt.datetime):
+        return date.replace(tzinfo=None)
+    if isinstance(date, _dt.date):
+        return _dt.datetime(date.year, date.month, date.day)
+    try:
+        return _dt.datetime.fromisoformat(str(date)).replace(tzinfo=None)
+    except ValueError:
+        raise ValueError(f"date must be ISO 8601 (e.g. 2026-06-01), got {date!r}") from None
+
+
+def igrf_ned(
+    lat: np.ndarray, lon: np.ndarray, alt_m: np.ndarray, date: str | _dt.datetime
+) -> np.ndarray:
+    """IGRF-14 core field in NED at geodetic positions, by a direct ``ppigrf`` call.
+
+    Parameters
+    ----------
+    lat, lon : ndarray, shape (n,)
+        Geodetic latitude and longitude [rad].
+    alt_m : ndarray, shape (n,)
+        Height above the WGS84 ellipsoid [m].
+    date : str or datetime
+        Epoch of the field model (one date for all points).
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        ``[B_north, B_east, B_down]`` [nT].
+    """
+    import ppigrf  # lazy: pulls in pandas
+
+    lat, lon, alt_m = np.broadcast_arrays(
+        np.atleast_1d(np.asarray(lat, float)),
+        np.atleast_1d(np.asarray(lon, float)),
+        np.atleast_1d(np.asarray(alt_m, float)),
+    )
+    be, bn, bu = ppigrf.igrf(np.rad2deg(lon), np.rad2deg(lat), alt_m / 1000.0, parse_date(date))
+    return np.column_stack([np.ravel(bn), np.ravel(be), -np.ravel(bu)])
+
+
+def igrf_ned_along_track(
+    tt: np.ndarray,
+    lat: np.ndarray,
+    lon: np.ndarray,
+    alt_m: np.ndarray,
+    date: str | _dt.datetime,
+    grid_spacing_s: float = 10.0,
+) -> np.ndarray:
+    """IGRF-14 in NED along a track, from a coarse grid plus the vertical gradient.
+
+    Parameters
+    ----------
+    tt : ndarray, shape (n,)
+        Sample times [s].
+    lat, lon : ndarray, shape (n,)
+        Geodetic latitude and longitude [rad].
+    alt_m : ndarray, shape (n,)
+        Height [m].
+    date : str or datetime
+    grid_spacing_s : float
+        Time between grid points [s].
+
+    Returns
+    -------
+    ndarray, shape (n, 3) [nT]
+
+    Notes
+    -----
+    ``B(t) ≈ S_B(t) + S_g(t) (h(t) - S_h(t))`` where ``S_B``, ``S_g`` and ``S_h`` are cubic
+    splines through the grid values of the field, its vertical gradient ``∂B/∂h`` and the
+    altitude; the last term carries altitude changes faster than the grid.
+    """
+    from scipy.interpolate import CubicSpline
+
+    tt = np.asarray(tt, dtype=float)
+    n = tt.size
+    if n < 4:
+        return igrf_ned(lat, lon, alt_m, date)
+    step = max(1, round(grid_spacing_s / float(np.median(np.diff(tt)))))
+    idx = np.unique(np.r_[np.arange(0, n, step), n - 1])
+    if idx.size < 4:
+        idx = np.unique(np.linspace(0, n - 1, 4).round().astype(int))
+    g_lat, g_lon, g_alt = lat[idx], lon[idx], alt_m[idx]
+    both = igrf_ned(np.r_[g_lat, g_lat], np.r_[g_lon, g_lon], np.r_[g_alt, g_alt + _DH_M], date)
+    b_grid, b_up = both[: idx.size], both[idx.size :]
+    grad = (b_up - b_grid) / _DH_M
+    t_grid = tt[idx]
+    b = CubicSpline(t_grid, b_grid, axis=0)(tt)
+    dh = alt_m - CubicSpline(t_grid, g_alt)(tt)
+    return b + CubicSpline(t_grid, grad, axis=0)(tt) * dh[:, None]
+
+
+def external_variation_ned(
+    tt: np.ndarray,
+    start: _dt.datetime,
+    daily_amplitude_nt: float,
+    fogm_std_nt: float,
+    fogm_tau_s: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """External (diurnal) field variation in NED, fixed in the navigation frame.
+
+    Parameters
+    ----------
+    tt : ndarray, shape (n,)
+        Sample times [s] since ``start``.
+    start : datetime
+        UTC time of ``tt = 0``; sets the phase of the daily (Sq) cycle.
+    daily_amplitude_nt : float
+        Amplitude of the daily cycle [nT]; shared by the three components with random phases
+        and weights (the horizontal components dominate, as for the Sq variation).
+    fogm_std_nt, fogm_tau_s : float
+        Irregular part: independent FOGM per component [nT], [s].
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (n, 3) [nT]
+    """
+    tt = np.asarray(tt, dtype=float)
+    seconds_of_day = start.hour * 3600 + start.minute * 60 + start.second
+    phase = rng.uniform(0.0, 2.0 * np.pi, 3)
+    weights = np.array([1.0, 0.5, 0.3]) * rng.uniform(0.7, 1.3, 3)
+    omega = 2.0 * np.pi / 86_400.0
+    cycle = np.sin(omega * (seconds_of_day + tt)[:, None] + phase) * weights * daily_amplitude_nt
+    dt = float(np.median(np.diff(tt))) if tt.size > 1 else 1.0
+    return cycle + fogm(tt.size, dt, fogm_std_nt, fogm_tau_s, rng, dims=3)

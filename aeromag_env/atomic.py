@@ -14,44 +14,56 @@ from pathlib import Path
 
 from aeromag_env.errors import AeromagError
 
+PathLike = str | os.PathLike
 
-def check_not_input(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = ()) -> Path:
-    """Return ``path`` as a Path; one-line error if it names the same file as an input."""
+
+def check_not_input(
+    path: PathLike, inputs: Iterable[PathLike] = (), error: type[AeromagError] = AeromagError
+) -> Path:
+    """Return ``path`` as a Path; raise ``error`` (one line) if it is, or resolves to, an input."""
     out = Path(path)
-    for inp in inputs:
-        p = Path(inp)
-        same = out.resolve() == p.resolve() or (
-            out.exists() and p.exists() and os.path.samefile(out, p)
-        )
-        if same:
-            raise AeromagError(f"output path {out} is the input file {p}; choose another output")
+    for source in inputs:
+        src = Path(source)
+        if out.resolve() == src.resolve() or (out.exists() and src.exists() and out.samefile(src)):
+            raise error(f"output path {out} is the input file {src}; choose another output")
     return out
 
 
 @contextlib.contextmanager
 def atomic_path(
-    path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = ()
+    path: PathLike, inputs: Iterable[PathLike] = (), error: type[AeromagError] = AeromagError
 ) -> Iterator[Path]:
-    """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
+    """Yield a temporary path in the target's folder; on success move it onto ``path``.
 
-    The parent folder is created. On any exception the temporary file is removed and an
-    existing ``path`` is left untouched.
+    The parent folder is created; the data are flushed to disk before the rename and the file
+    gets the permissions of the file it replaces (or the umask default). On any exception the
+    temporary file is removed and an existing ``path`` is left untouched.
     """
-    out = check_not_input(path, inputs)
+    out = check_not_input(path, inputs, error)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=out.suffix + ".tmp", dir=out.parent)
+    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
     os.close(fd)
+    tmp = Path(name)
     try:
-        yield Path(tmp)
+        yield tmp
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.chmod(tmp, _target_mode(out))
         os.replace(tmp, out)
     finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        tmp.unlink(missing_ok=True)
 
 
-def write_text(
-    path: str | os.PathLike, text: str, inputs: Iterable[str | os.PathLike] = ()
-) -> Path:
+def _target_mode(out: Path) -> int:
+    """Permission bits: those of the file replaced, else the default for a new file."""
+    if out.exists():
+        return out.stat().st_mode & 0o777
+    umask = os.umask(0o022)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def write_text(path: PathLike, text: str, inputs: Iterable[PathLike] = ()) -> Path:
     """Atomically write a text file (JSON, Markdown)."""
     with atomic_path(path, inputs) as tmp:
         tmp.write_text(text, encoding="utf-8")

@@ -1,0 +1,220 @@
+"""The ``aeromag`` command line: one entry point, one subcommand per job.
+
+Every subcommand has ``--help``, writes its results atomically, and on bad input exits with
+status 2 and a one-line message on stderr (no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+
+from aeromag_env.config import (
+    PATTERNS,
+    PRESETS,
+    SimulationConfig,
+    from_json,
+    preset,
+    with_overrides,
+)
+from aeromag_env.errors import AeromagError, ConfigError
+from aeromag_env.flight import Flight
+
+FLIGHT_SUFFIXES = (".h5", ".hdf5", ".csv")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error message (no usage dump)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _add_simulate(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "simulate",
+        help="simulate a flight and write it as a flight file",
+        description="Simulate a flight (trajectory, IGRF-14 Earth field, aircraft "
+        "interference, sensor noise) and write it in the MagNav/SGL layout.",
+    )
+    p.add_argument(
+        "--pattern", choices=PATTERNS, help="flight pattern (default: the preset's, calibration)"
+    )
+    p.add_argument(
+        "--preset",
+        default="nominal",
+        choices=list(PRESETS),
+        help="physics preset (default nominal)",
+    )
+    p.add_argument("--config", help="JSON simulator configuration (instead of --preset)")
+    p.add_argument("--seed", type=int, default=0, help="random seed, ≥ 0 (default 0)")
+    p.add_argument(
+        "--duration-s", type=float, help="flight duration [s] (default: the pattern's own)"
+    )
+    p.add_argument("--out", required=True, help="output flight file (.h5 or .csv)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_simulate)
+
+
+def _add_info(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "info",
+        help="validate and summarise a flight file",
+        description="Validate a flight file and summarise it; exits 2 if it is unusable.",
+    )
+    p.add_argument("file", help="flight file (.h5 or .csv)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=_cmd_info)
+
+
+def _add_demo(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "demo",
+        help="the main job: simulate a calibration flight and draw it",
+        description="Simulate a nominal calibration flight, write it and its overview "
+        "figure to the output folder, and print where they are.",
+    )
+    p.add_argument("--out", default="results/demo", help="output folder (default results/demo)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.set_defaults(func=_cmd_demo)
+
+
+def _add_bench(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "bench",
+        help="speed benchmarks, measured side by side in one run",
+        description="Run the speed benchmarks and write bench.json.",
+    )
+    p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
+    p.add_argument("--quick", action="store_true", help="fewer repeats (for tests)")
+    p.set_defaults(func=_cmd_bench)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full ``aeromag`` parser."""
+    parser = _Parser(prog="aeromag", description="Aircraft aeromagnetic compensation toolkit.")
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=_Parser
+    )
+    for add in (_add_simulate, _add_info, _add_demo, _add_bench):
+        add(sub)
+    return parser
+
+
+def _simulation_config(args: argparse.Namespace) -> SimulationConfig:
+    if args.config:
+        try:
+            text = Path(args.config).read_text(encoding="utf-8")
+        except OSError as e:
+            raise ConfigError(f"cannot read configuration {args.config}: {e.strerror}") from None
+        cfg = from_json(SimulationConfig, text)
+    else:
+        cfg = preset(args.preset)
+    overrides: dict[str, object] = {}
+    if args.pattern:
+        overrides["trajectory.pattern"] = args.pattern
+    if args.duration_s is not None:
+        overrides["trajectory.duration_s"] = args.duration_s
+    return with_overrides(cfg, overrides) if overrides else cfg
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from aeromag_env.flightfile import write_flight
+    from aeromag_env.simulate import STAGES, simulate_flight
+
+    out = Path(args.out)
+    if out.suffix.lower() not in FLIGHT_SUFFIXES:
+        raise AeromagError(f"--out must end in {', '.join(FLIGHT_SUFFIXES)}, got {out.name!r}")
+    if args.seed < 0:
+        raise AeromagError(f"--seed must be ≥ 0, got {args.seed}")
+    cfg = _simulation_config(args)
+    with tqdm(
+        total=len(STAGES) + 1,
+        desc="simulate",
+        unit="stage",
+        disable=args.quiet or None,
+        leave=False,
+    ) as bar:
+
+        def progress(stage: str) -> None:
+            bar.set_description(stage)
+            bar.update(1)
+
+        flight = simulate_flight(cfg, args.seed, progress=progress)
+        progress("write")
+        write_flight(flight, out, inputs=[args.config] if args.config else ())
+    print(simulation_summary(flight, out, cfg, args.seed))
+    return 0
+
+
+def simulation_summary(flight: Flight, out: Path, cfg: SimulationConfig, seed: int) -> str:
+    """One line: what was written."""
+    interf = flight.vector("truth_interf")
+    rms = float(np.sqrt(np.mean(np.sum(interf**2, axis=1))))
+    return (
+        f"wrote {out}: {cfg.trajectory.pattern}, preset {cfg.preset}, seed {seed}; "
+        f"{flight.n} samples ({flight.duration_s:.1f} s at {flight.sample_rate_hz:g} Hz), "
+        f"{len(flight.maneuver_windows())} maneuver windows, "
+        f"fluxgate interference {rms:.0f} nT RMS"
+    )
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from aeromag_env.info import main_info
+
+    return main_info(args.file, as_json=args.json)
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from aeromag_env.flightfile import write_flight
+    from aeromag_env.plot import plot_flight
+    from aeromag_env.simulate import simulate_flight
+
+    out = Path(args.out)
+    cfg = preset("nominal")
+    flight = simulate_flight(cfg, args.seed)
+    h5 = write_flight(flight, out / "flight.h5")
+    png = plot_flight(
+        flight, out / "flight.png", title=f"nominal calibration flight, seed {args.seed}"
+    )
+    print(simulation_summary(flight, h5, cfg, args.seed))
+    print(f"figure: {png}")
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from aeromag_env.bench import run_benchmarks
+
+    run_benchmarks(Path(args.out), quick=args.quick)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``aeromag``; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except AeromagError as e:
+        print(f"aeromag {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(
+            f"aeromag {args.command}: error: {e.strerror or e}: {e.filename or ''}", file=sys.stderr
+        )
+        return 2
+    except KeyboardInterrupt:
+        print(
+            f"aeromag {args.command}: interrupted; no output was left half-written", file=sys.stderr
+        )
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

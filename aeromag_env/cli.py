@@ -84,6 +84,61 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_demo)
 
 
+def _add_compensate(sub: argparse._SubParsersAction) -> None:
+    from aeromag_env.compensate import METHODS
+
+    p = sub.add_parser(
+        "compensate",
+        help="compensate a flight file with one method",
+        description="Estimate and remove the aircraft's interference; write "
+        "compensated.h5, report.json and compensation.png to --out.",
+    )
+    p.add_argument("file", help="flight file (.h5 or .csv)")
+    p.add_argument("--method", required=True, choices=METHODS, help="compensation method")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--flux", default="flux_a", help="vector magnetometer id (default flux_a)")
+    p.add_argument(
+        "--scalar", default="mag_1_uc", help="scalar magnetometer for tl (default mag_1_uc)"
+    )
+    p.add_argument(
+        "--tl-bandpass",
+        nargs="+",
+        default=["0.1", "0.9"],
+        metavar="HZ",
+        help="tl band-pass LOW HIGH [Hz] or 'none' (default 0.1 0.9)",
+    )
+    p.add_argument("--tl-trim", type=int, default=20, help="tl: samples trimmed at each end (20)")
+    p.add_argument("--tl-ridge", type=float, default=0.0, help="tl: ridge parameter λ (0)")
+    p.add_argument(
+        "--calibration-window",
+        nargs=2,
+        type=float,
+        metavar=("T0", "T1"),
+        help="fit on T0 ≤ tt ≤ T1 [s] only, apply everywhere",
+    )
+    p.add_argument(
+        "--filter-preset",
+        choices=("default", "paper"),
+        default="default",
+        help="filter settings: package defaults or the paper's §4 Q(0), R(0), x(0)",
+    )
+    p.add_argument("--r-std-nt", type=float, help="filter measurement-noise std [nT] (default 1.5)")
+    p.set_defaults(func=_cmd_compensate)
+
+
+def _add_reproduce(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "reproduce-paper",
+        help="reproduce Zhang, Zhao & Chang (2014) figs. 3–5",
+        description="Run the paper's setting on a simulated flight and compare "
+        "with its claims; writes report.json and fig3/4/5 PNGs to --out.",
+    )
+    p.add_argument("--out", default="results/paper", help="output folder (default results/paper)")
+    p.add_argument("--quick", action="store_true", help="one calibration box instead of 30 min")
+    p.add_argument("--seed", type=int, default=2014, help="random seed (default 2014)")
+    p.set_defaults(func=_cmd_reproduce)
+
+
 def _add_bench(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench",
@@ -101,7 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(
         dest="command", required=True, metavar="COMMAND", parser_class=_Parser
     )
-    for add in (_add_simulate, _add_info, _add_demo, _add_bench):
+    for add in (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_demo, _add_bench):
         add(sub)
     return parser
 
@@ -186,6 +241,39 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     )
     print(simulation_summary(flight, h5, cfg, args.seed))
     print(f"figure: {png}")
+    return 0
+
+
+def _tl_bandpass(values: list[str]) -> tuple[float, float] | None:
+    if len(values) == 1 and values[0].lower() == "none":
+        return None
+    try:
+        lo, hi = (float(v) for v in values)
+    except ValueError:
+        raise AeromagError(
+            f"--tl-bandpass takes LOW HIGH [Hz] or 'none', got {' '.join(values)}"
+        ) from None
+    return lo, hi
+
+
+def _cmd_compensate(args: argparse.Namespace) -> int:
+    from aeromag_env.compensate_run import CompensateRequest, run_compensate, summary_line
+
+    req = CompensateRequest(
+        path=Path(args.file), out=Path(args.out), method=args.method, flux=args.flux,
+        scalar=args.scalar, tl_bandpass_hz=_tl_bandpass(args.tl_bandpass), tl_trim=args.tl_trim,
+        tl_ridge=args.tl_ridge, calibration_window_s=tuple(args.calibration_window) if
+        args.calibration_window else None, filter_preset=args.filter_preset, r_std_nt=args.r_std_nt,
+    )  # fmt: skip
+    report = run_compensate(req)
+    print(summary_line(report, req.out))
+    return 0
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from aeromag_env.paper import reproduce_paper
+
+    reproduce_paper(Path(args.out), quick=args.quick, seed=args.seed)
     return 0
 
 

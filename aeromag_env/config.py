@@ -9,8 +9,9 @@ Presets (:data:`PRESETS`, :func:`preset`):
 
 * ``nominal`` — realistic cabin installation: fluxgate interference of a few hundred nT RMS
   (permanent ~200 nT, induced ~1.5e-3, eddy ~2e-4 s → a few nT during maneuvers), fluxgate noise
-  1 nT white + 1 nT FOGM (600 s), a tail-stinger scalar magnetometer with Tolles–Lawson
-  interference, diurnal variation (20 nT daily cycle + 2 nT FOGM).
+  1 nT white + 1 nT FOGM (600 s), a tail-stinger cesium magnetometer (0.01 nT white) with
+  Tolles–Lawson interference, quiet-day diurnal variation (20 nT daily cycle + 2 nT smooth
+  irregular part).
 * ``paper`` — the setting of Zhang, Zhao & Chang (2014), §4: 20 nT white noise per fluxgate
   axis, nothing else (no coloured noise, no drift, no external variation, no scalar sensor).
   The paper gives no true interference, so the realistic ``nominal`` coefficients are used.
@@ -143,15 +144,21 @@ class TrajectoryConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class EarthConfig:
-    """Earth field: IGRF-14 grid spacing and the external (diurnal) variation."""
+    """Earth field: IGRF-14 grid spacing and the external (diurnal) variation.
+
+    The external variation is a daily cycle plus a smooth irregular part (FOGM of
+    ``external_fogm_std_nt`` and ``external_fogm_tau_s`` through a ``external_smoothing_s`` lag),
+    referenced to the start of the flight: a quiet day, as compensation flights are flown.
+    """
 
     igrf_grid_spacing_s: float = 10.0
     daily_amplitude_nt: float = 20.0
     external_fogm_std_nt: float = 2.0
     external_fogm_tau_s: float = 600.0
+    external_smoothing_s: float = 60.0
 
     def __post_init__(self) -> None:
-        _positive(self, "igrf_grid_spacing_s", "external_fogm_tau_s")
+        _positive(self, "igrf_grid_spacing_s", "external_fogm_tau_s", "external_smoothing_s")
         _nonnegative(self, "daily_amplitude_nt", "external_fogm_std_nt")
 
 
@@ -209,7 +216,7 @@ class ScalarConfig:
         )
     )
     noise: SensorNoiseConfig = field(
-        default_factory=lambda: SensorNoiseConfig(white_std_nt=0.05, fogm_std_nt=0.0)
+        default_factory=lambda: SensorNoiseConfig(white_std_nt=0.01, fogm_std_nt=0.0)
     )
 
     def __post_init__(self) -> None:

@@ -112,6 +112,15 @@ def igrf_ned_along_track(
     return b + CubicSpline(t_grid, grad, axis=0)(tt) * dh[:, None]
 
 
+def _first_order_lag(x: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
+    """``y' = (x − y) / τ``, exactly discretised, started at ``y[0] = x[0]`` (along axis 0)."""
+    from scipy.signal import lfilter
+
+    a = float(np.exp(-dt_s / tau_s))
+    y, _ = lfilter([1.0 - a], [1.0, -a], x, axis=0, zi=(a * x[:1]))
+    return y
+
+
 def external_variation_ned(
     tt: np.ndarray,
     start: _dt.datetime,
@@ -119,8 +128,14 @@ def external_variation_ned(
     fogm_std_nt: float,
     fogm_tau_s: float,
     rng: np.random.Generator,
+    smoothing_s: float = 60.0,
 ) -> np.ndarray:
     """External (diurnal) field variation in NED, fixed in the navigation frame.
+
+    The variation is referenced to the start of the flight (zero at ``tt = 0``), as a base
+    station's diurnal record is used in practice; a constant external or Earth-model offset is a
+    different effect (it rotates with heading like an Earth-model error) and is simulated only
+    when asked for, not hidden in the variation.
 
     Parameters
     ----------
@@ -132,7 +147,11 @@ def external_variation_ned(
         Amplitude of the daily cycle [nT]; shared by the three components with random phases
         and weights (the horizontal components dominate, as for the Sq variation).
     fogm_std_nt, fogm_tau_s : float
-        Irregular part: independent FOGM per component [nT], [s].
+        Irregular part per component [nT], [s]: a FOGM of this std and correlation time,
+        smoothed by a first-order lag of ``smoothing_s`` — a quiet-day variation with almost no
+        power in the 0.1–1 Hz band of the compensation maneuvers.
+    smoothing_s : float
+        Time constant of that lag [s].
     rng : numpy.random.Generator
 
     Returns
@@ -146,4 +165,6 @@ def external_variation_ned(
     omega = 2.0 * np.pi / 86_400.0
     cycle = np.sin(omega * (seconds_of_day + tt)[:, None] + phase) * weights * daily_amplitude_nt
     dt = float(np.median(np.diff(tt))) if tt.size > 1 else 1.0
-    return cycle + fogm(tt.size, dt, fogm_std_nt, fogm_tau_s, rng, dims=3)
+    irregular = fogm(tt.size, dt, fogm_std_nt, fogm_tau_s, rng, dims=3)
+    variation = cycle + _first_order_lag(irregular, dt, smoothing_s)
+    return variation - variation[0]

@@ -69,6 +69,7 @@ def simulate_flight(
         config.earth.external_fogm_std_nt,
         config.earth.external_fogm_tau_s,
         r_earth,
+        config.earth.external_smoothing_s,
     )
     c_nb = dcm_from_euler(traj.roll, traj.pitch, traj.yaw)
     t_b = nav_to_body(c_nb, earth_n + ext_n)

@@ -45,6 +45,7 @@ def test_external_variation_statistics():
     ext = external_variation_ned(tt, dt.datetime(2026, 6, 1, 12), 0.0, 3.0, 600.0, rng)
     assert ext.shape == (tt.size, 3)
     ext_cycle = external_variation_ned(tt, dt.datetime(2026, 6, 1, 12), 30.0, 0.0, 600.0, rng)
+    np.testing.assert_array_equal(ext[0], 0.0)  # referenced to the start of the flight
     # a daily cycle of 30 nT moves by at most 2π·30/24 ≈ 7.9 nT per hour per component
     assert np.all(np.ptp(ext_cycle, axis=0) < 8.0)
     assert np.ptp(ext_cycle[:, 0]) > 0.5

@@ -115,7 +115,7 @@ def test_scalar_magnetometer_and_diurnal():
     f = simulated("nominal", 0)
     total = np.linalg.norm(f.vector("truth_earth"), axis=1)
     resid = f["mag_1_uc"] - total - f["truth_interf_mag_1"]
-    np.testing.assert_allclose(resid.std(), 0.05, rtol=0.1)  # configured scalar white noise
+    np.testing.assert_allclose(resid.std(), 0.01, rtol=0.1)  # configured scalar white noise
     assert "diurnal" in f and np.std(f["diurnal"]) > 0
     assert "mag_1_uc" not in simulated("paper", 0) and "diurnal" not in simulated("paper", 0)
 

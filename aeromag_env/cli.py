@@ -75,9 +75,9 @@ def _add_info(sub: argparse._SubParsersAction) -> None:
 def _add_demo(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "demo",
-        help="the main job: simulate a calibration flight and draw it",
-        description="Simulate a nominal calibration flight, write it and its overview "
-        "figure to the output folder, and print where they are.",
+        help="the main job: simulate, compensate, compare",
+        description="Simulate a 30-minute nominal calibration flight, compensate it with kf, "
+        "fakf, lsq and tl, and write figures and a summary table to --out.",
     )
     p.add_argument("--out", default="results/demo", help="output folder (default results/demo)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -228,19 +228,12 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from aeromag_env.flightfile import write_flight
-    from aeromag_env.plot import plot_flight
-    from aeromag_env.simulate import simulate_flight
+    from aeromag_env.demo import run_demo
 
     out = Path(args.out)
-    cfg = preset("nominal")
-    flight = simulate_flight(cfg, args.seed)
-    h5 = write_flight(flight, out / "flight.h5")
-    png = plot_flight(
-        flight, out / "flight.png", title=f"nominal calibration flight, seed {args.seed}"
-    )
-    print(simulation_summary(flight, h5, cfg, args.seed))
-    print(f"figure: {png}")
+    run_demo(out, args.seed)
+    print((out / "summary.md").read_text(encoding="utf-8"), end="")
+    print(f"results in {out}/: flight.h5, flight.png, compensation_*.png, summary.md, summary.json")
     return 0
 
 

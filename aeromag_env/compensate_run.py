@@ -24,7 +24,7 @@ from aeromag_env.compensate import (
 )
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight import Flight
-from aeromag_env.flightfile import read_flight, write_flight
+from aeromag_env.flightfile import load_flight, write_flight
 from aeromag_env.kalman_model import FilterConfig, paper_filter_config
 from aeromag_env.tolles_lawson import TollesLawson
 
@@ -81,7 +81,7 @@ class CompensateRequest:
 def run_compensate(req: CompensateRequest) -> dict[str, Any]:
     """Do the work of ``aeromag compensate``; return the report (also written to disk)."""
     req.check()
-    flight = read_flight(req.path, needs=req.needs())
+    flight, problems = load_flight(req.path, needs=req.needs())
     calibration = _calibration_mask(flight, req.calibration_window_s)
     if req.method == "tl":
         tl = TollesLawson(bandpass_hz=req.tl_bandpass_hz, trim=req.tl_trim, ridge=req.tl_ridge)
@@ -98,6 +98,7 @@ def run_compensate(req: CompensateRequest) -> dict[str, Any]:
         "coefficients": comp.coefficients,
         "metrics": metrics_block,
         "nonfinite_policy": _nonfinite_policy(comp),
+        "input_problems": problems,
     }
     out_flight = Flight(
         {**flight.fields, **comp.fields}, {**flight.attrs, "compensation": comp.method}
@@ -142,7 +143,7 @@ def _jsonable(obj: Any) -> Any:
 
 
 def summary_line(report: dict[str, Any], out: Path) -> str:
-    """One line for the terminal."""
+    """One line for the terminal (input problems are listed in report.json)."""
     m = report["metrics"]
     parts = [f"{report['method']}: wrote {out}/compensated.h5, report.json, compensation.png"]
     for key, label in (("compensation_rmse_nt", "RMSE (2nd half)"), ("improvement_ratio", "IR"),

@@ -26,6 +26,7 @@ from aeromag_env.kalman_core import (
     PAR_HI,
     PAR_LO,
     PAR_SH_B,
+    PAR_SH_Q,
     PAR_ZOOM_Q,
     PAR_ZOOM_R,
     advance,
@@ -164,6 +165,7 @@ def _parameters(cfg: FilterConfig) -> np.ndarray:
     par[PAR_ZOOM_R], par[PAR_ZOOM_Q] = cfg.zoom_r, cfg.zoom_q
     par[PAR_FORGET], par[PAR_SH_B] = cfg.forgetting, cfg.sage_husa_b
     par[PAR_LO], par[PAR_HI] = cfg.scale_bounds
+    par[PAR_SH_Q] = float(cfg.sage_husa_q)
     return par
 
 

@@ -16,7 +16,8 @@ Per sample k (normalised state ``z``, ``H_s = H diag(d)``):
   ``ROR = tr(C_r) / mean tr(S)``, ``QOQ = tr(K C_r Kᵀ) / tr(Q)`` in normalised coordinates
 * adaptation every ``adapt_interval`` samples once the window is full (``fakf``: eq. 21 with the
   fuzzy scale; ``ding``: ``Q ← Q √α``, ``α = |tr(C_r) − tr R| / |mean tr S − tr R|``); Sage–Husa
-  every sample (``R ← (1−d)R + d(r rᵀ − H P⁻ Hᵀ)``, ``Q ← Q + d·diag(K(r rᵀ − S)Kᵀ)``).
+  every sample (``R ← (1−d)R + d(e eᵀ + H P⁺ Hᵀ)`` from the post-fit residual ``e``;
+  optionally ``Q ← Q + d·diag(K(r rᵀ − S)Kᵀ)``).
 * divergence (a non-finite or absurd state — beyond 1e8 typical magnitudes —, a non-finite
   covariance, a non-positive variance, or — checked once per window — a failed Cholesky of P):
   counted, and the filter restarts from the last good state with ``P(0)``, ``Q(0)``, ``R(0)``;
@@ -31,8 +32,8 @@ from numba import njit
 from aeromag_env.fuzzy import zoomed_scale
 
 # indices of the float parameter vector
-PAR_EPS, PAR_ETA, PAR_ZOOM_R, PAR_ZOOM_Q, PAR_FORGET, PAR_SH_B, PAR_LO, PAR_HI = range(8)
-N_PAR = 8
+PAR_EPS, PAR_ETA, PAR_ZOOM_R, PAR_ZOOM_Q, PAR_FORGET, PAR_SH_B, PAR_LO, PAR_HI, PAR_SH_Q = range(9)
+N_PAR = 9
 # indices of the integer state vector
 INT_POS, INT_COUNT, INT_K, INT_DIV, INT_SINCE, INT_SKIP, INT_WINDOW, INT_INTERVAL = range(8)
 N_INT = 8
@@ -191,35 +192,34 @@ def _adapt(
 def _sage_husa(
     r: np.ndarray,
     s: np.ndarray,
+    sinv: np.ndarray,
     kg: np.ndarray,
     rm: np.ndarray,
     qd: np.ndarray,
     q0: np.ndarray,
-    r0: np.ndarray,
     k: int,
     par: np.ndarray,
 ) -> None:
     """Sage–Husa with fading factor b: ``d = (1−b)/(1−b^{k+1})``.
 
-    ``R ← (1−d) R + d (r rᵀ − H P⁻ Hᵀ)`` with ``H P⁻ Hᵀ = S − R``;
-    ``Q ← Q + d diag(K (r rᵀ − S) Kᵀ)`` (``P⁺_k − P⁺_{k−1} = Q − K S Kᵀ`` for ``Φ = I``).
-    Diagonals are floored at ``lo``·initial; an R that is not positive definite falls back to
-    its diagonal.
+    ``R ← (1−d) R + d (e eᵀ + H P⁺ Hᵀ)`` from the post-fit residual ``e`` (Akhlaghi, Zhou &
+    Huang 2017): positive definite by construction. With the optimal gain, ``e = R S⁻¹ r`` and
+    ``H P⁺ Hᵀ = M − M S⁻¹ M``, ``M = H P⁻ Hᵀ = S − R``. (The classical innovation form
+    ``r rᵀ − H P⁻ Hᵀ`` goes negative while ``P`` is large and collapses R at start-up.)
+    Optionally (``par[PAR_SH_Q]``) ``Q ← Q + d diag(K (r rᵀ − S) Kᵀ)``, since
+    ``P⁺_k − P⁺_{k−1} = Q − K S Kᵀ`` for ``Φ = I``; its diagonal is floored at ``lo``·Q(0).
     """
     b = par[PAR_SH_B]
     dk = (1.0 - b) / (1.0 - b ** (k + 1))
-    lo = par[PAR_LO]
+    m = s - rm
+    e = rm @ (sinv @ r)
+    hph = m - m @ sinv @ m
     for i in range(3):
         for j in range(3):
-            hph = s[i, j] - rm[i, j]
-            rm[i, j] = (1.0 - dk) * rm[i, j] + dk * (r[i] * r[j] - hph)
-    for i in range(3):
-        rm[i, i] = max(rm[i, i], lo * r0[i, i])
-    if rm[0, 0] * rm[1, 1] - rm[0, 1] ** 2 <= 0.0 or np.linalg.det(rm) <= 0.0:
-        for i in range(3):
-            for j in range(3):
-                if i != j:
-                    rm[i, j] = 0.0
+            rm[i, j] = (1.0 - dk) * rm[i, j] + dk * (e[i] * e[j] + 0.5 * (hph[i, j] + hph[j, i]))
+    if par[PAR_SH_Q] == 0.0:
+        return
+    lo = par[PAR_LO]
     for a in range(qd.shape[0]):
         v = 0.0
         for i in range(3):
@@ -356,7 +356,7 @@ def advance(
                 trs = s[0, 0] + s[1, 1] + s[2, 2]
                 _window_add(r, trs, rbuf, sbuf, acc, ints)
                 if mode == 3:
-                    _sage_husa(r, s, kg, rm, qd, q0, r0, ints[INT_K], par)
+                    _sage_husa(r, s, sinv, kg, rm, qd, q0, ints[INT_K], par)
             healthy = ok
             for a in range(n_state):
                 if not (abs(z[a]) < MAX_STATE and p[a, a] > 0.0 and np.isfinite(p[a, a])):

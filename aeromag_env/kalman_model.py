@@ -86,6 +86,9 @@ class FilterConfig:
     zoom_r, zoom_q : the zoom levels b_r, b_a, applied as exponents ``s = s_FIS ** b``.
     forgetting : RLS forgetting factor λ (``P⁻ = P / λ``).
     sage_husa_b : Sage–Husa fading factor b.
+    sage_husa_q : let Sage–Husa estimate Q as well as R. Off by default: estimating both from
+        the same innovations is not guaranteed to converge, and on ``nominal`` flights Q runs
+        away (×1e6, errors of ~100 nT); R-only Sage–Husa is the usual safe variant.
     scale_bounds : limits of the adapted Q and R relative to Q(0), R(0) (runaway guard).
     rate_scheme : ``backward`` (causal) or ``central`` (offline) derivative for ``Ṫ``.
     """
@@ -103,6 +106,7 @@ class FilterConfig:
     zoom_q: float = 1.0
     forgetting: float = 0.9999
     sage_husa_b: float = 0.99
+    sage_husa_q: bool = False
     scale_bounds: tuple[float, ...] = (1e-8, 1e8)
     rate_scheme: str = "backward"
 

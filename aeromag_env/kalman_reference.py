@@ -63,7 +63,9 @@ def run_reference(
             innovations[k] = innov
             window = ([*window, (innov, float(np.trace(s)))])[-cfg.window :]
             if cfg.method == "sage-husa":
-                r, q = _sage_husa(cfg, k, innov, s, gain, r, q, r0, q0)
+                post_fit = y[k] - h_all[k] @ z  # e = y − H x⁺
+                hph_post = h_all[k] @ p @ h_all[k].T  # H P⁺ Hᵀ
+                r, q = _sage_husa(cfg, k, innov, s, gain, r, q, q0, post_fit, hph_post)
         if window:
             c_r = np.mean([np.outer(v, v) for v, _ in window], axis=0)  # eq. 24
             out["ror"][k] = np.trace(c_r) / np.mean([t for _, t in window])  # eq. 22
@@ -101,16 +103,14 @@ def _adapt(cfg: FilterConfig, ror: float, qoq: float, window: list, r: np.ndarra
     return r, (q * np.sqrt(alpha) if alpha > 0 else q)
 
 
-def _sage_husa(cfg, k, innov, s, gain, r, q, r0, q0):
+def _sage_husa(cfg, k, innov, s, gain, r, q, q0, post_fit, hph_post):
+    """R from the post-fit residual (always positive definite), optional Q (see kalman_core)."""
     dk = (1 - cfg.sage_husa_b) / (1 - cfg.sage_husa_b ** (k + 1))
-    lo = cfg.scale_bounds[0]
-    r = (1 - dk) * r + dk * (np.outer(innov, innov) - (s - r))
-    r[np.diag_indices(3)] = np.maximum(np.diag(r), lo * np.diag(r0))
-    if r[0, 0] * r[1, 1] - r[0, 1] ** 2 <= 0 or np.linalg.det(r) <= 0:
-        r = np.diag(np.diag(r))
+    r_new = (1 - dk) * r + dk * (np.outer(post_fit, post_fit) + hph_post)
+    if not cfg.sage_husa_q:
+        return r_new, q
     dq = np.diag(gain @ (np.outer(innov, innov) - s) @ gain.T)
-    q = np.diag(np.maximum(np.diag(q) + dk * dq, lo * np.diag(q0)))
-    return r, q
+    return r_new, np.diag(np.maximum(np.diag(q) + dk * dq, cfg.scale_bounds[0] * np.diag(q0)))
 
 
 def _clamp(cfg, r, q, r0, q0):

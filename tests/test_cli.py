@@ -112,6 +112,9 @@ def test_info_and_demo_through_the_console_script(tmp_path):
     )
     assert demo.returncode == 0, demo.stderr
     assert (tmp_path / "demo" / "flight.png").stat().st_size > 10_000
+    summary = (tmp_path / "demo" / "summary.md").read_text()
+    assert all(f"| {m} |" in summary for m in ("kf", "fakf", "lsq", "tl"))
+    assert "summary.md" in demo.stdout
     info = subprocess.run(
         [str(exe), "info", str(tmp_path / "demo" / "flight.h5"), "--json"],
         capture_output=True,

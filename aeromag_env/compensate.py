@@ -46,7 +46,7 @@ class Compensation:
     fields : dict[str, ndarray] — new channels (``flux_a_c_*``, ``interf_est_*`` or ``mag_1_c``…)
     total_before, total_after : (n,) uncompensated and compensated total field [nT]
     model_total : (n,) model Earth total field [nT], or None when the file has no position/date
-    series : dict[str, ndarray] — filter diagnostics (ROR, QOQ, Q and R scales, states)
+    series : dict[str, ndarray] — filter diagnostics (ROR, QOQ, Q and R scales)
     divergences, nonfinite : int
     """
 
@@ -104,15 +104,14 @@ def compensate_vector(
     else:
         assert cfg is not None
         y_fit = y if calibration is None else np.where(calibration[:, None], y, np.nan)
-        res = run_filter(cfg, y_fit, t_b, tdot_b)
+        res = run_filter(cfg, y_fit, t_b, tdot_b, store_states=False)
         state = res.final_state
         est = (
             res.interference
             if calibration is None
             else interference_from_states(state, t_b, tdot_b)
         )
-        series = {"ror": res.ror, "qoq": res.qoq, "q_scale": res.q_scale, "r_scale": res.r_scale,
-                  "states": res.states}  # fmt: skip
+        series = {"ror": res.ror, "qoq": res.qoq, "q_scale": res.q_scale, "r_scale": res.r_scale}
         divergences = res.divergences
         settings = to_dict(cfg)
     after = meas - est

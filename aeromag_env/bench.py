@@ -6,6 +6,9 @@ Figures so far:
 * ``simulate_s_per_flight_hour`` — seconds to simulate a 1-hour 10 Hz ``nominal``
   calibration+survey flight (target < 1 s), against ``simulate_direct_igrf_s_per_flight_hour``,
   the same flight with IGRF evaluated directly at every sample instead of on the coarse grid.
+* ``env_single_steps_per_s`` — ``AeroMagCompensation-v0`` steps per second, one env, K = 10
+  (target ≥ 5 000), against ``env_numpy_reference_steps_per_s``: the plain-numpy reference
+  filter's samples per second divided by K.
 """
 
 from __future__ import annotations
@@ -46,23 +49,51 @@ def bench_simulate(repeats: int) -> dict[str, float]:
     return {"simulate_s_per_flight_hour": grid, "simulate_direct_igrf_s_per_flight_hour": ref}
 
 
+def bench_env(repeats: int) -> dict[str, float]:
+    """Env steps per second (one env, K = 10, zero actions, steps only) against the plain-numpy
+    reference filter's samples per second / K (an env stepping that filter)."""
+    import gymnasium as gym
+    import numpy as np
+
+    from aeromag_env.kalman_model import FilterConfig
+    from aeromag_env.kalman_reference import run_reference
+
+    env = gym.make("AeroMagCompensation-v0", scenario="nominal")
+    action = np.zeros(2, np.float32)
+
+    def episode() -> float:
+        env.reset(seed=100_000)
+        t0, steps, done = time.perf_counter(), 0, False
+        while not done:
+            _, _, terminated, truncated, _ = env.step(action)
+            steps, done = steps + 1, terminated or truncated
+        return steps / (time.perf_counter() - t0)
+
+    episode()  # warm: numba cache load, first-step checks
+    rate = statistics.median(episode() for _ in range(repeats))
+    ep = env.unwrapped.episode  # type: ignore[attr-defined]
+    n = 1000
+    t_ref = _median_seconds(
+        lambda: run_reference(FilterConfig(), ep.y[:n], ep.t_b[:n], ep.tdot_b[:n]), 3
+    )
+    return {"env_single_steps_per_s": rate, "env_numpy_reference_steps_per_s": n / t_ref / 10}
+
+
 def run_benchmarks(out: Path, quick: bool = False) -> dict[str, Any]:
     """Run every benchmark, print a table with ratios, write ``out/bench.json``."""
     repeats = 3 if quick else 7
-    figures = bench_simulate(repeats)
+    figures = {**bench_simulate(repeats), **bench_env(repeats)}
     rows = [
-        (
-            "simulate 1 flight-hour (grid IGRF)",
-            figures["simulate_s_per_flight_hour"],
-            "s",
-            figures["simulate_direct_igrf_s_per_flight_hour"]
-            / figures["simulate_s_per_flight_hour"],
-            "× faster than IGRF at every sample",
-        ),
-    ]
-    print(f"{'benchmark':<40} {'value':>10}  ratio")
-    for name, value, unit, ratio, what in rows:
-        print(f"{name:<40} {value:>8.3f} {unit}  {ratio:.1f} {what}")
+        ("simulate 1 flight-hour (grid IGRF)", "simulate_s_per_flight_hour", "s",
+         figures["simulate_direct_igrf_s_per_flight_hour"] / figures["simulate_s_per_flight_hour"],
+         "× faster than IGRF at every sample"),
+        ("env steps per second (1 env, K = 10)", "env_single_steps_per_s", "/s",
+         figures["env_single_steps_per_s"] / figures["env_numpy_reference_steps_per_s"],
+         "× an env stepping the numpy reference filter"),
+    ]  # fmt: skip
+    print(f"{'benchmark':<40} {'value':>12}  ratio")
+    for name, key, unit, ratio, what in rows:
+        print(f"{name:<40} {figures[key]:>10.4g} {unit}  {ratio:.1f} {what}")
     result = {
         "figures": figures,
         "repeats": repeats,

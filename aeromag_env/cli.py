@@ -139,6 +139,31 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_reproduce)
 
 
+def _add_evaluate(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "evaluate",
+        help="compare tuning policies on the same flights",
+        description="Run every policy on the same seeds of a scenario; write "
+        "results.json (paired differences vs fis with 95 %% intervals) and a figure.",
+    )
+    p.add_argument("--scenario", default="nominal", help="scenario (default nominal)")
+    p.add_argument(
+        "--policies",
+        default="constant,fis,sage_husa,ding,tuned_constant,oracle",
+        help="comma-separated policy names",
+    )
+    p.add_argument("--episodes", type=int, default=20, help="episodes (seeds) per policy (20)")
+    p.add_argument(
+        "--seed-start",
+        type=int,
+        default=100_000,
+        help="first evaluation seed, ≥ 100000 (training uses the seeds below)",
+    )
+    p.add_argument("--out", default="results/evaluate", help="output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_evaluate)
+
+
 def _add_bench(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench",
@@ -156,7 +181,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(
         dest="command", required=True, metavar="COMMAND", parser_class=_Parser
     )
-    for add in (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_demo, _add_bench):
+    adders = (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_evaluate, _add_demo,
+              _add_bench)  # fmt: skip
+    for add in adders:
         add(sub)
     return parser
 
@@ -233,7 +260,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     run_demo(out, args.seed)
     print((out / "summary.md").read_text(encoding="utf-8"), end="")
-    print(f"results in {out}/: flight.h5, flight.png, compensation_*.png, summary.md, summary.json")
+    files = "flight.h5, flight.png, compensation_*.png, tuners.png, summary.md, summary.json"
+    print(f"results in {out}/: {files}")
     return 0
 
 
@@ -267,6 +295,16 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     from aeromag_env.paper import reproduce_paper
 
     reproduce_paper(Path(args.out), quick=args.quick, seed=args.seed)
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from aeromag_env.evaluate_run import run_evaluate
+
+    policies = [p.strip() for p in args.policies.split(",") if p.strip()]
+    run_evaluate(
+        args.scenario, policies, args.episodes, args.seed_start, Path(args.out), args.quiet
+    )
     return 0
 
 

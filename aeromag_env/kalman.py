@@ -26,6 +26,7 @@ from aeromag_env.kalman_core import (
     PAR_HI,
     PAR_LO,
     PAR_SH_B,
+    PAR_SH_INNOV,
     PAR_SH_Q,
     PAR_ZOOM_Q,
     PAR_ZOOM_R,
@@ -122,6 +123,11 @@ class FilterState:
         """Number of samples of the flight."""
         return int(self.y.shape[0])
 
+    @property
+    def divergences(self) -> int:
+        """Restarts after a divergence so far."""
+        return int(self.ints[INT_DIV])
+
     def advance(self, k1: int) -> None:
         """Run the filter from the current sample up to (not including) ``k1``."""
         k1 = min(int(k1), self.n)
@@ -166,6 +172,7 @@ def _parameters(cfg: FilterConfig) -> np.ndarray:
     par[PAR_FORGET], par[PAR_SH_B] = cfg.forgetting, cfg.sage_husa_b
     par[PAR_LO], par[PAR_HI] = cfg.scale_bounds
     par[PAR_SH_Q] = float(cfg.sage_husa_q)
+    par[PAR_SH_INNOV] = float(cfg.sage_husa_form == "innovation")
     return par
 
 

@@ -32,8 +32,9 @@ from numba import njit
 from aeromag_env.fuzzy import zoomed_scale
 
 # indices of the float parameter vector
-PAR_EPS, PAR_ETA, PAR_ZOOM_R, PAR_ZOOM_Q, PAR_FORGET, PAR_SH_B, PAR_LO, PAR_HI, PAR_SH_Q = range(9)
-N_PAR = 9
+PAR_EPS, PAR_ETA, PAR_ZOOM_R, PAR_ZOOM_Q, PAR_FORGET, PAR_SH_B, PAR_LO, PAR_HI = range(8)
+PAR_SH_Q, PAR_SH_INNOV = 8, 9
+N_PAR = 10
 # indices of the integer state vector
 INT_POS, INT_COUNT, INT_K, INT_DIV, INT_SINCE, INT_SKIP, INT_WINDOW, INT_INTERVAL = range(8)
 N_INT = 8
@@ -189,6 +190,23 @@ def _adapt(
 
 
 @njit(cache=True)
+def _sage_husa_innovation_r(r: np.ndarray, s: np.ndarray, rm: np.ndarray, dk: float) -> None:
+    """Classic form ``R ← (1−d)R + d(r rᵀ − H P⁻ Hᵀ)``; where that is not positive definite,
+    the biased ``R ← (1−d)R + d r rᵀ``."""
+    cand = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            cand[i, j] = (1.0 - dk) * rm[i, j] + dk * (r[i] * r[j] - (s[i, j] - rm[i, j]))
+    ok = cand[0, 0] > 0.0 and cand[0, 0] * cand[1, 1] - cand[0, 1] ** 2 > 0.0
+    if ok and np.linalg.det(cand) > 0.0:
+        rm[:, :] = cand
+    else:
+        for i in range(3):
+            for j in range(3):
+                rm[i, j] = (1.0 - dk) * rm[i, j] + dk * r[i] * r[j]
+
+
+@njit(cache=True)
 def _sage_husa(
     r: np.ndarray,
     s: np.ndarray,
@@ -202,21 +220,25 @@ def _sage_husa(
 ) -> None:
     """Sage–Husa with fading factor b: ``d = (1−b)/(1−b^{k+1})``.
 
-    ``R ← (1−d) R + d (e eᵀ + H P⁺ Hᵀ)`` from the post-fit residual ``e`` (Akhlaghi, Zhou &
-    Huang 2017): positive definite by construction. With the optimal gain, ``e = R S⁻¹ r`` and
-    ``H P⁺ Hᵀ = M − M S⁻¹ M``, ``M = H P⁻ Hᵀ = S − R``. (The classical innovation form
-    ``r rᵀ − H P⁻ Hᵀ`` goes negative while ``P`` is large and collapses R at start-up.)
+    Default: ``R ← (1−d) R + d (e eᵀ + H P⁺ Hᵀ)`` from the post-fit residual ``e`` (Akhlaghi,
+    Zhou & Huang 2017), positive definite by construction; with the optimal gain
+    ``e = R S⁻¹ r`` and ``H P⁺ Hᵀ = M − M S⁻¹ M``, ``M = H P⁻ Hᵀ = S − R``. With
+    ``par[PAR_SH_INNOV]``: the classic innovation form (:func:`_sage_husa_innovation_r`).
     Optionally (``par[PAR_SH_Q]``) ``Q ← Q + d diag(K (r rᵀ − S) Kᵀ)``, since
     ``P⁺_k − P⁺_{k−1} = Q − K S Kᵀ`` for ``Φ = I``; its diagonal is floored at ``lo``·Q(0).
     """
     b = par[PAR_SH_B]
     dk = (1.0 - b) / (1.0 - b ** (k + 1))
-    m = s - rm
-    e = rm @ (sinv @ r)
-    hph = m - m @ sinv @ m
-    for i in range(3):
-        for j in range(3):
-            rm[i, j] = (1.0 - dk) * rm[i, j] + dk * (e[i] * e[j] + 0.5 * (hph[i, j] + hph[j, i]))
+    if par[PAR_SH_INNOV] != 0.0:
+        _sage_husa_innovation_r(r, s, rm, dk)
+    else:
+        m = s - rm
+        e = rm @ (sinv @ r)
+        hph = m - m @ sinv @ m
+        for i in range(3):
+            for j in range(3):
+                post = e[i] * e[j] + 0.5 * (hph[i, j] + hph[j, i])
+                rm[i, j] = (1.0 - dk) * rm[i, j] + dk * post
     if par[PAR_SH_Q] == 0.0:
         return
     lo = par[PAR_LO]

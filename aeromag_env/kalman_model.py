@@ -89,6 +89,12 @@ class FilterConfig:
     sage_husa_q : let Sage–Husa estimate Q as well as R. Off by default: estimating both from
         the same innovations is not guaranteed to converge, and on ``nominal`` flights Q runs
         away (×1e6, errors of ~100 nT); R-only Sage–Husa is the usual safe variant.
+    sage_husa_form : how Sage–Husa estimates R. ``post_fit`` (default): from the post-fit
+        residual, ``e eᵀ + H P⁺ Hᵀ``, always positive definite and never ran away in our tests,
+        but it cannot recover from an R far too small (the residual vanishes with it: stuck at
+        the paper's R(0)). ``innovation``: the classic ``r rᵀ − H P⁻ Hᵀ`` with the biased
+        ``r rᵀ`` where that is not positive definite; it recovers the paper's 20 nT from
+        R(0) = 2e-3 nT², but an interference step can make it run away.
     scale_bounds : limits of the adapted Q and R relative to Q(0), R(0) (runaway guard).
     rate_scheme : ``backward`` (causal) or ``central`` (offline) derivative for ``Ṫ``.
     """
@@ -107,6 +113,7 @@ class FilterConfig:
     forgetting: float = 0.9999
     sage_husa_b: float = 0.99
     sage_husa_q: bool = False
+    sage_husa_form: str = "post_fit"
     scale_bounds: tuple[float, ...] = (1e-8, 1e8)
     rate_scheme: str = "backward"
 
@@ -134,6 +141,10 @@ class FilterConfig:
         _check(0 < lo < 1 < hi and math.isfinite(hi), "scale_bounds must be (lo < 1 < hi), finite")
         _check(
             self.rate_scheme in ("backward", "central"), "rate_scheme must be backward or central"
+        )
+        _check(
+            self.sage_husa_form in ("post_fit", "innovation"),
+            f"sage_husa_form must be post_fit or innovation, got {self.sage_husa_form!r}",
         )
 
     def initial_state(self) -> np.ndarray:

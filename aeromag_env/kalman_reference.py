@@ -106,7 +106,12 @@ def _adapt(cfg: FilterConfig, ror: float, qoq: float, window: list, r: np.ndarra
 def _sage_husa(cfg, k, innov, s, gain, r, q, q0, post_fit, hph_post):
     """R from the post-fit residual (always positive definite), optional Q (see kalman_core)."""
     dk = (1 - cfg.sage_husa_b) / (1 - cfg.sage_husa_b ** (k + 1))
-    r_new = (1 - dk) * r + dk * (np.outer(post_fit, post_fit) + hph_post)
+    if cfg.sage_husa_form == "innovation":
+        r_new = (1 - dk) * r + dk * (np.outer(innov, innov) - (s - r))
+        if not np.all(np.linalg.eigvalsh(r_new) > 0):  # biased, positive definite fallback
+            r_new = (1 - dk) * r + dk * np.outer(innov, innov)
+    else:
+        r_new = (1 - dk) * r + dk * (np.outer(post_fit, post_fit) + hph_post)
     if not cfg.sage_husa_q:
         return r_new, q
     dq = np.diag(gain @ (np.outer(innov, innov) - s) @ gain.T)

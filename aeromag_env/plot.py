@@ -110,3 +110,51 @@ def plot_compensation(flight: Flight, comp: Any, metrics: dict, path: str | os.P
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
     return Path(path)
+
+
+def render_episode(env: Any) -> np.ndarray:
+    """The episode so far as an RGB array (H, W, 3) uint8: error, ROR/QOQ, Q and R scales."""
+    plt = _pyplot()
+    k = env.filter.k
+    tt = env.episode.flight.tt[:k]
+    fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True, constrained_layout=True)
+    err = env.episode.truth_interf[:k] - env.filter.est[:k]
+    axes[0].plot(tt, err, lw=0.6)
+    axes[0].set(ylabel="[nT]", title=f"{env._scenario}: true − estimated interference")
+    if k:
+        lim = float(np.nanpercentile(np.abs(err[k // 2 :]), 99)) * 2 + 1.0
+        axes[0].set_ylim(-lim, lim)
+    axes[1].semilogy(tt, env.filter.ror[:k], lw=0.6, label="ROR")
+    axes[1].semilogy(tt, env.filter.qoq[:k], lw=0.6, label="QOQ")
+    axes[1].legend(loc="upper right")
+    axes[2].semilogy(tt, env.filter.q_scale[:k], lw=0.8, label="Q scale")
+    axes[2].semilogy(tt, env.filter.r_scale[:k], lw=0.8, label="R scale")
+    axes[2].legend(loc="upper right")
+    axes[2].set_xlabel("time [s]")
+    fig.canvas.draw()
+    image = np.asarray(fig.canvas.buffer_rgba())[:, :, :3].copy()
+    plt.close(fig)
+    return image
+
+
+def plot_evaluation(results: dict, path: str | os.PathLike) -> Path:
+    """Mean RMSE per policy with 95 % intervals, and each flight's RMSE (paired lines)."""
+    plt = _pyplot()
+    names = list(results["policies"])
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), constrained_layout=True)
+    means = [results["policies"][n]["rmse_nt_mean"] for n in names]
+    ci = np.array([results["policies"][n]["rmse_nt_ci95"] for n in names])
+    axes[0].bar(names, means, yerr=[np.subtract(means, ci[:, 0]), np.subtract(ci[:, 1], means)],
+                capsize=4, color="tab:blue", alpha=0.8)  # fmt: skip
+    axes[0].set(ylabel="compensation RMSE [nT]", title=f"{results['scenario']}: mean, 95 % CI")
+    axes[0].set_yscale("log")
+    per = np.array([results["policies"][n]["rmse_nt"] for n in names])
+    axes[1].plot(names, per, color="0.5", lw=0.5, alpha=0.6)
+    axes[1].set(ylabel="RMSE per flight [nT]", title="each flight across policies (paired)")
+    axes[1].set_yscale("log")
+    for ax in axes:
+        ax.tick_params(axis="x", rotation=30)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    return Path(path)

@@ -1,7 +1,36 @@
 """Tuning policies for the compensator's noise covariances (FIS baseline, classical adaptive,
-PPO), all with the stable-baselines3 ``predict`` shape. Imports ``aeromag_env``, never the
-reverse. The policies arrive with the environment (see DESIGN.md, "Tuning policies").
+tuned constant, oracle; PPO later), all with the stable-baselines3 ``predict`` shape. Imports
+``aeromag_env``, never the reverse.
 
 Note: the import name ``agents`` is also used by unrelated PyPI packages; do not install those
 into the same environment.
 """
+
+from __future__ import annotations
+
+from typing import Any
+
+from aeromag_env.errors import ConfigError
+from aeromag_env.kalman_model import FilterConfig
+
+POLICIES = ("constant", "fis", "sage_husa", "ding", "tuned_constant", "oracle")
+
+
+def make_policy(name: str, env: Any) -> Any:
+    """The policy ``name`` for environment ``env``; unknown names give a one-line error."""
+    from agents import policies as p
+
+    if name not in POLICIES:
+        raise ConfigError(f"unknown policy {name!r}; valid policies: {', '.join(POLICIES)}")
+    s_max = env.unwrapped.config.s_max
+    # the FIS adapts once per statistics window M, as the fakf filter does
+    interval = max(1, FilterConfig().window // env.unwrapped.config.decision_window)
+    makers = {
+        "constant": lambda: p.ConstantPolicy(),
+        "fis": lambda: p.FisPolicy(s_max=s_max, interval=interval),
+        "sage_husa": lambda: p.ClassicalPolicy("sage-husa", env),
+        "ding": lambda: p.ClassicalPolicy("ding", env),
+        "tuned_constant": lambda: p.TunedConstantPolicy(env),
+        "oracle": lambda: p.OraclePolicy(env),
+    }
+    return makers[name]()

@@ -1,4 +1,5 @@
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -181,3 +182,21 @@ def test_config_errors_are_one_line():
         FilterConfig(method="ukf")
     with pytest.raises(ConfigError, match="window must be"):
         FilterConfig(window=1)
+
+
+def test_sage_husa_innovation_form_matches_reference(short_paper):
+    cfg = FilterConfig(method="sage-husa", r_std_nt=20.0, sage_husa_form="innovation")
+    fast, ref = run_filter(cfg, *short_paper), run_reference(cfg, *short_paper)
+    _assert_columns_close(fast.states, ref.states, 1e-8)
+    np.testing.assert_allclose(fast.r_scale, ref.r_scale, rtol=1e-8)
+
+
+def test_sage_husa_forms_from_a_far_too_small_r():
+    """Paper setting, R(0) = 2e-3 nT² against 20 nT noise: the post-fit form stays stuck (its
+    residual shrinks with R), the innovation form recovers the noise level (documented)."""
+    y, t_b, td = _inputs(simulated("paper", 2))
+    base = paper_filter_config("sage-husa")
+    stuck = run_filter(base, y, t_b, td)
+    recovered = run_filter(replace(base, sage_husa_form="innovation"), y, t_b, td)
+    assert np.sqrt(stuck.final_r[0, 0]) < 1.0
+    assert 15.0 < np.sqrt(np.mean(np.diag(recovered.final_r))) < 25.0

@@ -1,0 +1,242 @@
+"""The Gymnasium environment ``AeroMagCompensation-v0``: tune the compensator's Q and R online."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from aeromag_env.config import _check, from_dict, to_dict
+from aeromag_env.kalman import FilterState
+from aeromag_env.scenarios import Episode, check_scenario, make_episode
+
+#: Observations are log10 ratios clipped to ±OBS_LIMIT.
+OBS_LIMIT = 8.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class EnvConfig:
+    """Environment settings (hyperparameters of a tuner live elsewhere).
+
+    Attributes
+    ----------
+    scenario : one of :data:`aeromag_env.scenarios.SCENARIOS`
+    decision_window : K, samples the filter advances per step
+    s_max : largest scale factor per step; action ``a`` → ``s = s_max ** a``
+    extras : add log Q scale, log R scale, innovation whiteness and progress to the observation
+    reward_scale_nt : error scale of the reward [nT]
+    divergence_penalty : reward of the step on which the filter diverges
+    score_from : fraction of the flight after which ``episode_rmse_nt`` is accumulated
+    scale_limit : the cumulative Q and R scales stay within [1/limit, limit] of their initial values
+    duration_s : override of the scenario's flight length [s] (None: the scenario's)
+    """
+
+    scenario: str = "nominal"
+    decision_window: int = 10
+    s_max: float = 2.0
+    extras: bool = False
+    reward_scale_nt: float = 1.0
+    divergence_penalty: float = -10.0
+    score_from: float = 0.5
+    scale_limit: float = 1e8
+    duration_s: float | None = None
+
+    def __post_init__(self) -> None:
+        check_scenario(self.scenario)
+        _check(self.decision_window >= 1, "decision_window must be ≥ 1 sample")
+        _check(self.s_max > 1.0 and math.isfinite(self.s_max), "s_max must be > 1")
+        _check(self.reward_scale_nt > 0, "reward_scale_nt must be > 0 [nT]")
+        _check(0.0 <= self.score_from < 1.0, "score_from must be in [0, 1)")
+        _check(self.scale_limit > 1.0, "scale_limit must be > 1")
+
+
+class AeroMagCompensationEnv(gym.Env):
+    """Online tuning of the 21-state aeromagnetic Kalman compensator's noise covariances.
+
+    ## Description
+
+    One episode is one simulated flight of the chosen scenario (see
+    :mod:`aeromag_env.scenarios`). The flight and its signals are generated in ``reset``; each
+    ``step`` rescales the filter's process noise Q and measurement noise R (the paper's eq. 21,
+    ``Q ← s_a Q``, ``R ← s_r R``) and advances the filter over one decision window of K samples.
+    The paper's fuzzy rules are one policy for this task (``agents.fis``); others are learned.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``: ``[a_q, a_r]`` → ``s_a = s_max ** a_q``, ``s_r = s_max ** a_r``
+    (log scale; ``s_max = 2`` by default, so one step at most doubles or halves Q or R). Values
+    outside [-1, 1] are clipped; a non-finite action raises ``ValueError``. The cumulative scales
+    are kept within ``[1/scale_limit, scale_limit]`` of the initial Q and R.
+
+    ## Observation Space
+
+    ``Box(-8, 8, (2,), float32)`` — the paper's inputs at the end of the window:
+
+    | index | observation | meaning |
+    |---|---|---|
+    | 0 | log10 ROR | windowed innovation trace over its predicted trace (eq. 22), 0 before data |
+    | 1 | log10 QOQ | ``tr(K C_r Kᵀ) / tr Q`` (covariance matching), 0 before data |
+
+    With ``extras=True`` four more: log10 of the cumulative Q scale and R scale, the lag-1
+    autocorrelation of the innovations over the last window (whiteness, in [-1, 1]) and the
+    progress through the flight (in [0, 1]).
+
+    ## Rewards
+
+    ``r = −ln(1 + e_w / reward_scale_nt)`` with ``e_w`` the RMS over the window of the true
+    interference minus the filter's a-priori estimate (pooled over axes) [nT]. The truth is
+    known in simulation only: consistency alone can be met without accuracy (scaling Q and R
+    together moves ROR but leaves the estimate unchanged), so the reward is accuracy. On the
+    step where the filter diverges the reward is ``divergence_penalty`` (−10).
+
+    ## Starting State
+
+    A new flight of the scenario, drawn from ``reset``'s seed (``options={"scenario": name}``
+    switches scenario), with the scenario's initial Q, R, P and x; the first observation is
+    zeros.
+
+    ## Episode End
+
+    ``truncated`` at the end of the flight; ``terminated`` when the filter diverges (non-finite
+    or absurd state, non-finite or non-positive-definite covariance).
+
+    ## Arguments
+
+    ``gym.make("AeroMagCompensation-v0", config=EnvConfig(...) or dict, render_mode=None |
+    "rgb_array")``; keyword shortcuts: ``scenario=``, ``decision_window=``, ``extras=``.
+    ``info`` holds ``rmse_window_nt``, ``ror``, ``qoq``, ``q_scale``, ``r_scale``, ``sample``,
+    ``flight_seed``, and at the end ``episode_rmse_nt`` (over the flight after ``score_from``).
+
+    ## Version History
+
+    * v0: first version.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}  # noqa: RUF012 (gymnasium API)
+
+    def __init__(self, config: EnvConfig | dict | None = None, render_mode: str | None = None,
+                 **overrides: Any) -> None:  # fmt: skip
+        base = from_dict(EnvConfig, config) if config is not None else EnvConfig()
+        self.config = from_dict(EnvConfig, {**to_dict(base), **overrides})
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        dim = 6 if self.config.extras else 2
+        low = np.full(dim, -OBS_LIMIT, np.float32)
+        high = np.full(dim, OBS_LIMIT, np.float32)
+        if self.config.extras:
+            low[4:], high[4:] = (-1.0, 0.0), (1.0, 1.0)
+        self.observation_space = spaces.Box(low, high, (dim,), np.float32)
+        self._obs_low, self._obs_high = low, high
+        self._scenario = self.config.scenario
+        self._log_limit = math.log(self.config.scale_limit)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        if options and "scenario" in options:
+            self._scenario = check_scenario(options["scenario"])
+        self._flight_seed = int(self.np_random.integers(2**31))
+        self.episode: Episode = make_episode(
+            self._scenario, self._flight_seed, self.config.duration_s
+        )
+        ep = self.episode
+        self.filter = FilterState(ep.filter_cfg, ep.y, ep.t_b, ep.tdot_b, store_states=False)
+        self._log_q = self._log_r = 0.0
+        self._score_start = int(self.config.score_from * ep.n)
+        self._sq_err, self._n_err = 0.0, 0
+        self._rewards: list[float] = []
+        return np.zeros(self._obs_low.size, np.float32), {"flight_seed": self._flight_seed}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        s_q, s_r = self._apply_action(action)
+        self.filter.scale_noise(s_q, s_r)
+        k0, divergences = self.filter.k, self.filter.divergences
+        self.filter.advance(k0 + self.config.decision_window)
+        k1 = self.filter.k
+        rmse_w = self._window_error(k0, k1)
+        terminated = self.filter.divergences > divergences
+        reward = (
+            self.config.divergence_penalty
+            if terminated
+            else -math.log1p(rmse_w / self.config.reward_scale_nt)
+        )
+        truncated = bool(k1 >= self.episode.n) and not terminated
+        self._rewards.append(reward)
+        return (
+            self._observe(k1),
+            float(reward),
+            terminated,
+            truncated,
+            self._info(k1, rmse_w, terminated or truncated),
+        )
+
+    def _apply_action(self, action: np.ndarray) -> tuple[float, float]:
+        """Validate, clip, map to scale factors, keep the cumulative scales within the limit."""
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.size != 2 or not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be 2 finite numbers in [-1, 1], got {action!r}")
+        log_s = np.clip(a, -1.0, 1.0) * math.log(self.config.s_max)
+        new_q = min(max(self._log_q + log_s[0], -self._log_limit), self._log_limit)
+        new_r = min(max(self._log_r + log_s[1], -self._log_limit), self._log_limit)
+        s_q, s_r = math.exp(new_q - self._log_q), math.exp(new_r - self._log_r)
+        self._log_q, self._log_r = new_q, new_r
+        return s_q, s_r
+
+    def _window_error(self, k0: int, k1: int) -> float:
+        err = self.episode.truth_interf[k0:k1] - self.filter.est[k0:k1]
+        sq = np.square(err)
+        lo = max(k0, self._score_start)
+        if lo < k1:
+            self._sq_err += float(sq[lo - k0 :].sum())
+            self._n_err += 3 * (k1 - lo)
+        return float(math.sqrt(sq.mean()))
+
+    def _observe(self, k1: int) -> np.ndarray:
+        k = k1 - 1
+        ratios = [self.filter.ror[k], self.filter.qoq[k]]
+        obs = [0.0 if not (v > 0 and math.isfinite(v)) else math.log10(v) for v in ratios]
+        if self.config.extras:
+            obs += [self._log_q / math.log(10), self._log_r / math.log(10),
+                    self._whiteness(k1), k1 / self.episode.n]  # fmt: skip
+        return np.clip(np.asarray(obs, np.float32), self._obs_low, self._obs_high)
+
+    def _whiteness(self, k1: int) -> float:
+        r = self.filter.innov[max(0, k1 - self.filter.cfg.window) : k1]
+        r = r[np.all(np.isfinite(r), axis=1)]
+        if r.shape[0] < 3:
+            return 0.0
+        r = r - r.mean(axis=0)
+        den = float(np.sum(r * r))
+        return float(np.sum(r[1:] * r[:-1]) / den) if den > 0 else 0.0
+
+    def _info(self, k1: int, rmse_w: float, done: bool) -> dict[str, Any]:
+        k = k1 - 1
+        info = {
+            "rmse_window_nt": rmse_w,
+            "ror": float(self.filter.ror[k]),
+            "qoq": float(self.filter.qoq[k]),
+            "q_scale": math.exp(self._log_q),
+            "r_scale": math.exp(self._log_r),
+            "sample": k1,
+            "flight_seed": self._flight_seed,
+        }
+        if done:
+            info["episode_rmse_nt"] = (
+                math.sqrt(self._sq_err / self._n_err) if self._n_err else float("nan")
+            )
+            info["divergences"] = self.filter.divergences
+        return info
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        from aeromag_env.plot import render_episode
+
+        return render_episode(self)

@@ -1,0 +1,99 @@
+"""Evaluate tuning policies on the same flights, with paired confidence intervals.
+
+Seed ranges are disjoint by construction: training ``[0, 50 000)``, validation
+``[50 000, 100 000)``, test ``[100 000, ∞)``; :func:`evaluate` refuses seeds below 100 000.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from scipy import stats
+
+import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.errors import AeromagError
+from agents import make_policy
+
+TRAIN_SEEDS = range(0, 50_000)
+VALIDATION_SEEDS = range(50_000, 100_000)
+TEST_SEED_START = 100_000
+
+
+def run_episode(env: gym.Env, policy: Any, seed: int) -> dict[str, float]:
+    """One episode; returns ``rmse_nt`` (truth, after ``score_from``), ``reward``,
+    ``divergences`` and ``log_ror_abs_median`` (|log10 ROR| over the scored part)."""
+    obs, _ = env.reset(seed=seed)
+    inner: Any = env.unwrapped
+    state, start, done, total = None, np.array([True]), False, 0.0
+    log_ror: list[float] = []
+    score_from = inner.config.score_from
+    while not done:
+        action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
+        obs, reward, terminated, truncated, info = env.step(action)
+        start = np.array([False])
+        total += float(reward)
+        done = terminated or truncated
+        if info["sample"] >= score_from * inner.episode.n and np.isfinite(info["ror"]):
+            log_ror.append(abs(np.log10(info["ror"])) if info["ror"] > 0 else np.inf)
+    return {
+        "rmse_nt": float(info["episode_rmse_nt"]),
+        "reward": float(total),
+        "divergences": int(info["divergences"]),
+        "log_ror_abs_median": float(np.median(log_ror)) if log_ror else float("nan"),
+    }
+
+
+def _ci95(x: np.ndarray) -> list[float]:
+    if x.size < 2:
+        return [float("nan"), float("nan")]
+    half = stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size)
+    return [float(x.mean() - half), float(x.mean() + half)]
+
+
+def evaluate(
+    scenario: str,
+    policies: Sequence[str],
+    seeds: Sequence[int],
+    env_kwargs: dict[str, Any] | None = None,
+    progress: Any = None,
+) -> dict[str, Any]:
+    """Every policy on the same seeds; ``results.json`` layout of ``aeromag evaluate``."""
+    if min(seeds) < TEST_SEED_START:
+        raise AeromagError(
+            f"evaluation seeds must be ≥ {TEST_SEED_START} (training and validation use the "
+            f"seeds below); got {min(seeds)}"
+        )
+    env = gym.make("AeroMagCompensation-v0", scenario=scenario, **(env_kwargs or {}))
+    per: dict[str, dict[str, np.ndarray]] = {}
+    for name in policies:
+        policy = make_policy(name, env)
+        rows = []
+        for seed in seeds:
+            rows.append(run_episode(env, policy, seed))
+            if progress is not None:
+                progress(1)
+        per[name] = {k: np.array([r[k] for r in rows], dtype=float) for k in rows[0]}
+    return {"scenario": scenario, "seeds": list(seeds), "policies": _summaries(per)}
+
+
+def _summaries(per: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, Any]]:
+    ref = per.get("fis")
+    out = {}
+    for name, v in per.items():
+        row = {
+            "rmse_nt_mean": float(v["rmse_nt"].mean()),
+            "rmse_nt_ci95": _ci95(v["rmse_nt"]),
+            "reward_mean": float(v["reward"].mean()),
+            "divergences": int(v["divergences"].sum()),
+            "log_ror_abs_median": float(np.nanmedian(v["log_ror_abs_median"])),
+            "rmse_nt": v["rmse_nt"].tolist(),
+        }
+        if ref is not None:
+            diff = v["rmse_nt"] - ref["rmse_nt"]  # paired: same flights
+            row["diff_vs_fis_nt_mean"] = float(diff.mean())
+            row["diff_vs_fis_ci95"] = _ci95(diff)
+        out[name] = row
+    return out

@@ -1,0 +1,156 @@
+"""Tuning policies for ``AeroMagCompensation-v0``, all with stable-baselines3's ``predict`` shape.
+
+``predict(obs, state=None, episode_start=None, deterministic=True) -> (action, state)``, so one
+evaluation loop serves every policy, learned or not. Actions are ``[a_q, a_r]`` in [-1, 1]; the
+environment maps them to scale factors ``s = s_max ** a`` on Q and R.
+
+* ``constant`` — no adaptation (the filter keeps its initial Q and R).
+* ``fis`` — the paper's fuzzy rules (§3.4, :mod:`aeromag_env.fuzzy`, the code the ``fakf`` filter
+  uses) on the observed ROR and QOQ, once per statistics window (every M / K steps), as ``fakf``.
+* ``sage_husa``, ``ding`` — the classical adaptive filters: they switch the environment's filter
+  to its built-in adaptation (the same compiled code as ``aeromag compensate --method``) and
+  output zero actions. Privileged: they need the environment object (evaluation, not training).
+* ``tuned_constant`` — the best constant Q and R scale found offline on training seeds
+  (:mod:`agents.tuning`), applied at the start of the episode, then held.
+* ``oracle`` — knows the true noise variance (simulation only) and steers R to it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from aeromag_env.fuzzy import zoomed_scale
+from aeromag_env.kalman_model import MODE
+
+State = Any
+
+
+def _batch(obs: np.ndarray) -> tuple[np.ndarray, bool]:
+    obs = np.asarray(obs, dtype=np.float64)
+    return (obs[None, :], True) if obs.ndim == 1 else (obs, False)
+
+
+def _out(actions: np.ndarray, single: bool) -> np.ndarray:
+    actions = np.clip(actions, -1.0, 1.0).astype(np.float32)
+    return actions[0] if single else actions
+
+
+class ConstantPolicy:
+    """No adaptation: zero actions."""
+
+    name = "constant"
+
+    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+        batch, single = _batch(obs)
+        return _out(np.zeros((batch.shape[0], 2)), single), state
+
+
+class FisPolicy:
+    """The paper's fuzzy rules: ``s_r = FIS(ROR)^b_r``, ``s_a = FIS(QOQ)^b_a`` (eq. 21).
+
+    Parameters
+    ----------
+    s_max : the environment's largest per-step scale (action ``a`` → ``s_max ** a``)
+    interval : steps between adaptations (M / K: once per statistics window, like ``fakf``)
+    epsilon, eta, zoom_r, zoom_q : the paper's FIS parameters
+    """
+
+    name = "fis"
+
+    def __init__(self, s_max: float = 2.0, interval: int = 5, epsilon: float = 0.05,
+                 eta: float = 0.025, zoom_r: float = 1.0, zoom_q: float = 1.0) -> None:  # fmt: skip
+        self.log_s_max = math.log(s_max)
+        self.interval, self.eps, self.eta = interval, epsilon, eta
+        self.zoom_r, self.zoom_q = zoom_r, zoom_q
+
+    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+        batch, single = _batch(obs)
+        steps = _step_counter(state, episode_start, batch.shape[0])
+        actions = np.zeros((batch.shape[0], 2))
+        for i, row in enumerate(batch):
+            if steps[i] > 0 and steps[i] % self.interval == 0 and row[0] != 0.0:
+                ror, qoq = 10.0 ** row[0], 10.0 ** row[1]
+                s_a = zoomed_scale(qoq, self.eta, self.zoom_q)
+                s_r = zoomed_scale(ror, self.eps, self.zoom_r)
+                actions[i] = (math.log(s_a) / self.log_s_max, math.log(s_r) / self.log_s_max)
+        return _out(actions, single), steps + 1
+
+
+def _step_counter(state: State, episode_start: Any, n: int) -> np.ndarray:
+    """Steps since the episode started, per environment (kept in the SB3 ``state`` slot)."""
+    steps = np.zeros(n, dtype=np.int64) if state is None else np.asarray(state, dtype=np.int64)
+    if episode_start is not None:
+        steps = np.where(np.asarray(episode_start, bool).reshape(-1), 0, steps)
+    return steps
+
+
+def _single_env(obs: np.ndarray, name: str) -> None:
+    """Privileged policies read one environment's internals: no batches."""
+    if np.asarray(obs).ndim != 1:
+        raise ValueError(f"policy {name!r} is bound to one environment; it takes one observation")
+
+
+class ClassicalPolicy:
+    """Sage–Husa or Ding et al. 2007: the filter's own adaptation, switched on in the env."""
+
+    def __init__(self, method: str, env: Any) -> None:
+        self.name = method.replace("-", "_")
+        self.mode = MODE[method]
+        self.env = env.unwrapped
+
+    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+        _single_env(obs, self.name)
+        self.env.filter.mode = self.mode  # idempotent; the env builds a new filter on reset
+        return np.zeros(2, np.float32), state
+
+
+class TargetScalePolicy:
+    """Steer the cumulative log Q and log R scales to targets (within the per-step limit)."""
+
+    name = "target"
+
+    def __init__(self, env: Any, log_q: float = 0.0, log_r: float = 0.0) -> None:
+        self.env = env.unwrapped
+        self.log_q, self.log_r = log_q, log_r
+
+    def targets(self) -> tuple[float, float]:
+        return self.log_q, self.log_r
+
+    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+        _single_env(obs, self.name)
+        env = self.env
+        log_s_max = math.log(env.config.s_max)
+        tq, tr = self.targets()
+        action = np.array([[(tq - env._log_q) / log_s_max, (tr - env._log_r) / log_s_max]])
+        return _out(action, np.asarray(obs).ndim == 1), state
+
+
+class TunedConstantPolicy(TargetScalePolicy):
+    """The best constant Q and R scales for the scenario, found offline on training seeds."""
+
+    name = "tuned_constant"
+
+    def __init__(self, env: Any, table: dict[str, dict[str, float]] | None = None) -> None:
+        from agents.tuning import load_tuned
+
+        entry = (table or load_tuned())[env.unwrapped._scenario]
+        super().__init__(env, math.log(10.0) * entry["log10_q"], math.log(10.0) * entry["log10_r"])
+
+
+class OraclePolicy(TargetScalePolicy):
+    """Knows the true noise variance of the current sample and sets R to it (Q unchanged)."""
+
+    name = "oracle"
+
+    def targets(self) -> tuple[float, float]:
+        env = self.env
+        k = min(env.filter.k, env.episode.n - 1)
+        r0 = float(np.mean(np.diag(env.filter.r0)))
+        return 0.0, math.log(env.episode.noise_var[k] / r0)

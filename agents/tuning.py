@@ -1,0 +1,56 @@
+"""The ``tuned_constant`` baseline: the best constant Q and R scales, found offline on training
+seeds by a grid search (log10 steps), stored in ``agents/tuned_constants.json``.
+
+Rebuild with ``python experiments/tune_constants.py`` (the file records the grid and seeds).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.errors import AeromagError
+from agents.evaluate import TRAIN_SEEDS, run_episode
+from agents.policies import TargetScalePolicy
+
+TABLE = Path(__file__).with_name("tuned_constants.json")
+#: Wide enough for the paper's R(0), 2e5× too small, and Q(0), far too large.
+LOG10_Q_GRID = tuple(float(v) for v in np.arange(-10.0, 6.01, 1.0))
+LOG10_R_GRID = tuple(float(v) for v in np.arange(-2.0, 6.01, 1.0))
+
+
+def tune_constant(scenario: str, seeds: Sequence[int], log10_q: Sequence[float] = LOG10_Q_GRID,
+                  log10_r: Sequence[float] = LOG10_R_GRID) -> dict[str, Any]:  # fmt: skip
+    """Grid search of the constant scales minimising the mean episode RMSE on ``seeds``."""
+    if max(seeds) >= TRAIN_SEEDS.stop:
+        raise AeromagError(f"tuning seeds must be training seeds (< {TRAIN_SEEDS.stop})")
+    env = gym.make("AeroMagCompensation-v0", scenario=scenario)
+    policy = TargetScalePolicy(env)
+    scores = np.full((len(log10_q), len(log10_r)), np.nan)
+    for i, q in enumerate(log10_q):
+        for j, r in enumerate(log10_r):
+            policy.log_q, policy.log_r = q * np.log(10.0), r * np.log(10.0)
+            scores[i, j] = np.mean([run_episode(env, policy, s)["rmse_nt"] for s in seeds])
+    i, j = (int(v) for v in np.unravel_index(np.nanargmin(scores), scores.shape))
+    return {
+        "log10_q": log10_q[i],
+        "log10_r": log10_r[j],
+        "rmse_nt": float(scores[i, j]),
+        "seeds": list(seeds),
+        "grid_log10_q": list(log10_q),
+        "grid_log10_r": list(log10_r),
+    }
+
+
+def load_tuned(path: Path = TABLE) -> dict[str, dict[str, Any]]:
+    """The stored table: scenario → ``{"log10_q", "log10_r", ...}``."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as e:
+        raise AeromagError(f"cannot read the tuned-constant table {path}: {e}") from None

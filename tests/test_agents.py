@@ -1,0 +1,92 @@
+import json
+from dataclasses import replace
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import aeromag_env  # noqa: F401
+from aeromag_env.cli import main
+from aeromag_env.errors import AeromagError, ConfigError
+from aeromag_env.kalman import run_filter
+from agents import POLICIES, make_policy
+from agents.evaluate import evaluate, run_episode
+from agents.policies import TunedConstantPolicy
+
+
+def _env(scenario="paper"):
+    return gym.make("AeroMagCompensation-v0", scenario=scenario)
+
+
+def test_unknown_policy_is_a_one_line_error():
+    with pytest.raises(ConfigError, match="unknown policy 'ppo2'; valid policies: constant, fis"):
+        make_policy("ppo2", _env())
+
+
+@pytest.mark.parametrize("name", [p for p in POLICIES if p != "tuned_constant"])
+def test_predict_shape(name):
+    env = _env()
+    obs, _ = env.reset(seed=100_000)
+    policy = make_policy(name, env)
+    action, _ = policy.predict(obs, episode_start=np.array([True]))
+    assert action.shape == (2,) and action.dtype == np.float32 and np.all(np.abs(action) <= 1)
+    if name in ("constant", "fis"):  # observation-only policies take batches (vectorised envs)
+        batch, _ = policy.predict(np.zeros((4, 2), np.float32))
+        assert batch.shape == (4, 2)
+    else:  # privileged policies read one environment's internals
+        with pytest.raises(ValueError, match="bound to one environment"):
+            policy.predict(np.zeros((4, 2), np.float32))
+
+
+@pytest.mark.parametrize("scenario", ["paper", "nominal"])
+def test_fis_policy_in_the_env_is_the_fakf_filter(scenario):
+    """The environment applies eq. 21 exactly as the filter's own fuzzy adaptation does: the
+    FIS policy reproduces ``fakf`` (differences come from the float32 observation only)."""
+    env = _env(scenario)
+    got = run_episode(env, make_policy("fis", env), 100_000)["rmse_nt"]
+    ep = env.unwrapped.episode
+    res = run_filter(replace(ep.filter_cfg, method="fakf"), ep.y, ep.t_b, ep.tdot_b)
+    half = np.arange(ep.n) >= ep.n // 2
+    want = np.sqrt(np.mean((ep.truth_interf - res.interference)[half] ** 2))
+    assert got == pytest.approx(want, rel=1e-5)
+
+
+def test_fis_raises_r_when_ror_is_large():
+    policy = make_policy("fis", _env())
+    state = np.array([5])  # the step on which the FIS acts (once per statistics window)
+    action, _ = policy.predict(np.array([3.0, 0.0], np.float32), state=state)
+    assert action[1] > 0.5 and action[0] == pytest.approx(0.0, abs=1e-6)  # QOQ = 1: keep Q
+
+
+def test_oracle_and_tuned_constant_fix_the_papers_r():
+    env = _env("paper")
+    base = run_episode(env, make_policy("constant", env), 100_000)["rmse_nt"]
+    oracle = run_episode(env, make_policy("oracle", env), 100_000)["rmse_nt"]
+    tuned = TunedConstantPolicy(env, {"paper": {"log10_q": -6.0, "log10_r": 5.0}})
+    assert oracle < 0.5 * base
+    assert run_episode(env, tuned, 100_000)["rmse_nt"] < 0.5 * base
+
+
+def test_evaluate_results_layout_and_seed_ranges(tmp_path):
+    with pytest.raises(AeromagError, match="must be ≥ 100000"):
+        evaluate("nominal", ["fis"], [5])
+    res = evaluate("nominal", ["constant", "fis"], [100_000, 100_001, 100_002])
+    row = res["policies"]["constant"]
+    assert {"rmse_nt_mean", "rmse_nt_ci95", "reward_mean", "divergences", "log_ror_abs_median",
+            "diff_vs_fis_nt_mean", "diff_vs_fis_ci95"} <= set(row)  # fmt: skip
+    assert res["policies"]["fis"]["diff_vs_fis_nt_mean"] == 0.0
+    lo, hi = row["rmse_nt_ci95"]
+    assert lo <= row["rmse_nt_mean"] <= hi
+
+
+def test_evaluate_cli(tmp_path, capsys):
+    args = ["evaluate", "--scenario", "paper", "--policies", "constant,fis", "--episodes", "2",
+            "--out", str(tmp_path), "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    res = json.loads((tmp_path / "results.json").read_text())
+    assert res["seeds"] == [100_000, 100_001]
+    assert (tmp_path / "evaluation.png").stat().st_size > 10_000
+    assert main([*args[:3], "--policies", "fis,bogus", "--out", str(tmp_path / "x")]) == 2
+    assert "valid policies" in capsys.readouterr().err
+    assert main(["evaluate", "--scenario", "windy", "--out", str(tmp_path / "y")]) == 2
+    assert main(["evaluate", "--seed-start", "5", "--out", str(tmp_path / "z"), "--quiet"]) == 2

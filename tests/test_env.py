@@ -1,0 +1,133 @@
+import json
+import math
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.config import to_dict
+from aeromag_env.env import EnvConfig
+from aeromag_env.errors import ConfigError
+from aeromag_env.scenarios import REGIME_STD_NT, SCENARIOS, make_episode
+
+
+def _make(**kw):
+    return gym.make("AeroMagCompensation-v0", **kw)
+
+
+@pytest.mark.parametrize("extras", [False, True])
+def test_gymnasium_and_sb3_checkers_pass_without_warnings(extras):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any warning fails the test
+        gym_check_env(_make(extras=extras).unwrapped)
+        sb3_check_env(_make(extras=extras).unwrapped)
+
+
+def _rollout(env, seed, actions):
+    out = [env.reset(seed=seed)]
+    for a in actions:
+        out.append(env.step(a))
+    return out
+
+
+def test_same_seed_same_actions_identical():
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (60, 2)).astype(np.float32)
+    a = _rollout(_make(scenario="nonstationary"), 100_000, actions)
+    b = _rollout(_make(scenario="nonstationary"), 100_000, actions)
+    for x, y in zip(a, b, strict=True):
+        assert json.dumps(x, default=lambda o: o.tolist()) == json.dumps(
+            y, default=lambda o: o.tolist()
+        )
+    c = _rollout(_make(scenario="nonstationary"), 100_001, actions)
+    assert c[-1][1] != a[-1][1]  # another seed, another flight
+
+
+def test_config_round_trips_through_gym_make_as_a_dict():
+    cfg = EnvConfig(scenario="misspecified", decision_window=20, extras=True, s_max=3.0)
+    env = _make(config=json.loads(json.dumps(to_dict(cfg))))
+    assert env.unwrapped.config == cfg
+    assert env.observation_space.shape == (6,)
+    assert _make(config=cfg, decision_window=5).unwrapped.config.decision_window == 5
+
+
+def test_reward_is_the_documented_formula_and_episode_ends_truncated():
+    env = _make(scenario="nominal")
+    env.reset(seed=100_000)
+    done, steps = False, 0
+    while not done:
+        _, reward, terminated, truncated, info = env.step(np.zeros(2, np.float32))
+        assert reward == pytest.approx(-math.log1p(info["rmse_window_nt"] / 1.0))
+        done, steps = terminated or truncated, steps + 1
+    assert truncated and not terminated
+    assert steps == math.ceil(env.unwrapped.episode.n / 10)
+    assert 0 < info["episode_rmse_nt"] < 10 and info["divergences"] == 0
+
+
+def test_actions_are_clipped_and_nan_rejected():
+    env = _make()
+    env.reset(seed=100_000)
+    env.step(np.array([5.0, -5.0], np.float32))
+    assert env.unwrapped._log_q == pytest.approx(math.log(2.0))  # clipped to +1 → ×2
+    assert env.unwrapped._log_r == pytest.approx(-math.log(2.0))
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([np.nan, 0.0], np.float32))
+
+
+def test_scale_limit_holds():
+    env = _make(scale_limit=16.0)
+    env.reset(seed=100_000)
+    for _ in range(10):
+        _, _, _, _, info = env.step(np.ones(2, np.float32))
+    assert info["q_scale"] == pytest.approx(16.0) and info["r_scale"] == pytest.approx(16.0)
+
+
+def test_divergence_terminates_with_the_penalty():
+    env = _make()
+    env.reset(seed=100_000)
+    env.unwrapped.filter.qd[:] = 1e300  # a covariance that overflows on the next predict
+    _, reward, terminated, truncated, info = env.step(np.zeros(2, np.float32))
+    assert terminated and not truncated and reward == -10.0 and info["divergences"] == 1
+
+
+def test_unknown_scenario_is_a_one_line_error_listing_valid_ones():
+    with pytest.raises(ConfigError, match="valid scenarios: paper, nominal, misspecified"):
+        _make(scenario="windy")
+    env = _make()
+    with pytest.raises(ConfigError, match="unknown scenario 'windy'"):
+        env.reset(seed=1, options={"scenario": "windy"})
+
+
+def test_reset_options_switch_scenario_and_render():
+    env = _make(render_mode="rgb_array")
+    env.reset(seed=100_000, options={"scenario": "paper"})
+    assert env.unwrapped.episode.filter_cfg.r_std_nt == pytest.approx(math.sqrt(2e-3))
+    for _ in range(20):
+        env.step(np.zeros(2, np.float32))
+    frame = env.render()
+    assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_scenarios_build(name):
+    ep = make_episode(name, 7)
+    assert np.all(np.isfinite(ep.y)) and ep.n > 5000
+    assert ep.noise_var.shape == (ep.n,)
+
+
+def test_misspecified_and_nonstationary_do_what_they_say():
+    factors = []
+    for seed in range(40):
+        cfg = make_episode("misspecified", seed, duration_s=60.0).filter_cfg
+        factors.append(math.log10((cfg.r_std_nt / 1.5) ** 2))
+    assert min(factors) < -1.0 and max(factors) > 1.0 and max(map(abs, factors)) <= 2.0
+    ep = make_episode("nonstationary", 3)
+    levels = set(np.round(np.unique(ep.noise_var), 6))
+    assert 2 <= len(levels) <= 3
+    assert levels <= {round(s**2 + 1.0, 6) for s in REGIME_STD_NT}  # white² + 1 nT² FOGM
+    jumps = np.abs(np.diff(ep.truth_interf, axis=0)).max(axis=1)
+    assert np.sum(jumps > 10.0) >= 1  # an interference step (equipment switching on)

@@ -2,7 +2,7 @@
 
 Simulates a 30-minute ``nominal`` calibration flight, compensates it with the paper's filters
 (plain and fuzzy adaptive), the offline batch least squares and the industry Tolles–Lawson fit,
-then evaluates the baseline tuning policies in the environment on a few ``misspecified`` test
+then evaluates the baseline tuning policies in the environment on a few ``nonstationary`` test
 flights; writes the flight, figures, and a summary table (Markdown and JSON).
 """
 
@@ -48,14 +48,14 @@ def run_demo(out: Path, seed: int = 0) -> dict[str, Any]:
 
 
 def _evaluate_tuners(out: Path) -> dict[str, Any]:
-    """The baseline tuning policies on a few ``misspecified`` test flights (seeds ≥ 100 000)."""
+    """The baseline tuning policies on a few ``nonstationary`` test flights (seeds ≥ 100 000)."""
     from aeromag_env.evaluate_run import evaluation_table
     from aeromag_env.plot import plot_evaluation
     from agents import POLICIES
     from agents.evaluate import TEST_SEED_START, evaluate
 
     seeds = list(range(TEST_SEED_START, TEST_SEED_START + DEMO_EPISODES))
-    results = evaluate("misspecified", list(POLICIES), seeds)
+    results = evaluate("nonstationary", list(POLICIES), seeds)
     plot_evaluation(results, out / "tuners.png")
     return {"results": results, "table": evaluation_table(results)}
 

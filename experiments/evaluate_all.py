@@ -27,13 +27,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     scenarios = SCENARIOS[:2] if args.quick else SCENARIOS
     episodes = 2 if args.quick else args.episodes
     out = Path(args.out)
-    tables = []
+    tables, results = [], {}
     for scenario in scenarios:
         res = run_evaluate(scenario, list(POLICIES), episodes, 100_000, out / scenario, quiet=True)
         tables.append(evaluation_table(res))
+        results[scenario] = res
     write_text(out / "table.md", "\n".join(tables))
-    print(f"wrote {out}/table.md")
+    write_text(out / "matrix.md", matrix(results))
+    print(matrix(results))
+    print(f"wrote {out}/table.md, matrix.md")
     return 0
+
+
+def matrix(results: dict) -> str:
+    """Policies × scenarios: mean RMSE [nT], marked ▲/▼ where the paired 95 % interval of the
+    difference to ``fis`` lies entirely above/below zero (worse/better than the paper's rules)."""
+    scenarios = list(results)
+    lines = ["| policy | " + " | ".join(scenarios) + " |", "|---|" + "---|" * len(scenarios)]
+    for name in results[scenarios[0]]["policies"]:
+        cells = []
+        for sc in scenarios:
+            r = results[sc]["policies"][name]
+            lo, hi = r.get("diff_vs_fis_ci95", [0.0, 0.0])
+            mark = "" if name == "fis" else (" ▼" if hi < 0 else " ▲" if lo > 0 else " =")
+            cells.append(f"{r['rmse_nt_mean']:.3g}{mark}")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

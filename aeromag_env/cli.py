@@ -164,6 +164,23 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_evaluate)
 
 
+def _add_train(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "train",
+        help="train a PPO tuner (needs the rl extra)",
+        description="Train stable-baselines3 PPO on a scenario (hyperparameters in "
+        "agents/hyperparams/ppo.json); resumes from --out's checkpoint; keeps the "
+        "best validated policy as --out/policy.npz.",
+    )
+    p.add_argument("--scenario", default="nonstationary", help="scenario (default nonstationary)")
+    p.add_argument("--timesteps", type=int, default=3_000_000, help="environment steps (3e6)")
+    p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    p.add_argument("--out", default="results/ppo", help="output folder (default results/ppo)")
+    p.add_argument("--quick", action="store_true", help="tiny settings (tests)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_train)
+
+
 def _add_bench(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench",
@@ -181,7 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(
         dest="command", required=True, metavar="COMMAND", parser_class=_Parser
     )
-    adders = (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_evaluate, _add_demo,
+    adders = (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_evaluate, _add_train,
+              _add_demo,
               _add_bench)  # fmt: skip
     for add in adders:
         add(sub)
@@ -304,6 +322,25 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     policies = [p.strip() for p in args.policies.split(",") if p.strip()]
     run_evaluate(
         args.scenario, policies, args.episodes, args.seed_start, Path(args.out), args.quiet
+    )
+    return 0
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    try:
+        from agents.ppo import train_ppo
+    except ImportError as e:
+        raise AeromagError(
+            f"training needs the rl extra (pip install 'aeromag-env[rl]'): {e}"
+        ) from None
+    if args.timesteps < 1 or args.seed < 0:
+        raise AeromagError("--timesteps must be ≥ 1 and --seed ≥ 0")
+    summary = train_ppo(args.scenario, args.timesteps, args.seed, Path(args.out), args.quick,
+                        progress=not args.quiet)  # fmt: skip
+    print(
+        f"trained {summary['timesteps']} steps in {summary['train_seconds_this_run']:.0f} s; "
+        f"best validation RMSE {summary['best_validation_rmse_nt']:.3g} nT; "
+        f"policy: {args.out}/policy.npz"
     )
     return 0
 

@@ -51,11 +51,11 @@ def _evaluate_tuners(out: Path) -> dict[str, Any]:
     """The baseline tuning policies on a few ``nonstationary`` test flights (seeds ≥ 100 000)."""
     from aeromag_env.evaluate_run import evaluation_table
     from aeromag_env.plot import plot_evaluation
-    from agents import POLICIES
+    from agents import available_policies
     from agents.evaluate import TEST_SEED_START, evaluate
 
     seeds = list(range(TEST_SEED_START, TEST_SEED_START + DEMO_EPISODES))
-    results = evaluate("nonstationary", list(POLICIES), seeds)
+    results = evaluate("nonstationary", available_policies(), seeds)
     plot_evaluation(results, out / "tuners.png")
     return {"results": results, "table": evaluation_table(results)}
 

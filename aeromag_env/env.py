@@ -33,6 +33,11 @@ class EnvConfig:
     score_from : fraction of the flight after which ``episode_rmse_nt`` is accumulated
     scale_limit : the cumulative Q and R scales stay within [1/limit, limit] of their initial values
     duration_s : override of the scenario's flight length [s] (None: the scenario's)
+    action_mode : ``relative`` (the paper's eq. 21: each action multiplies Q and R by
+        ``s_max ** a``) or ``absolute`` (the action sets the scales directly:
+        ``log10(Q / Q(0)) = lo + (a + 1)/2 · (hi − lo)`` within ``absolute_q_log10``, likewise R
+        within ``absolute_r_log10``) — a learning aid: a constant tuning is a constant action
+    absolute_q_log10, absolute_r_log10 : (lo, hi) ranges of the absolute mode
     """
 
     scenario: str = "nominal"
@@ -44,6 +49,9 @@ class EnvConfig:
     score_from: float = 0.5
     scale_limit: float = 1e8
     duration_s: float | None = None
+    action_mode: str = "relative"
+    absolute_q_log10: tuple[float, ...] = (-10.0, 10.0)
+    absolute_r_log10: tuple[float, ...] = (-3.0, 3.0)
 
     def __post_init__(self) -> None:
         check_scenario(self.scenario)
@@ -52,6 +60,10 @@ class EnvConfig:
         _check(self.reward_scale_nt > 0, "reward_scale_nt must be > 0 [nT]")
         _check(0.0 <= self.score_from < 1.0, "score_from must be in [0, 1)")
         _check(self.scale_limit > 1.0, "scale_limit must be > 1")
+        _check(self.action_mode in ("relative", "absolute"), "action_mode: relative or absolute")
+        for nm in ("absolute_q_log10", "absolute_r_log10"):
+            lo_hi = getattr(self, nm)
+            _check(len(lo_hi) == 2 and lo_hi[0] < lo_hi[1], f"{nm} must be (lo, hi), lo < hi")
 
 
 class AeroMagCompensationEnv(gym.Env):
@@ -81,9 +93,10 @@ class AeroMagCompensationEnv(gym.Env):
     | 0 | log10 ROR | windowed innovation trace over its predicted trace (eq. 22), 0 before data |
     | 1 | log10 QOQ | ``tr(K C_r Kᵀ) / tr Q`` (covariance matching), 0 before data |
 
-    With ``extras=True`` four more: log10 of the cumulative Q scale and R scale, the lag-1
-    autocorrelation of the innovations over the last window (whiteness, in [-1, 1]) and the
-    progress through the flight (in [0, 1]).
+    With ``extras=True`` five more: log10 of the cumulative Q scale and R scale, the lag-1
+    autocorrelation of the innovations over the last window (whiteness, in [-1, 1]), the
+    progress through the flight (in [0, 1]) and log10 of the ROR over the last decision window
+    only (it reacts to an interference step within K samples, the M-window ROR only slowly).
 
     ## Rewards
 
@@ -126,11 +139,11 @@ class AeroMagCompensationEnv(gym.Env):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
-        dim = 6 if self.config.extras else 2
+        dim = 7 if self.config.extras else 2
         low = np.full(dim, -OBS_LIMIT, np.float32)
         high = np.full(dim, OBS_LIMIT, np.float32)
         if self.config.extras:
-            low[4:], high[4:] = (-1.0, 0.0), (1.0, 1.0)
+            low[4:6], high[4:6] = (-1.0, 0.0), (1.0, 1.0)
         self.observation_space = spaces.Box(low, high, (dim,), np.float32)
         self._obs_low, self._obs_high = low, high
         self._scenario = self.config.scenario
@@ -182,7 +195,14 @@ class AeroMagCompensationEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.size != 2 or not np.all(np.isfinite(a)):
             raise ValueError(f"action must be 2 finite numbers in [-1, 1], got {action!r}")
-        log_s = np.clip(a, -1.0, 1.0) * math.log(self.config.s_max)
+        a = np.clip(a, -1.0, 1.0)
+        if self.config.action_mode == "absolute":
+            (q_lo, q_hi), (r_lo, r_hi) = self.config.absolute_q_log10, self.config.absolute_r_log10
+            target_q = math.log(10.0) * (q_lo + 0.5 * (a[0] + 1.0) * (q_hi - q_lo))
+            target_r = math.log(10.0) * (r_lo + 0.5 * (a[1] + 1.0) * (r_hi - r_lo))
+            log_s = np.array([target_q - self._log_q, target_r - self._log_r])
+        else:
+            log_s = a * math.log(self.config.s_max)
         new_q = min(max(self._log_q + log_s[0], -self._log_limit), self._log_limit)
         new_r = min(max(self._log_r + log_s[1], -self._log_limit), self._log_limit)
         s_q, s_r = math.exp(new_q - self._log_q), math.exp(new_r - self._log_r)
@@ -204,8 +224,13 @@ class AeroMagCompensationEnv(gym.Env):
         obs = [0.0 if not (v > 0 and math.isfinite(v)) else math.log10(v) for v in ratios]
         if self.config.extras:
             obs += [self._log_q / math.log(10), self._log_r / math.log(10),
-                    self._whiteness(k1), k1 / self.episode.n]  # fmt: skip
+                    self._whiteness(k1), k1 / self.episode.n, self._short_ror(k1)]  # fmt: skip
         return np.clip(np.asarray(obs, np.float32), self._obs_low, self._obs_high)
+
+    def _short_ror(self, k1: int) -> float:
+        """log10 of the ROR over the last decision window only (reacts to a step within K)."""
+        ratio = self.filter.recent_ratio(self.config.decision_window)
+        return math.log10(max(ratio, 1e-8)) if ratio > 0 and math.isfinite(ratio) else 0.0
 
     def _whiteness(self, k1: int) -> float:
         r = self.filter.innov[max(0, k1 - self.filter.cfg.window) : k1]

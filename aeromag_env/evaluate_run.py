@@ -24,7 +24,7 @@ def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: 
     from agents.evaluate import evaluate
 
     check_scenario(scenario)
-    unknown = [p for p in policies if p not in POLICIES]
+    unknown = [p for p in policies if p not in POLICIES and not p.startswith("ppo:")]
     if unknown or not policies:
         raise AeromagError(f"unknown policy {unknown[0] if unknown else ''!r}; valid policies: "
                            f"{', '.join(POLICIES)}")  # fmt: skip

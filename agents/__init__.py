@@ -8,18 +8,44 @@ into the same environment.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from aeromag_env.errors import ConfigError
 from aeromag_env.kalman_model import FilterConfig
 
-POLICIES = ("constant", "fis", "sage_husa", "ding", "tuned_constant", "oracle")
+POLICIES = ("constant", "fis", "sage_husa", "ding", "tuned_constant", "oracle", "ppo")
+#: The shipped PPO policy (trained on ``nonstationary``; see experiments/train_ppo.py).
+DEFAULT_PPO = Path(__file__).with_name("trained") / "ppo_nonstationary.npz"
+
+
+def available_policies() -> list[str]:
+    """:data:`POLICIES` whose artefacts are present (``ppo`` needs the shipped policy file)."""
+    return [p for p in POLICIES if p != "ppo" or DEFAULT_PPO.exists()]
+
+
+def policy_env_kwargs(name: str) -> dict[str, Any]:
+    """Environment settings a policy needs (PPO: those it was trained with; others: none).
+
+    ``ppo`` is the shipped policy; ``ppo:PATH`` loads an exported ``.npz`` (never a pickle).
+    """
+    if name == "ppo" or name.startswith("ppo:"):
+        return _load_ppo(name).env_kwargs
+    return {}
+
+
+def _load_ppo(name: str) -> Any:
+    from agents.numpy_policy import NumpyPPOPolicy
+
+    return NumpyPPOPolicy.load(DEFAULT_PPO if name == "ppo" else name.split(":", 1)[1])
 
 
 def make_policy(name: str, env: Any) -> Any:
     """The policy ``name`` for environment ``env``; unknown names give a one-line error."""
     from agents import policies as p
 
+    if name.startswith("ppo:"):
+        return _load_ppo(name)
     if name not in POLICIES:
         raise ConfigError(f"unknown policy {name!r}; valid policies: {', '.join(POLICIES)}")
     s_max = env.unwrapped.config.s_max
@@ -32,5 +58,6 @@ def make_policy(name: str, env: Any) -> Any:
         "ding": lambda: p.ClassicalPolicy("ding", env),
         "tuned_constant": lambda: p.TunedConstantPolicy(env),
         "oracle": lambda: p.OraclePolicy(env),
+        "ppo": lambda: _load_ppo("ppo"),
     }
     return makers[name]()

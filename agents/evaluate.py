@@ -15,7 +15,7 @@ from scipy import stats
 
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.errors import AeromagError
-from agents import make_policy
+from agents import make_policy, policy_env_kwargs
 
 TRAIN_SEEDS = range(0, 50_000)
 VALIDATION_SEEDS = range(50_000, 100_000)
@@ -66,9 +66,12 @@ def evaluate(
             f"evaluation seeds must be ≥ {TEST_SEED_START} (training and validation use the "
             f"seeds below); got {min(seeds)}"
         )
-    env = gym.make("AeroMagCompensation-v0", scenario=scenario, **(env_kwargs or {}))
     per: dict[str, dict[str, np.ndarray]] = {}
     for name in policies:
+        # same flights for every policy; the env settings a policy was trained with (PPO's
+        # observation layout and action mode) do not change the flight, only the interface
+        kwargs = {**(env_kwargs or {}), **policy_env_kwargs(name)}
+        env = gym.make("AeroMagCompensation-v0", scenario=scenario, **kwargs)
         policy = make_policy(name, env)
         rows = []
         for seed in seeds:

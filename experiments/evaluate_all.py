@@ -15,7 +15,7 @@ from pathlib import Path
 from aeromag_env.atomic import write_text
 from aeromag_env.evaluate_run import evaluation_table, run_evaluate
 from aeromag_env.scenarios import SCENARIOS
-from agents import POLICIES
+from agents import available_policies
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -29,7 +29,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = Path(args.out)
     tables, results = [], {}
     for scenario in scenarios:
-        res = run_evaluate(scenario, list(POLICIES), episodes, 100_000, out / scenario, quiet=True)
+        res = run_evaluate(
+            scenario, available_policies(), episodes, 100_000, out / scenario, quiet=True
+        )
         tables.append(evaluation_table(res))
         results[scenario] = res
     write_text(out / "table.md", "\n".join(tables))

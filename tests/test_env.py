@@ -51,7 +51,7 @@ def test_config_round_trips_through_gym_make_as_a_dict():
     cfg = EnvConfig(scenario="misspecified", decision_window=20, extras=True, s_max=3.0)
     env = _make(config=json.loads(json.dumps(to_dict(cfg))))
     assert env.unwrapped.config == cfg
-    assert env.observation_space.shape == (6,)
+    assert env.observation_space.shape == (7,)
     assert _make(config=cfg, decision_window=5).unwrapped.config.decision_window == 5
 
 

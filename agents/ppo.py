@@ -1,0 +1,216 @@
+"""Train a stable-baselines3 PPO tuner (``aeromag train``) and export it for numpy inference.
+
+Hyperparameters live in ``agents/hyperparams/ppo.json`` (versioned, RL Zoo style: one entry per
+scenario, with the environment keyword arguments the policy is trained with), apart from the
+environment's own configuration. Training resets every environment with seeds from the training
+range only (``[0, 50 000)``); validation uses ``[50 000, 100 000)``; tests use ``≥ 100 000``.
+Checkpoints (model + observation normalisation) are written periodically and training resumes
+from the latest one. torch and stable-baselines3 are imported here only (extra ``rl``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.atomic import write_text
+from aeromag_env.errors import AeromagError
+from agents.evaluate import TRAIN_SEEDS, VALIDATION_SEEDS, run_episode
+from agents.numpy_policy import NumpyPPOPolicy
+
+HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.json"
+
+
+def load_hyperparams(scenario: str, path: Path = HYPERPARAMS) -> dict[str, Any]:
+    """The hyperparameters of ``scenario`` (one-line error when absent)."""
+    table = json.loads(path.read_text(encoding="utf-8"))
+    if scenario not in table["scenarios"]:
+        raise AeromagError(f"no PPO hyperparameters for {scenario!r} in {path}; "
+                           f"available: {', '.join(table['scenarios'])}")  # fmt: skip
+    return {**table["scenarios"][scenario], "version": table["version"]}
+
+
+class TrainingSeeds(gym.Wrapper):
+    """Reset with the next seed of a fixed sequence from the training range (disjoint from
+    validation and test seeds by construction)."""
+
+    def __init__(self, env: gym.Env, seeds: Iterator[int]) -> None:
+        super().__init__(env)
+        self._seeds = seeds
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> Any:
+        return self.env.reset(seed=next(self._seeds), options=options)
+
+
+def _seed_stream(rank: int, n_envs: int, offset: int) -> Iterator[int]:
+    k = offset + rank
+    while True:
+        yield TRAIN_SEEDS.start + k % TRAIN_SEEDS.stop
+        k += n_envs
+
+
+def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
+    """``DummyVecEnv`` of ``n_envs`` seeded environments under ``VecNormalize``."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    n_envs = int(hp["n_envs"])
+
+    def factory(rank: int) -> Any:
+        def make() -> gym.Env:
+            env = gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"])
+            return TrainingSeeds(env, _seed_stream(rank, n_envs, offset=1000 * seed))
+
+        return make
+
+    venv = DummyVecEnv([factory(i) for i in range(n_envs)])
+    return VecNormalize(venv, norm_obs=True, norm_reward=bool(hp["normalize_reward"]),
+                        gamma=float(hp["gamma"]), clip_obs=10.0)  # fmt: skip
+
+
+def export_policy(model: Any, venv: Any, path: Path, meta: dict[str, Any]) -> Path:
+    """Write the actor and the observation statistics as a plain ``.npz`` (see numpy_policy)."""
+    policy = model.policy
+    linear = [m for m in policy.mlp_extractor.policy_net if hasattr(m, "weight")]
+    arrays: dict[str, np.ndarray] = {
+        "obs_mean": venv.obs_rms.mean.astype(np.float64),
+        "obs_var": venv.obs_rms.var.astype(np.float64),
+        "obs_clip": np.array(venv.clip_obs),
+        "obs_eps": np.array(venv.epsilon),
+        "w_out": policy.action_net.weight.detach().cpu().numpy().astype(np.float64),
+        "b_out": policy.action_net.bias.detach().cpu().numpy().astype(np.float64),
+        "meta": np.array(json.dumps(meta)),
+    }
+    for i, layer in enumerate(linear):
+        arrays[f"w{i}"] = layer.weight.detach().cpu().numpy().astype(np.float64)
+        arrays[f"b{i}"] = layer.bias.detach().cpu().numpy().astype(np.float64)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez(tmp, **arrays)  # type: ignore[arg-type]
+    tmp.replace(path)
+    return path
+
+
+def validate(policy: NumpyPPOPolicy, scenario: str, episodes: int) -> float:
+    """Mean episode RMSE on the first ``episodes`` validation seeds [nT]."""
+    env = gym.make("AeroMagCompensation-v0", scenario=scenario, **policy.env_kwargs)
+    seeds = range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + episodes)
+    return float(np.mean([run_episode(env, policy, s)["rmse_nt"] for s in seeds]))
+
+
+def train_ppo(scenario: str, timesteps: int, seed: int, out: Path, quick: bool = False,
+              progress: bool = True) -> dict[str, Any]:  # fmt: skip
+    """Train (or resume) PPO; keep the best validated policy as ``out/policy.npz``."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    torch.set_num_threads(1)
+    hp = load_hyperparams(scenario)
+    if quick:
+        hp = {**hp, "n_envs": 2, "n_steps": 64, "batch_size": 64, "eval_every": 512}
+    venv = make_training_env(scenario, hp, seed)
+    ckpt, stats = out / "checkpoint.zip", out / "vecnormalize.pkl"
+    if ckpt.exists() and stats.exists():  # resume (pickle files this run wrote itself)
+        venv = VecNormalize.load(str(stats), venv.venv)
+        model = PPO.load(str(ckpt), env=venv, device="cpu")
+    else:
+        model = PPO("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **_ppo_kwargs(hp))
+    curve = _load_curve(out)
+    callback = _Callback(out, venv, scenario, hp, seed, curve, timesteps, progress)
+    t0 = time.perf_counter()
+    model.learn(timesteps, callback=callback, reset_num_timesteps=not ckpt.exists())
+    callback.checkpoint(model)
+    summary = {
+        "scenario": scenario,
+        "timesteps": int(model.num_timesteps),
+        "seed": seed,
+        "train_seconds_this_run": time.perf_counter() - t0,
+        "best_validation_rmse_nt": callback.best,
+        "hyperparams": hp,
+        "curve": curve,
+    }
+    write_text(out / "training.json", json.dumps(summary, indent=2))
+    return summary
+
+
+def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
+    keys = ("n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "gae_lambda",
+            "ent_coef", "clip_range")  # fmt: skip
+    kwargs = {k: hp[k] for k in keys}
+    kwargs["policy_kwargs"] = {"net_arch": list(hp["net_arch"])}
+    return kwargs
+
+
+def _load_curve(out: Path) -> list[dict[str, float]]:
+    path = out / "training.json"
+    return json.loads(path.read_text())["curve"] if path.exists() else []
+
+
+def _callback_base() -> Any:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    return BaseCallback
+
+
+class _Callback(_callback_base()):  # type: ignore[misc]
+    """Progress bar, periodic validation (keeps the best export) and checkpoints."""
+
+    def __init__(self, out: Path, venv: Any, scenario: str, hp: dict[str, Any], seed: int,
+                 curve: list, total: int, progress: bool) -> None:  # fmt: skip
+        super().__init__()
+        self.out, self.venv, self.scenario, self.hp, self.seed = out, venv, scenario, hp, seed
+        self.curve, self.total, self.progress = curve, total, progress
+        self.best = min((c["validation_rmse_nt"] for c in curve), default=float("inf"))
+        self.next_eval = 0
+        self.t0 = time.perf_counter()
+        self.bar: Any = None
+
+    def _on_training_start(self) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(
+            total=self.total, unit="step", desc="train", disable=not self.progress or None
+        )
+        self.next_eval = self.model.num_timesteps + int(self.hp["eval_every"])
+
+    def _on_step(self) -> bool:
+        self.bar.update(self.training_env.num_envs)
+        if self.model.num_timesteps >= self.next_eval:
+            self.next_eval += int(self.hp["eval_every"])
+            self._validate()
+            self.checkpoint(self.model)
+        return True
+
+    def _on_training_end(self) -> None:
+        if not self.curve or self.curve[-1]["timesteps"] != self.model.num_timesteps:
+            self._validate()
+        self.bar.close()
+
+    def _validate(self) -> None:
+        meta = {
+            "scenario": self.scenario,
+            "env_kwargs": self.hp["env_kwargs"],
+            "seed": self.seed,
+            "timesteps": int(self.model.num_timesteps),
+            "hyperparams_version": self.hp["version"],
+        }
+        candidate = export_policy(self.model, self.venv, self.out / "candidate.npz", meta)
+        rmse = validate(
+            NumpyPPOPolicy.load(candidate), self.scenario, int(self.hp["eval_episodes"])
+        )
+        self.curve.append({"timesteps": int(self.model.num_timesteps), "validation_rmse_nt": rmse,
+                           "seconds": time.perf_counter() - self.t0})  # fmt: skip
+        if rmse < self.best:
+            self.best = rmse
+            candidate.replace(self.out / "policy.npz")
+
+    def checkpoint(self, model: Any) -> None:
+        model.save(str(self.out / "checkpoint.zip"))
+        self.venv.save(str(self.out / "vecnormalize.pkl"))

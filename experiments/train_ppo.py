@@ -1,0 +1,76 @@
+"""Train the PPO tuner, ship it, and compare it with every baseline on held-out test flights.
+
+``python experiments/train_ppo.py [--timesteps 3000000] [--episodes 100] [--skip-training]
+[--ship] [--quick] [--out results/ppo_experiment]``
+
+1. ``aeromag train`` on ``nonstationary`` (training seeds < 50 000; best policy by validation
+   RMSE on seeds 50 000–50 019), unless ``--skip-training``;
+2. ``--ship`` copies the best policy to ``agents/trained/ppo_nonstationary.npz``;
+3. evaluates every policy on test seeds from 100 000 on ``nonstationary`` and ``nominal``;
+4. writes ``comparison.md``, ``learning_curve.png`` and the per-scenario results.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from aeromag_env.atomic import write_text
+from aeromag_env.evaluate_run import evaluation_table, run_evaluate
+from agents import DEFAULT_PPO, POLICIES
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--timesteps", type=int, default=3_000_000)
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--skip-training", action="store_true")
+    parser.add_argument("--ship", action="store_true", help="copy the policy into agents/trained")
+    parser.add_argument("--quick", action="store_true", help="tiny run (tests)")
+    parser.add_argument("--out", default="results/ppo_experiment")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    train_dir = out / "train"
+    if not args.skip_training:
+        from agents.ppo import train_ppo
+
+        steps = 1024 if args.quick else args.timesteps
+        summary = train_ppo("nonstationary", steps, 0, train_dir, quick=args.quick, progress=False)
+        print(f"training: {summary['timesteps']} steps, {summary['train_seconds_this_run']:.0f} s")
+    policy = train_dir / "policy.npz"
+    if args.ship:
+        DEFAULT_PPO.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(policy, DEFAULT_PPO)
+    episodes = 2 if args.quick else args.episodes
+    names = [p if p != "ppo" else f"ppo:{policy}" for p in POLICIES]
+    tables = []
+    for scenario in ("nonstationary", "nominal"):
+        res = run_evaluate(scenario, names, episodes, 100_000, out / scenario, quiet=True)
+        tables.append(evaluation_table(res))
+    write_text(out / "comparison.md", "\n".join(tables))
+    _learning_curve(train_dir / "training.json", out / "learning_curve.png")
+    print(f"wrote {out}/comparison.md, learning_curve.png")
+    return 0
+
+
+def _learning_curve(training: Path, path: Path) -> None:
+    if not training.exists():
+        return
+    from aeromag_env.plot import _pyplot
+
+    curve = json.loads(training.read_text())["curve"]
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
+    ax.plot([c["timesteps"] for c in curve], [c["validation_rmse_nt"] for c in curve], "o-")
+    ax.set(xlabel="environment steps", ylabel="validation RMSE [nT] (20 flights)",
+           title="PPO on nonstationary: learning curve", yscale="log")  # fmt: skip
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,66 @@
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import aeromag_env  # noqa: F401
+from aeromag_env.cli import main
+from aeromag_env.errors import AeromagError
+from agents import DEFAULT_PPO, make_policy, policy_env_kwargs
+from agents.numpy_policy import NumpyPPOPolicy
+from agents.ppo import export_policy, load_hyperparams, make_training_env
+
+
+def test_numpy_export_reproduces_sb3_actions(tmp_path):
+    from stable_baselines3 import PPO
+
+    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "n_steps": 64, "batch_size": 64}
+    venv = make_training_env("nonstationary", hp, seed=0)
+    model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, seed=0, device="cpu",
+                policy_kwargs={"net_arch": [64, 64]})  # fmt: skip
+    model.learn(256)  # non-trivial weights and observation statistics
+    path = export_policy(model, venv, tmp_path / "p.npz", {"env_kwargs": hp["env_kwargs"]})
+    policy = NumpyPPOPolicy.load(path)
+    obs = np.random.default_rng(0).uniform(-3, 3, (50, venv.observation_space.shape[0]))
+    ours, _ = policy.predict(obs.astype(np.float32))
+    theirs, _ = model.predict(venv.normalize_obs(obs.astype(np.float32)), deterministic=True)
+    # torch runs float32, the export float64: agreement to float32 round-off
+    np.testing.assert_allclose(ours, np.clip(theirs, -1, 1), atol=1e-5)
+    one, _ = policy.predict(obs[0].astype(np.float32))
+    assert one.shape == (2,)
+
+
+def test_loading_is_pickle_free_and_errors_are_one_line(tmp_path):
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, obs_mean=np.array([object()], dtype=object))
+    with pytest.raises(AeromagError, match="cannot load PPO policy"):
+        NumpyPPOPolicy.load(bad)
+    with pytest.raises(AeromagError, match="cannot load PPO policy"):
+        NumpyPPOPolicy.load(tmp_path / "missing.npz")
+
+
+def test_train_quick_then_resume_then_evaluate(tmp_path):
+    out = tmp_path / "ppo"
+    args = ["train", "--quick", "--timesteps", "512", "--out", str(out), "--quiet"]
+    assert main(args) == 0
+    first = json.loads((out / "training.json").read_text())["timesteps"]
+    assert main(args) == 0  # resumes from the checkpoint
+    summary = json.loads((out / "training.json").read_text())
+    assert summary["timesteps"] > first
+    steps = [c["timesteps"] for c in summary["curve"]]
+    assert steps == sorted(set(steps))  # one validation per point of the learning curve
+    name = f"ppo:{out / 'policy.npz'}"
+    assert policy_env_kwargs(name)["action_mode"] == "absolute"
+    env = gym.make("AeroMagCompensation-v0", scenario="nonstationary", **policy_env_kwargs(name))
+    obs, _ = env.reset(seed=100_000)
+    action, _ = make_policy(name, env).predict(obs)
+    assert action.shape == (2,) and np.all(np.abs(action) <= 1)
+
+
+@pytest.mark.skipif(not DEFAULT_PPO.exists(), reason="the trained policy is not shipped yet")
+def test_shipped_policy_runs_without_torch_imports():
+    env = gym.make("AeroMagCompensation-v0", scenario="nonstationary", **policy_env_kwargs("ppo"))
+    obs, _ = env.reset(seed=100_000)
+    action, _ = make_policy("ppo", env).predict(obs)
+    assert action.dtype == np.float32 and np.all(np.abs(action) <= 1)

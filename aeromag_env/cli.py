@@ -178,6 +178,9 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="results/ppo", help="output folder (default results/ppo)")
     p.add_argument("--quick", action="store_true", help="tiny settings (tests)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--hyperparams", help="hyperparameter file (default agents/hyperparams/ppo.json)"
+    )
     p.set_defaults(func=_cmd_train)
 
 
@@ -335,8 +338,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
         ) from None
     if args.timesteps < 1 or args.seed < 0:
         raise AeromagError("--timesteps must be ≥ 1 and --seed ≥ 0")
+    extra = {"hyperparams": Path(args.hyperparams)} if args.hyperparams else {}
     summary = train_ppo(args.scenario, args.timesteps, args.seed, Path(args.out), args.quick,
-                        progress=not args.quiet)  # fmt: skip
+                        progress=not args.quiet, **extra)  # fmt: skip
     print(
         f"trained {summary['timesteps']} steps in {summary['train_seconds_this_run']:.0f} s; "
         f"best validation RMSE {summary['best_validation_rmse_nt']:.3g} nT; "

@@ -104,15 +104,22 @@ def validate(policy: NumpyPPOPolicy, scenario: str, episodes: int) -> float:
     return float(np.mean([run_episode(env, policy, s)["rmse_nt"] for s in seeds]))
 
 
-def train_ppo(scenario: str, timesteps: int, seed: int, out: Path, quick: bool = False,
-              progress: bool = True) -> dict[str, Any]:  # fmt: skip
+def train_ppo(
+    scenario: str,
+    timesteps: int,
+    seed: int,
+    out: Path,
+    quick: bool = False,
+    progress: bool = True,
+    hyperparams: Path = HYPERPARAMS,
+) -> dict[str, Any]:
     """Train (or resume) PPO; keep the best validated policy as ``out/policy.npz``."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
     torch.set_num_threads(1)
-    hp = load_hyperparams(scenario)
+    hp = load_hyperparams(scenario, hyperparams)
     if quick:
         hp = {**hp, "n_envs": 2, "n_steps": 64, "batch_size": 64, "eval_every": 512}
     venv = make_training_env(scenario, hp, seed)

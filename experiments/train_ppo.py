@@ -31,6 +31,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--skip-training", action="store_true")
     parser.add_argument("--ship", action="store_true", help="copy the policy into agents/trained")
     parser.add_argument("--quick", action="store_true", help="tiny run (tests)")
+    parser.add_argument(
+        "--policy", help="evaluate this exported policy (default OUT/train/policy.npz)"
+    )
     parser.add_argument("--out", default="results/ppo_experiment")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -41,7 +44,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         steps = 1024 if args.quick else args.timesteps
         summary = train_ppo("nonstationary", steps, 0, train_dir, quick=args.quick, progress=False)
         print(f"training: {summary['timesteps']} steps, {summary['train_seconds_this_run']:.0f} s")
-    policy = train_dir / "policy.npz"
+    policy = Path(args.policy) if args.policy else train_dir / "policy.npz"
     if args.ship:
         DEFAULT_PPO.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(policy, DEFAULT_PPO)
@@ -52,7 +55,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         res = run_evaluate(scenario, names, episodes, 100_000, out / scenario, quiet=True)
         tables.append(evaluation_table(res))
     write_text(out / "comparison.md", "\n".join(tables))
-    _learning_curve(train_dir / "training.json", out / "learning_curve.png")
+    _learning_curve(policy.with_name("training.json"), out / "learning_curve.png")
     print(f"wrote {out}/comparison.md, learning_curve.png")
     return 0
 

@@ -1,0 +1,114 @@
+"""The PPO design study behind the README: which observation/action design can learn, and how
+much room the scenario leaves (numbers on validation seeds 50 000–50 019, one run each).
+
+``python experiments/ppo_design_study.py trial --steps 1000000 --s-max 10 --action-mode relative``
+trains PPO (hyperparameters of ``agents/hyperparams/ppo.json``) with the given action design on
+``nonstationary`` and prints its validation RMSE next to ``fis`` and ``tuned_constant``.
+``--paper-obs`` uses the paper's two observations only (no extras).
+
+``python experiments/ppo_design_study.py headroom`` runs privileged schedules (true noise
+variance for R, Q raised for a few seconds after each true interference step): what a tuner that
+knew everything could reach, i.e. the ceiling for any learned tuner in this scenario.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import aeromag_env  # noqa: F401
+from agents import make_policy
+from agents.evaluate import VALIDATION_SEEDS, run_episode
+
+SEEDS = range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + 20)
+
+
+class PrivilegedSchedule:
+    """R = true noise variance × 10^r_off; Q = 10^q_high for ``hold_s`` after each step, else
+    10^q_low (absolute action mode)."""
+
+    def __init__(self, env: Any, q_low: float, q_high: float, hold_s: float, r_off: float) -> None:
+        self.env = env.unwrapped
+        self.q_low, self.q_high, self.hold_s, self.r_off = q_low, q_high, hold_s, r_off
+
+    def predict(self, obs: Any, state: Any = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, Any]:  # fmt: skip
+        e = self.env
+        k = min(e.filter.k, e.episode.n - 1)
+        jumps = np.abs(np.diff(e.episode.truth_interf, axis=0)).max(axis=1) > 5.0
+        steps = np.flatnonzero(jumps) + 1
+        recent = np.any((k - steps >= 0) & (k - steps < self.hold_s * 10))
+        log_q = self.q_high if recent else self.q_low
+        log_r = (
+            math.log10(e.episode.noise_var[k] / float(np.mean(np.diag(e.filter.r0)))) + self.r_off
+        )
+        (q_lo, q_hi), (r_lo, r_hi) = e.config.absolute_q_log10, e.config.absolute_r_log10
+        a = [2 * (log_q - q_lo) / (q_hi - q_lo) - 1, 2 * (log_r - r_lo) / (r_hi - r_lo) - 1]
+        return np.clip(np.array(a, np.float32), -1, 1), state
+
+
+def _mean_rmse(env: Any, policy: Any) -> float:
+    return float(np.mean([run_episode(env, policy, s)["rmse_nt"] for s in SEEDS]))
+
+
+def headroom() -> None:
+    env = gym.make("AeroMagCompensation-v0", scenario="nonstationary", extras=True,
+                   action_mode="absolute")  # fmt: skip
+    base = gym.make("AeroMagCompensation-v0", scenario="nonstationary")
+    print(f"fis {_mean_rmse(base, make_policy('fis', base)):.3f} nT")
+    for args in [(-10, 4, 30, 0), (-10, 8, 10, 0), (-10, 9, 5, 0), (-10, 8, 10, -1)]:
+        print(f"privileged {args}: {_mean_rmse(env, PrivilegedSchedule(env, *args)):.3f} nT")
+
+
+def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool) -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    torch.set_num_threads(1)  # tiny networks: extra threads only contend
+
+    from agents.numpy_policy import NumpyPPOPolicy
+    from agents.ppo import export_policy, load_hyperparams, make_training_env
+
+    hp = load_hyperparams("nonstationary")
+    env_kwargs = {"extras": not paper_obs, "s_max": s_max, "action_mode": action_mode}
+    hp = {**hp, "env_kwargs": env_kwargs}
+    venv = make_training_env("nonstationary", hp, seed=0)
+    keys = ("n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "gae_lambda")
+    model = PPO("MlpPolicy", venv, seed=0, device="cpu", **{k: hp[k] for k in keys},
+                policy_kwargs={"net_arch": list(hp["net_arch"])})  # fmt: skip
+    model.learn(steps)
+    path = export_policy(model, venv, __import__("pathlib").Path("results/ppo_trial.npz"),
+                         {"env_kwargs": env_kwargs})  # fmt: skip
+    policy = NumpyPPOPolicy.load(path)
+    env = gym.make("AeroMagCompensation-v0", scenario="nonstationary", **env_kwargs)
+    base = gym.make("AeroMagCompensation-v0", scenario="nonstationary")
+    fis = _mean_rmse(base, make_policy("fis", base))
+    tuned = _mean_rmse(base, make_policy("tuned_constant", base))
+    print(f"ppo {_mean_rmse(env, policy):.3f} nT; fis {fis:.3f}; tuned_constant {tuned:.3f}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="cmd", required=True)
+    t = sub.add_parser("trial")
+    t.add_argument("--steps", type=int, default=1_000_000)
+    t.add_argument("--s-max", type=float, default=2.0)
+    t.add_argument("--action-mode", default="relative", choices=("relative", "absolute"))
+    t.add_argument("--paper-obs", action="store_true")
+    sub.add_parser("headroom")
+    args = parser.parse_args(argv)
+    if args.cmd == "headroom":
+        headroom()
+    else:
+        trial(args.steps, args.s_max, args.action_mode, args.paper_obs)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

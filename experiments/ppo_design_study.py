@@ -73,15 +73,13 @@ def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool) -> None:
     torch.set_num_threads(1)  # tiny networks: extra threads only contend
 
     from agents.numpy_policy import NumpyPPOPolicy
-    from agents.ppo import export_policy, load_hyperparams, make_training_env
+    from agents.ppo import _ppo_kwargs, export_policy, load_hyperparams, make_training_env
 
     hp = load_hyperparams("nonstationary")
     env_kwargs = {"extras": not paper_obs, "s_max": s_max, "action_mode": action_mode}
     hp = {**hp, "env_kwargs": env_kwargs}
     venv = make_training_env("nonstationary", hp, seed=0)
-    keys = ("n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "gae_lambda")
-    model = PPO("MlpPolicy", venv, seed=0, device="cpu", **{k: hp[k] for k in keys},
-                policy_kwargs={"net_arch": list(hp["net_arch"])})  # fmt: skip
+    model = PPO("MlpPolicy", venv, seed=0, device="cpu", **_ppo_kwargs(hp))
     model.learn(steps)
     path = export_policy(model, venv, __import__("pathlib").Path("results/ppo_trial.npz"),
                          {"env_kwargs": env_kwargs})  # fmt: skip

@@ -253,9 +253,7 @@ def _truth_and_estimate(flight: Flight, comp: Compensation) -> tuple[np.ndarray 
         if comp.settings["remove_mean"]:
             return truth - np.nanmean(truth), est - np.nanmean(est)
         return truth, est
-    est = flight.vector(comp.settings["flux"]) - np.column_stack(
-        [comp.fields[nm] for nm in vector_names(f"{comp.settings['flux']}_c")]
-    )
+    est = np.column_stack([comp.fields[nm] for nm in vector_names("interf_est")])
     return (flight.vector("truth_interf") if "truth_interf_x" in flight else None), est
 
 

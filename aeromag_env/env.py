@@ -167,6 +167,16 @@ class AeroMagCompensationEnv(gym.Env):
         self._rewards: list[float] = []
         return np.zeros(self._obs_low.size, np.float32), {"flight_seed": self._flight_seed}
 
+    @property
+    def scenario(self) -> str:
+        """The scenario of the current (or next) episode."""
+        return self._scenario
+
+    @property
+    def log_scales(self) -> tuple[float, float]:
+        """Natural logs of the cumulative Q and R scales relative to their initial values."""
+        return self._log_q, self._log_r
+
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         s_q, s_r = self._apply_action(action)
         self.filter.scale_noise(s_q, s_r)

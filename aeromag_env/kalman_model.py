@@ -14,12 +14,11 @@ invariant to such a reparametrisation, so the estimates are those of the unscale
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from aeromag_env.config import _check, _nonnegative, _positive
-from aeromag_env.errors import ConfigError
 from aeromag_env.interference import N_STATES, STATE_SLICES
 
 #: Typical magnitude of each state block: T_p [nT], A [-], B [s].
@@ -181,10 +180,3 @@ def paper_filter_config(method: str = "fakf") -> FilterConfig:
         epsilon=0.05,
         eta=0.025,
     )
-
-
-def with_method(cfg: FilterConfig, method: str) -> FilterConfig:
-    """Copy of ``cfg`` with another method (validated)."""
-    if method not in METHODS:
-        raise ConfigError(f"unknown method {method!r}; valid: {', '.join(METHODS)}")
-    return replace(cfg, method=method)

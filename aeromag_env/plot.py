@@ -82,11 +82,8 @@ def plot_compensation(flight: Flight, comp: Any, metrics: dict, path: str | os.P
     ax.legend(loc="upper right")
     ax = axes[1]
     if comp.method != "tl" and "truth_interf_x" in flight:
-        err = (
-            flight.vector("truth_interf")
-            - flight.vector(comp.settings["flux"])
-            + np.column_stack([comp.fields[f"{comp.settings['flux']}_c_{a}"] for a in "xyz"])
-        )
+        est = np.column_stack([comp.fields[f"interf_est_{a}"] for a in "xyz"])
+        err = flight.vector("truth_interf") - est
         for a, v in zip("xyz", err.T, strict=True):
             ax.plot(flight.tt, v, lw=0.6, label=f"error {a}")
         rmse = metrics.get("compensation_rmse_nt")
@@ -120,7 +117,7 @@ def render_episode(env: Any) -> np.ndarray:
     fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True, constrained_layout=True)
     err = env.episode.truth_interf[:k] - env.filter.est[:k]
     axes[0].plot(tt, err, lw=0.6)
-    axes[0].set(ylabel="[nT]", title=f"{env._scenario}: true − estimated interference")
+    axes[0].set(ylabel="[nT]", title=f"{env.scenario}: true − estimated interference")
     if k:
         lim = float(np.nanpercentile(np.abs(err[k // 2 :]), 99)) * 2 + 1.0
         axes[0].set_ylim(-lim, lim)

@@ -28,8 +28,6 @@ Only through a ``numpy.random.Generator`` passed as ``rng``; nothing touches glo
 
 from __future__ import annotations
 
-import numpy as np
-
 #: Mean Earth-field magnitude used to scale Tolles–Lawson induced and eddy terms [nT]
 #: (MagNav.jl convention).
 BT_SCALE_NT = 50_000.0
@@ -43,13 +41,3 @@ WGS84_E2 = 6.694_379_990_14e-3
 
 #: Plausible range of the Earth's total field at aircraft altitudes [nT].
 EARTH_FIELD_RANGE_NT = (15_000.0, 75_000.0)
-
-
-def deg2rad(x: np.ndarray | float) -> np.ndarray:
-    """Degrees → radians (file/CLI boundary)."""
-    return np.deg2rad(np.asarray(x, dtype=float))
-
-
-def rad2deg(x: np.ndarray | float) -> np.ndarray:
-    """Radians → degrees (file/CLI boundary)."""
-    return np.rad2deg(np.asarray(x, dtype=float))

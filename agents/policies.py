@@ -128,7 +128,8 @@ class TargetScalePolicy:
         env = self.env
         log_s_max = math.log(env.config.s_max)
         tq, tr = self.targets()
-        action = np.array([[(tq - env._log_q) / log_s_max, (tr - env._log_r) / log_s_max]])
+        log_q, log_r = env.log_scales
+        action = np.array([[(tq - log_q) / log_s_max, (tr - log_r) / log_s_max]])
         return _out(action, np.asarray(obs).ndim == 1), state
 
 
@@ -140,7 +141,7 @@ class TunedConstantPolicy(TargetScalePolicy):
     def __init__(self, env: Any, table: dict[str, dict[str, float]] | None = None) -> None:
         from agents.tuning import load_tuned
 
-        entry = (table or load_tuned())[env.unwrapped._scenario]
+        entry = (table or load_tuned())[env.unwrapped.scenario]
         super().__init__(env, math.log(10.0) * entry["log10_q"], math.log(10.0) * entry["log10_r"])
 
 

@@ -117,7 +117,7 @@ def test_kf_matches_batch_lsq_on_nominal_flights_on_average():
     """Issue 3: after convergence (second half) the causal KF is within 10 % of the offline
     batch LS. Single flights scatter (±20 %: the unmodelled slow external field dominates both
     errors), so the claim is on the mean over 40 seeds with a 95 % confidence bound
-    (measured: mean ratio 1.035 over seeds 0–15)."""
+    (an exploratory run gave a mean ratio of 1.035 over seeds 0–15)."""
     ratios = []
     for seed in range(40):
         f = simulate_flight(preset("nominal"), seed)

@@ -16,6 +16,7 @@ from aeromag_env.kalman_core import (
     INT_COUNT,
     INT_DIV,
     INT_INTERVAL,
+    INT_K,
     INT_POS,
     INT_SKIP,
     INT_WINDOW,
@@ -35,6 +36,16 @@ from aeromag_env.kalman_core import (
     advance,
 )
 from aeromag_env.kalman_model import MODE, STATE_SCALE, FilterConfig
+
+#: The arrays of a filter, in the order :func:`aeromag_env.kalman_core.advance` takes them after
+#: ``(mode, k0, k1)``; the first axis of ``TIME_ARRAYS`` is the sample, of ``WINDOW_ARRAYS`` the
+#: innovation window.
+CORE_ARRAYS = ("y", "t", "td", "valid", "d", "z", "p", "qd", "rm", "z_good", "p0", "q0", "r0",
+               "rbuf", "sbuf", "acc", "ints", "par",
+               "est", "innov", "ror", "qoq", "q_scale", "r_scale", "states")  # fmt: skip
+TIME_ARRAYS = ("y", "t", "td", "valid", "est", "innov", "ror", "qoq", "q_scale", "r_scale",
+               "states")  # fmt: skip
+WINDOW_ARRAYS = ("rbuf", "sbuf")
 
 
 @dataclass
@@ -118,12 +129,16 @@ class FilterState:
         self.ror, self.qoq = np.full(n, np.nan), np.full(n, np.nan)
         self.q_scale, self.r_scale = np.full(n, np.nan), np.full(n, np.nan)
         self.states = np.full((n if store_states else 0, N_STATES), np.nan)
-        self.k = 0
 
     @property
     def n(self) -> int:
         """Number of samples of the flight."""
         return int(self.y.shape[0])
+
+    @property
+    def k(self) -> int:
+        """Samples processed so far (the next sample to process)."""
+        return int(self.ints[INT_K])
 
     @property
     def divergences(self) -> int:
@@ -135,13 +150,11 @@ class FilterState:
         k1 = min(int(k1), self.n)
         if k1 <= self.k:
             return
-        advance(
-            self.mode, self.k, k1, self.y, self.t, self.td, self.valid, self.d,
-            self.z, self.p, self.qd, self.rm, self.z_good, self.p0, self.q0, self.r0,
-            self.rbuf, self.sbuf, self.acc, self.ints, self.par,
-            self.est, self.innov, self.ror, self.qoq, self.q_scale, self.r_scale, self.states,
-        )  # fmt: skip
-        self.k = k1
+        advance(self.mode, self.k, k1, *self.arrays())
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """Inputs, state and outputs in the order of :data:`CORE_ARRAYS` (views, not copies)."""
+        return tuple(getattr(self, name) for name in CORE_ARRAYS)
 
     def recent_ratio(self, m: int) -> float:
         """ROR over the last ``m`` updates only: ``Σ|r|² / Σ tr S`` (NaN before any update)."""

@@ -10,7 +10,21 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from aeromag_env import env_core
 from aeromag_env.config import _check, from_dict, to_dict
+from aeromag_env.env_core import (
+    OUT_EPISODE_RMSE,
+    OUT_Q_SCALE,
+    OUT_QOQ,
+    OUT_R_SCALE,
+    OUT_REWARD,
+    OUT_RMSE,
+    OUT_ROR,
+    OUT_TERMINATED,
+    OUT_TRUNCATED,
+    RUN_LOG_Q,
+    RUN_LOG_R,
+)
 from aeromag_env.kalman import FilterState
 from aeromag_env.scenarios import Episode, check_scenario, make_episode
 
@@ -76,6 +90,9 @@ class AeroMagCompensationEnv(gym.Env):
     ``step`` rescales the filter's process noise Q and measurement noise R (the paper's eq. 21,
     ``Q ← s_a Q``, ``R ← s_r R``) and advances the filter over one decision window of K samples.
     The paper's fuzzy rules are one policy for this task (``agents.fis``); others are learned.
+    The step is compiled (:func:`aeromag_env.env_core.env_step`) and is the same code that
+    ``gym.make_vec("AeroMagCompensation-v0", num_envs=N)`` runs for N environments at once
+    (:class:`aeromag_env.vec_env.AeroMagCompensationVecEnv`).
 
     ## Action Space
 
@@ -147,7 +164,8 @@ class AeroMagCompensationEnv(gym.Env):
         self.observation_space = spaces.Box(low, high, (dim,), np.float32)
         self._obs_low, self._obs_high = low, high
         self._scenario = self.config.scenario
-        self._log_limit = math.log(self.config.scale_limit)
+        self._par = env_core.parameters(self.config)
+        self._out = np.zeros(env_core.N_OUT)
 
     def reset(
         self, *, seed: int | None = None, options: dict | None = None
@@ -161,9 +179,9 @@ class AeroMagCompensationEnv(gym.Env):
         )
         ep = self.episode
         self.filter = FilterState(ep.filter_cfg, ep.y, ep.t_b, ep.tdot_b, store_states=False)
-        self._log_q = self._log_r = 0.0
+        self._truth = np.ascontiguousarray(ep.truth_interf)
+        self._run = np.zeros(env_core.N_RUN)
         self._score_start = int(self.config.score_from * ep.n)
-        self._sq_err, self._n_err = 0.0, 0
         self._rewards: list[float] = []
         return np.zeros(self._obs_low.size, np.float32), {"flight_seed": self._flight_seed}
 
@@ -175,97 +193,31 @@ class AeroMagCompensationEnv(gym.Env):
     @property
     def log_scales(self) -> tuple[float, float]:
         """Natural logs of the cumulative Q and R scales relative to their initial values."""
-        return self._log_q, self._log_r
+        return float(self._run[RUN_LOG_Q]), float(self._run[RUN_LOG_R])
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        s_q, s_r = self._apply_action(action)
-        self.filter.scale_noise(s_q, s_r)
-        k0, divergences = self.filter.k, self.filter.divergences
-        self.filter.advance(k0 + self.config.decision_window)
-        k1 = self.filter.k
-        rmse_w = self._window_error(k0, k1)
-        terminated = self.filter.divergences > divergences
-        reward = (
-            self.config.divergence_penalty
-            if terminated
-            else -math.log1p(rmse_w / self.config.reward_scale_nt)
-        )
-        truncated = bool(k1 >= self.episode.n) and not terminated
+        a = env_core.check_actions(action)
+        f, obs, out = self.filter, np.empty(self._obs_low.size, np.float32), self._out
+        env_core.env_step(a[0], a[1], self._run, self._par, self._score_start, f.n, self._truth,
+                          self._obs_low, self._obs_high, obs, out, f.mode, *f.arrays())  # fmt: skip
+        reward = float(out[OUT_REWARD])
+        terminated, truncated = bool(out[OUT_TERMINATED]), bool(out[OUT_TRUNCATED])
         self._rewards.append(reward)
-        return (
-            self._observe(k1),
-            float(reward),
-            terminated,
-            truncated,
-            self._info(k1, rmse_w, terminated or truncated),
-        )
+        return obs, reward, terminated, truncated, self._info(terminated or truncated)
 
-    def _apply_action(self, action: np.ndarray) -> tuple[float, float]:
-        """Validate, clip, map to scale factors, keep the cumulative scales within the limit."""
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.size != 2 or not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be 2 finite numbers in [-1, 1], got {action!r}")
-        a = np.clip(a, -1.0, 1.0)
-        if self.config.action_mode == "absolute":
-            (q_lo, q_hi), (r_lo, r_hi) = self.config.absolute_q_log10, self.config.absolute_r_log10
-            target_q = math.log(10.0) * (q_lo + 0.5 * (a[0] + 1.0) * (q_hi - q_lo))
-            target_r = math.log(10.0) * (r_lo + 0.5 * (a[1] + 1.0) * (r_hi - r_lo))
-            log_s = np.array([target_q - self._log_q, target_r - self._log_r])
-        else:
-            log_s = a * math.log(self.config.s_max)
-        new_q = min(max(self._log_q + log_s[0], -self._log_limit), self._log_limit)
-        new_r = min(max(self._log_r + log_s[1], -self._log_limit), self._log_limit)
-        s_q, s_r = math.exp(new_q - self._log_q), math.exp(new_r - self._log_r)
-        self._log_q, self._log_r = new_q, new_r
-        return s_q, s_r
-
-    def _window_error(self, k0: int, k1: int) -> float:
-        err = self.episode.truth_interf[k0:k1] - self.filter.est[k0:k1]
-        sq = np.square(err)
-        lo = max(k0, self._score_start)
-        if lo < k1:
-            self._sq_err += float(sq[lo - k0 :].sum())
-            self._n_err += 3 * (k1 - lo)
-        return float(math.sqrt(sq.mean()))
-
-    def _observe(self, k1: int) -> np.ndarray:
-        k = k1 - 1
-        ratios = [self.filter.ror[k], self.filter.qoq[k]]
-        obs = [0.0 if not (v > 0 and math.isfinite(v)) else math.log10(v) for v in ratios]
-        if self.config.extras:
-            obs += [self._log_q / math.log(10), self._log_r / math.log(10),
-                    self._whiteness(k1), k1 / self.episode.n, self._short_ror(k1)]  # fmt: skip
-        return np.clip(np.asarray(obs, np.float32), self._obs_low, self._obs_high)
-
-    def _short_ror(self, k1: int) -> float:
-        """log10 of the ROR over the last decision window only (reacts to a step within K)."""
-        ratio = self.filter.recent_ratio(self.config.decision_window)
-        return math.log10(max(ratio, 1e-8)) if ratio > 0 and math.isfinite(ratio) else 0.0
-
-    def _whiteness(self, k1: int) -> float:
-        r = self.filter.innov[max(0, k1 - self.filter.cfg.window) : k1]
-        r = r[np.all(np.isfinite(r), axis=1)]
-        if r.shape[0] < 3:
-            return 0.0
-        r = r - r.mean(axis=0)
-        den = float(np.sum(r * r))
-        return float(np.sum(r[1:] * r[:-1]) / den) if den > 0 else 0.0
-
-    def _info(self, k1: int, rmse_w: float, done: bool) -> dict[str, Any]:
-        k = k1 - 1
+    def _info(self, done: bool) -> dict[str, Any]:
+        out = self._out
         info = {
-            "rmse_window_nt": rmse_w,
-            "ror": float(self.filter.ror[k]),
-            "qoq": float(self.filter.qoq[k]),
-            "q_scale": math.exp(self._log_q),
-            "r_scale": math.exp(self._log_r),
-            "sample": k1,
+            "rmse_window_nt": float(out[OUT_RMSE]),
+            "ror": float(out[OUT_ROR]),
+            "qoq": float(out[OUT_QOQ]),
+            "q_scale": float(out[OUT_Q_SCALE]),
+            "r_scale": float(out[OUT_R_SCALE]),
+            "sample": self.filter.k,
             "flight_seed": self._flight_seed,
         }
         if done:
-            info["episode_rmse_nt"] = (
-                math.sqrt(self._sq_err / self._n_err) if self._n_err else float("nan")
-            )
+            info["episode_rmse_nt"] = float(out[OUT_EPISODE_RMSE])
             info["divergences"] = self.filter.divergences
         return info
 

@@ -13,11 +13,9 @@ import numpy as np
 
 from aeromag_env.interference import N_STATES
 from aeromag_env.kalman_core import (
-    INT_COUNT,
     INT_DIV,
     INT_INTERVAL,
     INT_K,
-    INT_POS,
     INT_SKIP,
     INT_WINDOW,
     N_ACC,
@@ -155,16 +153,6 @@ class FilterState:
     def arrays(self) -> tuple[np.ndarray, ...]:
         """Inputs, state and outputs in the order of :data:`CORE_ARRAYS` (views, not copies)."""
         return tuple(getattr(self, name) for name in CORE_ARRAYS)
-
-    def recent_ratio(self, m: int) -> float:
-        """ROR over the last ``m`` updates only: ``Σ|r|² / Σ tr S`` (NaN before any update)."""
-        count, pos, size = int(self.ints[INT_COUNT]), int(self.ints[INT_POS]), self.sbuf.size
-        m = min(m, count)
-        if m == 0:
-            return float("nan")
-        idx = (pos - 1 - np.arange(m)) % size
-        den = float(self.sbuf[idx].sum())
-        return float(np.sum(self.rbuf[idx] ** 2)) / den if den > 0 else float("nan")
 
     def scale_noise(self, s_q: float, s_r: float) -> None:
         """Multiply Q and R by ``s_q`` and ``s_r`` (paper eq. 21 with an external tuner)."""

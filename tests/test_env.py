@@ -72,8 +72,9 @@ def test_actions_are_clipped_and_nan_rejected():
     env = _make()
     env.reset(seed=100_000)
     env.step(np.array([5.0, -5.0], np.float32))
-    assert env.unwrapped._log_q == pytest.approx(math.log(2.0))  # clipped to +1 → ×2
-    assert env.unwrapped._log_r == pytest.approx(-math.log(2.0))
+    log_q, log_r = env.unwrapped.log_scales
+    assert log_q == pytest.approx(math.log(2.0))  # clipped to +1 → ×2
+    assert log_r == pytest.approx(-math.log(2.0))
     with pytest.raises(ValueError, match="finite"):
         env.step(np.array([np.nan, 0.0], np.float32))
 

@@ -1,0 +1,268 @@
+"""Compiled step of the tuning environment, shared by the single and the vector environment.
+
+:func:`env_step` is one ``step`` of :class:`aeromag_env.env.AeroMagCompensationEnv` once the
+action has been checked: map the action to Q and R scale factors, rescale, advance the filter
+(:func:`aeromag_env.kalman_core.advance`) over one decision window, score the window against the
+true interference and write the observation. :func:`env_step_batch` runs it for many
+environments at once, in compiled chunks spread over the cores (:mod:`aeromag_env.threads`;
+used by :class:`aeromag_env.vec_env.AeroMagCompensationVecEnv`). Both run the same compiled code, so
+environment i of the vector environment is bitwise the single environment given the same flight
+and actions (tested).
+
+The action mapping, reward and observation are specified in the environment's docstring.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numba import njit
+
+from aeromag_env.kalman_core import INT_COUNT, INT_DIV, INT_K, INT_POS, INT_WINDOW, advance
+from aeromag_env.threads import run_chunks
+
+if TYPE_CHECKING:
+    from aeromag_env.env import EnvConfig
+
+# running values of one environment (float vector)
+RUN_LOG_Q, RUN_LOG_R, RUN_SQ_ERR, RUN_N_ERR = range(4)
+N_RUN = 4
+# environment parameters (float vector, see parameters())
+(PAR_K, PAR_LOG_S_MAX, PAR_LOG_LIMIT, PAR_ABSOLUTE, PAR_Q_LO, PAR_Q_HI, PAR_R_LO, PAR_R_HI,
+ PAR_REWARD_NT, PAR_PENALTY, PAR_EXTRAS, PAR_LN10) = range(12)  # fmt: skip
+N_PAR = 12
+# outcome of one step (float vector)
+(OUT_REWARD, OUT_RMSE, OUT_ROR, OUT_QOQ, OUT_Q_SCALE, OUT_R_SCALE, OUT_TERMINATED,
+ OUT_TRUNCATED, OUT_EPISODE_RMSE) = range(9)  # fmt: skip
+N_OUT = 9
+
+
+def parameters(config: EnvConfig) -> np.ndarray:
+    """The settings of ``config`` the compiled step reads, as a float vector (N_PAR,)."""
+    par = np.zeros(N_PAR)
+    par[PAR_K] = config.decision_window
+    par[PAR_LOG_S_MAX] = math.log(config.s_max)
+    par[PAR_LOG_LIMIT] = math.log(config.scale_limit)
+    par[PAR_ABSOLUTE] = float(config.action_mode == "absolute")
+    par[PAR_Q_LO], par[PAR_Q_HI] = config.absolute_q_log10
+    par[PAR_R_LO], par[PAR_R_HI] = config.absolute_r_log10
+    par[PAR_REWARD_NT] = config.reward_scale_nt
+    par[PAR_PENALTY] = config.divergence_penalty
+    par[PAR_EXTRAS] = float(config.extras)
+    par[PAR_LN10] = math.log(10.0)
+    return par
+
+
+def check_actions(actions: object, num_envs: int | None = None) -> np.ndarray:
+    """The action of one environment as float64 (2,), or with ``num_envs`` the actions of a
+    vector environment (num_envs, 2); a one-line ValueError when the size is wrong or a value
+    is not finite (values outside [-1, 1] are clipped later, not refused)."""
+    try:
+        a = np.asarray(actions, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"actions must be numbers in [-1, 1], got {actions!r}") from None
+    if num_envs is None:
+        if a.size != 2 or not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be 2 finite numbers in [-1, 1], got {actions!r}")
+        return a.reshape(2)
+    if a.shape != (num_envs, 2):
+        raise ValueError(
+            f"actions must have shape ({num_envs}, 2) (one [a_q, a_r] row per environment), "
+            f"got shape {a.shape}"
+        )
+    bad = np.flatnonzero(~np.all(np.isfinite(a), axis=1))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"actions must be finite; environment {i} got {a[i].tolist()}")
+    return a
+
+
+@njit(cache=True)
+def _action_scales(a0: float, a1: float, run: np.ndarray, par: np.ndarray) -> tuple[float, float]:
+    """Clip to [-1, 1], map to Q and R scale factors, keep the cumulative log scales within
+    ±log(scale_limit); updates ``run[RUN_LOG_Q]``, ``run[RUN_LOG_R]``."""
+    a0, a1 = min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)
+    log_q, log_r, limit = run[RUN_LOG_Q], run[RUN_LOG_R], par[PAR_LOG_LIMIT]
+    if par[PAR_ABSOLUTE] != 0.0:  # log10(scale) = lo + (a + 1)/2 (hi − lo)
+        q_lo, q_hi, r_lo, r_hi = par[PAR_Q_LO], par[PAR_Q_HI], par[PAR_R_LO], par[PAR_R_HI]
+        step_q = par[PAR_LN10] * (q_lo + 0.5 * (a0 + 1.0) * (q_hi - q_lo)) - log_q
+        step_r = par[PAR_LN10] * (r_lo + 0.5 * (a1 + 1.0) * (r_hi - r_lo)) - log_r
+    else:  # s = s_max ** a
+        step_q, step_r = a0 * par[PAR_LOG_S_MAX], a1 * par[PAR_LOG_S_MAX]
+    new_q = min(max(log_q + step_q, -limit), limit)
+    new_r = min(max(log_r + step_r, -limit), limit)
+    run[RUN_LOG_Q], run[RUN_LOG_R] = new_q, new_r
+    return math.exp(new_q - log_q), math.exp(new_r - log_r)
+
+
+@njit(cache=True)
+def _window_error(
+    k0: int, k1: int, truth: np.ndarray, est: np.ndarray, score_start: int, run: np.ndarray
+) -> float:
+    """RMS of true minus estimated interference over ``k0 ≤ k < k1`` [nT] (pooled over axes);
+    the part from ``score_start`` on is added to the episode's sums."""
+    total, scored = 0.0, 0.0
+    for k in range(k0, k1):
+        for i in range(3):
+            e2 = (truth[k, i] - est[k, i]) ** 2
+            total += e2
+            if k >= score_start:
+                scored += e2
+    lo = max(k0, score_start)
+    if lo < k1:
+        run[RUN_SQ_ERR] += scored
+        run[RUN_N_ERR] += 3 * (k1 - lo)
+    return math.sqrt(total / (3 * (k1 - k0))) if k1 > k0 else np.nan
+
+
+@njit(cache=True)
+def _finite_row(x: np.ndarray, k: int) -> bool:
+    return np.isfinite(x[k, 0]) and np.isfinite(x[k, 1]) and np.isfinite(x[k, 2])
+
+
+@njit(cache=True)
+def _whiteness(k1: int, window: int, innov: np.ndarray) -> float:
+    """Lag-1 autocorrelation of the innovations of the last ``window`` samples (finite rows,
+    per-axis mean removed, pooled over axes); 0 with fewer than 3 rows or no variance."""
+    lo = max(0, k1 - window)
+    rows = 0
+    for k in range(lo, k1):
+        rows += _finite_row(innov, k)
+    if rows < 3:
+        return 0.0
+    num, den = 0.0, 0.0
+    for i in range(3):
+        mean = 0.0
+        for k in range(lo, k1):
+            if _finite_row(innov, k):
+                mean += innov[k, i]
+        mean /= rows
+        prev, first = 0.0, True
+        for k in range(lo, k1):
+            if _finite_row(innov, k):
+                c = innov[k, i] - mean
+                den += c * c
+                if not first:
+                    num += c * prev
+                prev, first = c, False
+    return num / den if den > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _recent_ratio(m: int, ints: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray) -> float:
+    """ROR over the last ``m`` updates only: ``Σ|r|² / Σ tr S`` (NaN before any update)."""
+    m = min(m, ints[INT_COUNT])
+    num, den = 0.0, 0.0
+    for j in range(m):
+        w = (ints[INT_POS] - 1 - j) % ints[INT_WINDOW]
+        num += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
+        den += sbuf[w]
+    return num / den if den > 0.0 else np.nan
+
+
+@njit(cache=True)
+def _log10_or_zero(v: float) -> float:
+    return math.log10(v) if v > 0.0 and np.isfinite(v) else 0.0
+
+
+@njit(cache=True)
+def _observe(
+    k1: int, n: int, run: np.ndarray, par: np.ndarray, ror: np.ndarray, qoq: np.ndarray,
+    innov: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray, ints: np.ndarray,
+    low: np.ndarray, high: np.ndarray, obs: np.ndarray,
+) -> None:  # fmt: skip
+    """Write the observation at the end of the window (float32, clipped to the bounds)."""
+    k = k1 - 1
+    obs[0] = _log10_or_zero(ror[k])
+    obs[1] = _log10_or_zero(qoq[k])
+    if par[PAR_EXTRAS] != 0.0:
+        obs[2] = run[RUN_LOG_Q] / par[PAR_LN10]
+        obs[3] = run[RUN_LOG_R] / par[PAR_LN10]
+        obs[4] = _whiteness(k1, ints[INT_WINDOW], innov)
+        obs[5] = k1 / n
+        short = _recent_ratio(int(par[PAR_K]), ints, rbuf, sbuf)
+        obs[6] = _log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
+    for j in range(obs.shape[0]):
+        obs[j] = min(max(obs[j], low[j]), high[j])
+
+
+@njit(cache=True)
+def env_step(
+    a0: float, a1: float, run: np.ndarray, env_par: np.ndarray, score_start: int, n: int,
+    truth: np.ndarray, low: np.ndarray, high: np.ndarray, obs: np.ndarray, out: np.ndarray,
+    mode: int, y: np.ndarray, t: np.ndarray, td: np.ndarray, valid: np.ndarray, d: np.ndarray,
+    z: np.ndarray, p: np.ndarray, qd: np.ndarray, rm: np.ndarray, z_good: np.ndarray,
+    p0: np.ndarray, q0: np.ndarray, r0: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray,
+    acc: np.ndarray, ints: np.ndarray, par: np.ndarray, est: np.ndarray, innov: np.ndarray,
+    ror: np.ndarray, qoq: np.ndarray, q_scale: np.ndarray, r_scale: np.ndarray,
+    states: np.ndarray,
+) -> None:  # fmt: skip
+    """One environment step for the finite action ``(a0, a1)``.
+
+    ``run`` (N_RUN,) running values, ``env_par`` (N_PAR,) from :func:`parameters`,
+    ``score_start`` first scored sample, ``n`` flight length, ``truth`` (≥ n, 3) true
+    interference [nT], ``low``/``high``/``obs`` (dim,) float32 bounds and observation (written),
+    ``out`` (N_OUT,) outcome (written); then the filter's ``mode`` and arrays in the order of
+    :data:`aeromag_env.kalman.CORE_ARRAYS` (updated in place).
+    """
+    s_q, s_r = _action_scales(a0, a1, run, env_par)
+    qd *= s_q  # eq. 21: Q ← s_a Q, R ← s_r R
+    rm *= s_r
+    k0, divergences = ints[INT_K], ints[INT_DIV]
+    k1 = min(k0 + int(env_par[PAR_K]), n)
+    if k1 > k0:
+        advance(mode, k0, k1, y, t, td, valid, d, z, p, qd, rm, z_good, p0, q0, r0, rbuf, sbuf,
+                acc, ints, par, est, innov, ror, qoq, q_scale, r_scale, states)  # fmt: skip
+    rmse = _window_error(k0, k1, truth, est, score_start, run)
+    terminated = ints[INT_DIV] > divergences
+    reward = -math.log1p(rmse / env_par[PAR_REWARD_NT])
+    out[OUT_REWARD] = env_par[PAR_PENALTY] if terminated else reward
+    out[OUT_RMSE] = rmse
+    out[OUT_ROR], out[OUT_QOQ] = ror[k1 - 1], qoq[k1 - 1]
+    out[OUT_Q_SCALE], out[OUT_R_SCALE] = math.exp(run[RUN_LOG_Q]), math.exp(run[RUN_LOG_R])
+    out[OUT_TERMINATED] = 1.0 if terminated else 0.0
+    out[OUT_TRUNCATED] = 1.0 if k1 >= n and not terminated else 0.0
+    n_err = run[RUN_N_ERR]
+    out[OUT_EPISODE_RMSE] = math.sqrt(run[RUN_SQ_ERR] / n_err) if n_err > 0 else np.nan
+    _observe(k1, n, run, env_par, ror, qoq, innov, rbuf, sbuf, ints, low, high, obs)
+
+
+@njit(cache=True, nogil=True)
+def _env_step_range(
+    lo: int, hi: int, active: np.ndarray, actions: np.ndarray, run: np.ndarray,
+    env_par: np.ndarray, score_start: np.ndarray, n: np.ndarray, truth: np.ndarray,
+    low: np.ndarray, high: np.ndarray, obs: np.ndarray, out: np.ndarray, modes: np.ndarray,
+    y: np.ndarray, t: np.ndarray, td: np.ndarray, valid: np.ndarray, d: np.ndarray,
+    z: np.ndarray, p: np.ndarray, qd: np.ndarray, rm: np.ndarray, z_good: np.ndarray,
+    p0: np.ndarray, q0: np.ndarray, r0: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray,
+    acc: np.ndarray, ints: np.ndarray, par: np.ndarray, est: np.ndarray, innov: np.ndarray,
+    ror: np.ndarray, qoq: np.ndarray, q_scale: np.ndarray, r_scale: np.ndarray,
+    states: np.ndarray,
+) -> None:  # fmt: skip
+    """Environments ``lo ≤ i < hi`` of :func:`env_step_batch`."""
+    for i in range(lo, hi):
+        if active[i]:
+            env_step(
+                actions[i, 0], actions[i, 1], run[i], env_par, score_start[i], n[i], truth[i],
+                low, high, obs[i], out[i], modes[i], y[i], t[i], td[i], valid[i], d[i], z[i],
+                p[i], qd[i], rm[i], z_good[i], p0[i], q0[i], r0[i], rbuf[i], sbuf[i], acc[i],
+                ints[i], par[i], est[i], innov[i], ror[i], qoq[i], q_scale[i], r_scale[i],
+                states[i],
+            )  # fmt: skip
+
+
+def env_step_batch(
+    active: np.ndarray, actions: np.ndarray, run: np.ndarray, env_par: np.ndarray,
+    score_start: np.ndarray, n: np.ndarray, truth: np.ndarray, low: np.ndarray,
+    high: np.ndarray, obs: np.ndarray, out: np.ndarray, modes: np.ndarray, *arrays: np.ndarray,
+) -> None:  # fmt: skip
+    """:func:`env_step` for every environment i with ``active[i]`` (N,) bool, on all cores.
+
+    ``actions`` (N, 2) float64 finite; ``arrays`` the filters' arrays in the order of
+    :data:`aeromag_env.kalman.CORE_ARRAYS`; every array has a leading environment axis except
+    ``env_par``, ``low`` and ``high`` (shared).
+    """
+    run_chunks(_env_step_range, int(active.shape[0]), active, actions, run, env_par,
+               score_start, n, truth, low, high, obs, out, modes, *arrays)  # fmt: skip

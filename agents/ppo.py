@@ -4,6 +4,8 @@ Hyperparameters live in ``agents/hyperparams/ppo.json`` (versioned, RL Zoo style
 scenario, with the environment keyword arguments the policy is trained with), apart from the
 environment's own configuration. Training resets every environment with seeds from the training
 range only (``[0, 50 000)``); validation uses ``[50 000, 100 000)``; tests use ``≥ 100 000``.
+The training environments are stepped together by the batched environment
+(:mod:`aeromag_env.sb3_vec_env`), or by SB3's ``DummyVecEnv`` with ``"vec_env": "dummy"``.
 Checkpoints (model + observation normalisation) are written periodically and training resumes
 from the latest one. torch and stable-baselines3 are imported here only (extra ``rl``).
 """
@@ -56,20 +58,38 @@ def _seed_stream(rank: int, n_envs: int, offset: int) -> Iterator[int]:
         k += n_envs
 
 
+#: How the training environments are vectorised: one batched environment stepping all of them
+#: in one compiled call (default), or stable-baselines3's DummyVecEnv over single environments
+#: (for comparison: same observations, rewards and seeds, hence the same training).
+VEC_ENVS = ("batched", "dummy")
+
+
 def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
-    """``DummyVecEnv`` of ``n_envs`` seeded environments under ``VecNormalize``."""
+    """``n_envs`` training environments under ``VecNormalize``; ``hp["vec_env"]`` (one of
+    :data:`VEC_ENVS`, default ``batched``) chooses the vectorisation. Environment ``rank``
+    resets with the seeds of ``_seed_stream(rank, …)`` either way."""
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    n_envs = int(hp["n_envs"])
+    n_envs, kind = int(hp["n_envs"]), hp.get("vec_env", "batched")
+    if kind not in VEC_ENVS:
+        raise AeromagError(f"vec_env must be one of {', '.join(VEC_ENVS)}; got {kind!r}")
+    streams = [_seed_stream(rank, n_envs, offset=1000 * seed) for rank in range(n_envs)]
+    if kind == "batched":
+        from aeromag_env.sb3_vec_env import AeroMagSB3VecEnv
 
-    def factory(rank: int) -> Any:
-        def make() -> gym.Env:
-            env = gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"])
-            return TrainingSeeds(env, _seed_stream(rank, n_envs, offset=1000 * seed))
+        venv: Any = AeroMagSB3VecEnv(
+            n_envs, scenario=scenario, reset_seeds=streams, **hp["env_kwargs"]
+        )
+    else:
 
-        return make
+        def factory(rank: int) -> Any:
+            def make() -> gym.Env:
+                env = gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"])
+                return TrainingSeeds(env, streams[rank])
 
-    venv = DummyVecEnv([factory(i) for i in range(n_envs)])
+            return make
+
+        venv = DummyVecEnv([factory(i) for i in range(n_envs)])
     return VecNormalize(venv, norm_obs=True, norm_reward=bool(hp["normalize_reward"]),
                         gamma=float(hp["gamma"]), clip_obs=10.0)  # fmt: skip
 

@@ -134,16 +134,20 @@ def _window_add(
 
 
 @njit(cache=True)
-def _qoq(kg: np.ndarray, acc: np.ndarray, count: int, qd: np.ndarray) -> float:
-    """``tr(K C_r Kᵀ) / tr(Q)`` in normalised coordinates (NaN when tr Q = 0)."""
+def _qoq(kt: np.ndarray, acc: np.ndarray, count: int, qd: np.ndarray) -> float:
+    """``tr(K C_r Kᵀ) / tr(Q)`` in normalised coordinates (NaN when tr Q = 0); ``kt`` is Kᵀ."""
     trq = qd.sum()
     if not trq > 0.0:
         return np.nan
+    c = acc[ACC_C : ACC_C + 9]
     num = 0.0
-    for a in range(kg.shape[0]):
-        for i in range(3):
-            for j in range(3):
-                num += kg[a, i] * acc[ACC_C + 3 * i + j] * kg[a, j]
+    for a in range(kt.shape[1]):  # the diagonal of K C_r Kᵀ, row by row (independent rows)
+        k0, k1, k2 = kt[0, a], kt[1, a], kt[2, a]
+        num += (
+            k0 * (c[0] * k0 + c[1] * k1 + c[2] * k2)
+            + k1 * (c[3] * k0 + c[4] * k1 + c[5] * k2)
+            + k2 * (c[6] * k0 + c[7] * k1 + c[8] * k2)
+        )
     return num / count / trq
 
 
@@ -211,14 +215,14 @@ def _sage_husa(
     r: np.ndarray,
     s: np.ndarray,
     sinv: np.ndarray,
-    kg: np.ndarray,
+    kt: np.ndarray,
     rm: np.ndarray,
     qd: np.ndarray,
     q0: np.ndarray,
     k: int,
     par: np.ndarray,
 ) -> None:
-    """Sage–Husa with fading factor b: ``d = (1−b)/(1−b^{k+1})``.
+    """Sage–Husa with fading factor b: ``d = (1−b)/(1−b^{k+1})`` (``kt`` is the gain Kᵀ).
 
     Default: ``R ← (1−d) R + d (e eᵀ + H P⁺ Hᵀ)`` from the post-fit residual ``e`` (Akhlaghi,
     Zhou & Huang 2017), positive definite by construction; with the optimal gain
@@ -246,7 +250,7 @@ def _sage_husa(
         v = 0.0
         for i in range(3):
             for j in range(3):
-                v += kg[a, i] * (r[i] * r[j] - s[i, j]) * kg[a, j]
+                v += kt[i, a] * (r[i] * r[j] - s[i, j]) * kt[j, a]
         qd[a] = max(qd[a] + dk * v, lo * q0[a])
 
 
@@ -314,9 +318,11 @@ def advance(
     n_state = z.shape[0]
     col = np.empty((3, 7), np.int64)
     hv = np.empty((3, 7))
-    g = np.empty((n_state, 3))
-    kg = np.zeros((n_state, 3))
-    ks = np.empty((n_state, 3))
+    # G = P⁻ H_sᵀ, K and K S stored transposed (3, n): the state index is contiguous, so the
+    # loops over it vectorise; every sum keeps the order of the equations as written
+    gt = np.empty((3, n_state))
+    kt = np.zeros((3, n_state))
+    kst = np.empty((3, n_state))
     s = np.empty((3, 3))
     sinv = np.empty((3, 3))
     r = np.empty(3)
@@ -341,44 +347,52 @@ def advance(
             innov[k, :] = np.nan
             ints[INT_SKIP] += 1
         else:
-            # G = P⁻ H_sᵀ, S = H_s G + R
+            # Gᵀ[i, a] = Σ_m P⁻[a, c_im] h_im, read as P⁻[c_im, a] (P is kept exactly symmetric)
+            gt[:, :] = 0.0
             for i in range(3):
-                for a in range(n_state):
-                    acc_g = 0.0
-                    for m in range(7):
-                        acc_g += p[a, col[i, m]] * hv[i, m]
-                    g[a, i] = acc_g
+                for m in range(7):
+                    c, h = col[i, m], hv[i, m]
+                    for a in range(n_state):
+                        gt[i, a] += p[c, a] * h
+            # S = H_s G + R
             for i in range(3):
                 for j in range(3):
                     acc_s = rm[i, j]
                     for m in range(7):
-                        acc_s += hv[i, m] * g[col[i, m], j]
+                        acc_s += hv[i, m] * gt[j, col[i, m]]
                     s[i, j] = acc_s
                 r[i] = y[k, i] - est[k, i]
             innov[k, :] = r
             ok = _inv3(s, sinv)
             if ok:
-                for a in range(n_state):
-                    for j in range(3):
-                        kg[a, j] = (
-                            g[a, 0] * sinv[0, j] + g[a, 1] * sinv[1, j] + g[a, 2] * sinv[2, j]
+                for j in range(3):  # K = G S⁻¹ (eq. 19)
+                    for a in range(n_state):
+                        kt[j, a] = (
+                            gt[0, a] * sinv[0, j] + gt[1, a] * sinv[1, j] + gt[2, a] * sinv[2, j]
                         )
                 for a in range(n_state):
-                    z[a] += kg[a, 0] * r[0] + kg[a, 1] * r[1] + kg[a, 2] * r[2]
-                    for j in range(3):
-                        ks[a, j] = kg[a, 0] * s[0, j] + kg[a, 1] * s[1, j] + kg[a, 2] * s[2, j]
-                # Joseph form, expanded: P = P⁻ − K Gᵀ − G Kᵀ + K S Kᵀ, symmetrised
+                    z[a] += kt[0, a] * r[0] + kt[1, a] * r[1] + kt[2, a] * r[2]
+                for j in range(3):
+                    for a in range(n_state):
+                        kst[j, a] = kt[0, a] * s[0, j] + kt[1, a] * s[1, j] + kt[2, a] * s[2, j]
+                # Joseph form, expanded: P = P⁻ − K Gᵀ − G Kᵀ + K S Kᵀ, on the lower triangle
                 for a in range(n_state):
+                    ka0, ka1, ka2 = kt[0, a], kt[1, a], kt[2, a]
+                    g0, g1, g2 = gt[0, a], gt[1, a], gt[2, a]
+                    s0, s1, s2 = kst[0, a], kst[1, a], kst[2, a]
                     for b in range(a + 1):
                         v = 0.0
-                        for j in range(3):
-                            v += -kg[a, j] * g[b, j] - g[a, j] * kg[b, j] + ks[a, j] * kg[b, j]
+                        v += -ka0 * gt[0, b] - g0 * kt[0, b] + s0 * kt[0, b]
+                        v += -ka1 * gt[1, b] - g1 * kt[1, b] + s1 * kt[1, b]
+                        v += -ka2 * gt[2, b] - g2 * kt[2, b] + s2 * kt[2, b]
                         p[a, b] += v
+                for a in range(n_state):  # then mirrored: P exactly symmetric
+                    for b in range(a):
                         p[b, a] = p[a, b]
                 trs = s[0, 0] + s[1, 1] + s[2, 2]
                 _window_add(r, trs, rbuf, sbuf, acc, ints)
                 if mode == 3:
-                    _sage_husa(r, s, sinv, kg, rm, qd, q0, ints[INT_K], par)
+                    _sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INT_K], par)
             healthy = ok
             for a in range(n_state):
                 if not (abs(z[a]) < MAX_STATE and p[a, a] > 0.0 and np.isfinite(p[a, a])):
@@ -391,7 +405,7 @@ def advance(
                 z_good[:] = z
         count = ints[INT_COUNT]
         ror[k] = acc[ACC_RR] / acc[ACC_S] if count > 0 and acc[ACC_S] > 0.0 else np.nan
-        qoq[k] = _qoq(kg, acc, count, qd) if count > 0 and valid[k] else np.nan
+        qoq[k] = _qoq(kt, acc, count, qd) if count > 0 and valid[k] else np.nan
         ints[INT_SINCE] += 1
         if (
             (mode == 1 or mode == 4)

@@ -72,9 +72,9 @@ def check_actions(actions: object, num_envs: int | None = None) -> np.ndarray:
             f"actions must have shape ({num_envs}, 2) (one [a_q, a_r] row per environment), "
             f"got shape {a.shape}"
         )
-    bad = np.flatnonzero(~np.all(np.isfinite(a), axis=1))
-    if bad.size:
-        i = int(bad[0])
+    finite = np.isfinite(a)
+    if not finite.all():
+        i = int(np.flatnonzero(~finite.all(axis=1))[0])
         raise ValueError(f"actions must be finite; environment {i} got {a[i].tolist()}")
     return a
 

@@ -107,6 +107,7 @@ class BatchFilterState:
         self.mode = np.array([s.mode for s in states], dtype=np.int64)
         self.n = np.array([s.n for s in states], dtype=np.int64)
         self.cfgs = [s.cfg for s in states]
+        self._arrays: tuple[np.ndarray, ...] | None = None
         first = states[0]
         for name in CORE_ARRAYS:
             shape = list(getattr(first, name).shape)
@@ -167,7 +168,9 @@ class BatchFilterState:
 
     def arrays(self) -> tuple[np.ndarray, ...]:
         """The stacked arrays in the order of :data:`aeromag_env.kalman.CORE_ARRAYS`."""
-        return tuple(getattr(self, name) for name in CORE_ARRAYS)
+        if self._arrays is None:  # built once per allocation: an env step asks every time
+            self._arrays = tuple(getattr(self, name) for name in CORE_ARRAYS)
+        return self._arrays
 
     def advance(self, k1: int | np.ndarray) -> None:
         """Run every flight from its current sample up to (not including) ``k1`` (scalar or
@@ -210,6 +213,7 @@ class BatchFilterState:
             new = np.full((old.shape[0], n, *old.shape[2:]), _PAD[old.dtype.kind], old.dtype)
             new[:, : old.shape[1]] = old
             setattr(self, name, new)
+        self._arrays = None
 
     def _grow_window(self, m: int) -> None:
         for name in WINDOW_ARRAYS:
@@ -217,6 +221,7 @@ class BatchFilterState:
             new = np.zeros((old.shape[0], m, *old.shape[2:]), old.dtype)
             new[:, : old.shape[1]] = old
             setattr(self, name, new)
+        self._arrays = None
 
 
 #: Padding beyond a flight's end, by dtype kind: never read by the loop, NaN in outputs.

@@ -263,9 +263,13 @@ class AeroMagCompensationVecEnv(VectorEnv):
 def _put(infos: dict[str, Any], key: str, values: np.ndarray, mask: np.ndarray) -> None:
     """Set ``infos[key][mask]`` and its mask ``infos["_" + key]`` (Gymnasium's vector info
     layout: zeros where an environment has no entry)."""
-    if not mask.any():
+    count = np.count_nonzero(mask)
+    if count == 0:
         return
     if key not in infos:
+        if count == mask.size:  # the usual case: every environment has the entry
+            infos[key], infos[f"_{key}"] = values.copy(), mask.copy()
+            return
         infos[key] = np.zeros(mask.size, values.dtype)
         infos[f"_{key}"] = np.zeros(mask.size, bool)
     infos[key][mask] = values[mask]

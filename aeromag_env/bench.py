@@ -1,14 +1,20 @@
 """Speed benchmarks for ``aeromag bench``: every figure is measured side by side with its
 reference in the same run (these machines are noisy), repeated, and reported as a median.
 
-Figures so far:
+Figures (``bench.json`` → ``figures``):
 
 * ``simulate_s_per_flight_hour`` — seconds to simulate a 1-hour 10 Hz ``nominal``
   calibration+survey flight (target < 1 s), against ``simulate_direct_igrf_s_per_flight_hour``,
   the same flight with IGRF evaluated directly at every sample instead of on the coarse grid.
-* ``env_single_steps_per_s`` — ``AeroMagCompensation-v0`` steps per second, one env, K = 10
-  (target ≥ 5 000), against ``env_numpy_reference_steps_per_s``: the plain-numpy reference
-  filter's samples per second divided by K.
+* the filters on the first :data:`FILTER_SAMPLES` samples of that flight
+  (:mod:`aeromag_env.bench_filters`): compiled, batched (64 flights), plain numpy, filterpy.
+* environments and PPO training (:mod:`aeromag_env.bench_envs`).
+* ``discover_s_per_flight_hour`` — :func:`aeromag_env.discover.discover` on the same 1-hour
+  flight, against its duration (null when the module is not there).
+* ``compensate_10h_peak_mb`` — peak resident memory of a fresh process running ``aeromag
+  compensate FILE --method kf`` on a 10-hour 10 Hz flight (:func:`peak_rss_mb`: interpreter,
+  libraries, reading, filtering, writing and the figure; target < 1 GB), against
+  ``compensate_baseline_mb``, the same process after its imports, before the work.
 """
 
 from __future__ import annotations
@@ -16,6 +22,9 @@ from __future__ import annotations
 import json
 import platform
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -23,6 +32,11 @@ from typing import Any
 
 from aeromag_env.atomic import write_text
 from aeromag_env.config import preset, with_overrides
+from aeromag_env.flight import Flight
+from aeromag_env.threads import cores
+
+#: Samples of the 1-hour flight the filter figures run on (quick: 1 000).
+FILTER_SAMPLES = 6000
 
 
 def _median_seconds(fn: Callable[[], object], repeats: int) -> float:
@@ -34,14 +48,25 @@ def _median_seconds(fn: Callable[[], object], repeats: int) -> float:
     return statistics.median(times)
 
 
+def hour_flight() -> Flight:
+    """The benchmarks' data: a 1-hour 10 Hz ``nominal`` calibration+survey flight, seed 0."""
+    from aeromag_env.simulate import simulate_flight
+
+    return simulate_flight(_hour_config(), 0)
+
+
+def _hour_config(hours: float = 1.0) -> Any:
+    return with_overrides(
+        preset("nominal"),
+        {"trajectory.pattern": "calibration+survey", "trajectory.duration_s": 3600.0 * hours},
+    )
+
+
 def bench_simulate(repeats: int) -> dict[str, float]:
     """Seconds per simulated flight-hour: coarse-grid IGRF vs IGRF at every sample."""
     from aeromag_env.simulate import simulate_flight
 
-    cfg = with_overrides(
-        preset("nominal"),
-        {"trajectory.pattern": "calibration+survey", "trajectory.duration_s": 3600.0},
-    )
+    cfg = _hour_config()
     every_sample = with_overrides(cfg, {"earth.igrf_grid_spacing_s": 0.1})
     simulate_flight(cfg, 0)  # warm caches (ppigrf coefficient file, imports)
     grid = _median_seconds(lambda: simulate_flight(cfg, 0), repeats)
@@ -49,69 +74,172 @@ def bench_simulate(repeats: int) -> dict[str, float]:
     return {"simulate_s_per_flight_hour": grid, "simulate_direct_igrf_s_per_flight_hour": ref}
 
 
-def bench_env(repeats: int) -> dict[str, float]:
-    """Env steps per second (one env, K = 10, zero actions, steps only) against the plain-numpy
-    reference filter's samples per second / K (an env stepping that filter)."""
-    import gymnasium as gym
-    import numpy as np
+def bench_filter_figures(flight: Flight, samples: int, repeats: int) -> dict[str, float | None]:
+    from aeromag_env.bench_filters import bench_filters
+    from aeromag_env.compensate import earth_model
 
-    from aeromag_env.kalman_model import FilterConfig
-    from aeromag_env.kalman_reference import run_reference
+    t_b, tdot_b = earth_model(flight)
+    y = flight.vector("flux_a") - t_b
+    return bench_filters(y[:samples], t_b[:samples], tdot_b[:samples], repeats)
 
-    env = gym.make("AeroMagCompensation-v0", scenario="nominal")
-    action = np.zeros(2, np.float32)
 
-    def episode() -> float:
-        env.reset(seed=100_000)
-        t0, steps, done = time.perf_counter(), 0, False
-        while not done:
-            _, _, terminated, truncated, _ = env.step(action)
-            steps, done = steps + 1, terminated or truncated
-        return steps / (time.perf_counter() - t0)
+def bench_discover(flight: Flight, repeats: int) -> dict[str, float | None]:
+    """Seconds of the discrepancy workflow per flight-hour (null without the module)."""
+    try:
+        from aeromag_env.discover import discover
+    except ImportError:
+        return {"discover_s_per_flight_hour": None}
+    hours = (float(flight.tt[-1]) - float(flight.tt[0])) / 3600.0
+    seconds = _median_seconds(lambda: discover(flight, flux="flux_a"), repeats)
+    return {"discover_s_per_flight_hour": seconds / hours if hours > 0 else None}
 
-    episode()  # warm: numba cache load, first-step checks
-    rate = statistics.median(episode() for _ in range(repeats))
-    ep = env.unwrapped.episode  # type: ignore[attr-defined]
-    n = 1000
-    t_ref = _median_seconds(
-        lambda: run_reference(FilterConfig(), ep.y[:n], ep.t_b[:n], ep.tdot_b[:n]), 3
-    )
-    return {"env_single_steps_per_s": rate, "env_numpy_reference_steps_per_s": n / t_ref / 10}
+
+_MEMORY_PROBE = """
+import sys
+from aeromag_env.bench import peak_rss_mb
+from aeromag_env.cli import main
+base = peak_rss_mb()
+status = main(["compensate", sys.argv[1], "--method", "kf", "--out", sys.argv[2]])
+print(status, base, peak_rss_mb())
+"""
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process so far [MB]: ``VmHWM`` (Linux; it starts afresh at
+    ``exec``, unlike ``ru_maxrss``, which a child inherits from the parent it was forked from),
+    else ``ru_maxrss``."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    import resource
+
+    scale = 1 if sys.platform == "darwin" else 1024  # bytes on macOS, KiB elsewhere
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * scale / 2**20
+
+
+def bench_memory(hours: float = 10.0) -> dict[str, float]:
+    """Peak RSS of ``aeromag compensate --method kf`` on a ``hours``-long 10 Hz flight [MB]."""
+    from aeromag_env.flightfile import write_flight
+    from aeromag_env.simulate import simulate_flight
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = write_flight(simulate_flight(_hour_config(hours), 0), Path(tmp) / "long.h5")
+        res = subprocess.run([sys.executable, "-c", _MEMORY_PROBE, str(path), f"{tmp}/out"],
+                             capture_output=True, text=True, check=True)  # fmt: skip
+    status, base, peak = res.stdout.split()[-3:]
+    if status != "0":
+        raise RuntimeError(f"aeromag compensate failed in the memory benchmark: {res.stderr}")
+    return {"compensate_10h_peak_mb": float(peak), "compensate_baseline_mb": float(base)}
 
 
 def run_benchmarks(out: Path, quick: bool = False) -> dict[str, Any]:
     """Run every benchmark, print a table with ratios, write ``out/bench.json``."""
+    from aeromag_env.bench_envs import bench_env, bench_ppo
+
     repeats = 3 if quick else 7
-    figures = {**bench_simulate(repeats), **bench_env(repeats)}
-    rows = [
-        ("simulate 1 flight-hour (grid IGRF)", "simulate_s_per_flight_hour", "s",
-         figures["simulate_direct_igrf_s_per_flight_hour"] / figures["simulate_s_per_flight_hour"],
-         "× faster than IGRF at every sample"),
-        ("env steps per second (1 env, K = 10)", "env_single_steps_per_s", "/s",
-         figures["env_single_steps_per_s"] / figures["env_numpy_reference_steps_per_s"],
-         "× an env stepping the numpy reference filter"),
-    ]  # fmt: skip
-    print(f"{'benchmark':<40} {'value':>12}  ratio")
-    for name, key, unit, ratio, what in rows:
-        print(f"{name:<40} {figures[key]:>10.4g} {unit}  {ratio:.1f} {what}")
+    load_before = _load()
+    figures: dict[str, Any] = bench_simulate(repeats)
+    hour = hour_flight()
+    figures |= bench_filter_figures(hour, 1000 if quick else FILTER_SAMPLES, repeats)
+    figures |= bench_env(repeats)
+    figures |= bench_ppo(4096 if quick else 16384, 1 if quick else 3)
+    figures |= bench_discover(hour, 1 if quick else 3)
+    figures |= bench_memory()
+    rows = _rows(figures)
+    _print_table(rows)
     result = {
         "figures": figures,
+        "rows": [
+            dict(zip(("benchmark", "median", "ratio", "target", "met"), r, strict=True))
+            for r in rows
+        ],
         "repeats": repeats,
+        "ppo_repeats": 1 if quick else 3,
         "statistic": "median",
-        "machine": {
-            "python": platform.python_version(),
-            "processor": platform.processor() or platform.machine(),
-            "cpus": _cpu_count(),
-        },
+        "quick": quick,
+        "machine": _machine(),
+        "load_average_1min": {"before": load_before, "after": _load()},
     }
     path = write_text(out / "bench.json", json.dumps(result, indent=2))
     print(f"wrote {path}")
     return result
 
 
-def _cpu_count() -> int:
+Row = tuple[str, str, str, str, bool | None]
+
+
+def _rows(f: dict[str, Any]) -> list[Row]:
+    """(benchmark, median, ratio to its reference in this run, target, target met)."""
+    sim, fp, comp = f["simulate_s_per_flight_hour"], f["filterpy_samples_per_s"], \
+        f["filter_compiled_samples_per_s"]  # fmt: skip
+    batched, numpy_ref = f["filter_batched_samples_per_s"], f["filter_numpy_samples_per_s"]
+    env1, envn, ppo_b, ppo_d = f["env_single_steps_per_s"], f["env_batched_steps_per_s"], \
+        f["ppo_batched_steps_per_s"], f["ppo_dummyvec_steps_per_s"]  # fmt: skip
+    disc, peak, base = f["discover_s_per_flight_hour"], f["compensate_10h_peak_mb"], \
+        f["compensate_baseline_mb"]  # fmt: skip
+    n_envs = f["ppo_n_envs"]
+    return [
+        ("simulate 1 flight-hour (grid IGRF)", f"{sim:.3f} s",
+         f"{f['simulate_direct_igrf_s_per_flight_hour'] / sim:.0f}× faster than IGRF at every "
+         "sample", "< 1 s", sim < 1.0),
+        ("filter, compiled, 1 flight", f"{comp:,.0f} samples/s",
+         _ratio(comp, fp, "filterpy"), "≥ 30× filterpy", None if fp is None else comp >= 30 * fp),
+        ("filter, batched, 64 flights", f"{batched:,.0f} samples/s",
+         f"{batched / comp:.1f}× compiled 1 flight", "≥ 1 000 000 samples/s", batched >= 1e6),
+        ("filter, plain numpy reference", f"{numpy_ref:,.0f} samples/s",
+         _ratio(numpy_ref, fp, "filterpy"), "", None),
+        ("filterpy KalmanFilter (reference)", _num(fp, "samples/s"), "1×", "", None),
+        ("env steps, 1 env, K = 10", f"{env1:,.0f} /s",
+         f"{env1 / f['env_numpy_reference_steps_per_s']:.0f}× an env on the numpy filter",
+         "≥ 20 000 /s", env1 >= 20_000),
+        ("env steps, 64 envs batched, K = 10", f"{envn:,.0f} /s", f"{envn / env1:.1f}× 1 env",
+         "≥ 100 000 /s", envn >= 100_000),
+        ("env reset (simulate a nominal flight)", f"{1000 * f['env_reset_s']:.0f} ms",
+         f"= {f['env_reset_s'] * env1:.0f} steps of 1 env", "", None),
+        (f"PPO learn, batched, {n_envs} envs", f"{ppo_b:,.0f} steps/s",
+         f"{ppo_b / ppo_d:.2f}× DummyVecEnv", "≥ 1.5× DummyVecEnv", ppo_b >= 1.5 * ppo_d),
+        (f"PPO learn, DummyVecEnv, {n_envs} envs", f"{ppo_d:,.0f} steps/s", "1×", "", None),
+        ("discover 1 flight-hour", _num(disc, "s", ".2f"),
+         "n/a" if disc is None else f"{3600 / disc:.0f}× real time", "", None),
+        ("compensate 10-hour flight, peak RSS", f"{peak:.0f} MB",
+         f"{peak / base:.1f}× the process after imports ({base:.0f} MB)", "< 1024 MB",
+         peak < 1024),
+    ]  # fmt: skip
+
+
+def _ratio(value: float, reference: float | None, name: str) -> str:
+    return "n/a" if reference is None else f"{value / reference:.0f}× {name}"
+
+
+def _num(value: float | None, unit: str, fmt: str = ",.0f") -> str:
+    return "n/a" if value is None else f"{value:{fmt}} {unit}"
+
+
+def _print_table(rows: list[Row]) -> None:
+    print(f"{'benchmark':<40} {'median':>20}  {'ratio (same run)':<46} target")
+    for name, value, ratio, target, met in rows:
+        mark = "" if met is None else (" (met)" if met else " (NOT met)")
+        print(f"{name:<40} {value:>20}  {ratio:<46} {target}{mark}")
+
+
+def _machine() -> dict[str, Any]:
+    import numba
+    import numpy
+
+    return {
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpus": cores(),
+        "numpy": numpy.__version__,
+        "numba": numba.__version__,
+    }
+
+
+def _load() -> float | None:
     import os
 
-    return (
-        len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    )
+    return os.getloadavg()[0] if hasattr(os, "getloadavg") else None

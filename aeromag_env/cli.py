@@ -188,10 +188,13 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench",
         help="speed benchmarks, measured side by side in one run",
-        description="Run the speed benchmarks and write bench.json.",
+        description="Run the speed benchmarks (simulation, filters, environments, PPO "
+        "training, discovery, memory), each against a reference measured in the same run; "
+        "print a table and write bench.json (medians of repeated runs). A full run takes "
+        "a few minutes.",
     )
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
-    p.add_argument("--quick", action="store_true", help="fewer repeats (for tests)")
+    p.add_argument("--quick", action="store_true", help="fewer repeats and shorter runs")
     p.set_defaults(func=_cmd_bench)
 
 

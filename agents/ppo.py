@@ -148,7 +148,7 @@ def train_ppo(
         venv = VecNormalize.load(str(stats), venv.venv)
         model = PPO.load(str(ckpt), env=venv, device="cpu")
     else:
-        model = PPO("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **_ppo_kwargs(hp))
+        model = make_ppo(venv, hp, seed)
     curve = _load_curve(out)
     callback = _Callback(out, venv, scenario, hp, seed, curve, timesteps, progress)
     t0 = time.perf_counter()
@@ -165,6 +165,13 @@ def train_ppo(
     }
     write_text(out / "training.json", json.dumps(summary, indent=2))
     return summary
+
+
+def make_ppo(venv: Any, hp: dict[str, Any], seed: int) -> Any:
+    """A fresh stable-baselines3 PPO (MLP policy, CPU) with the hyperparameters ``hp``."""
+    from stable_baselines3 import PPO
+
+    return PPO("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **_ppo_kwargs(hp))
 
 
 def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:

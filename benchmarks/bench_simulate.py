@@ -5,10 +5,10 @@ Run: ``.venv/bin/python benchmarks/bench_simulate.py [--quick]``
 
 from __future__ import annotations
 
+import json
 import sys
-from pathlib import Path
 
-from aeromag_env.bench import run_benchmarks
+from aeromag_env.bench import bench_simulate
 
 if __name__ == "__main__":
-    run_benchmarks(Path("results/bench"), quick="--quick" in sys.argv[1:])
+    print(json.dumps(bench_simulate(3 if "--quick" in sys.argv[1:] else 7), indent=2))

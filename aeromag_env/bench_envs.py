@@ -1,0 +1,101 @@
+"""Environment and training speed for ``aeromag bench``.
+
+* ``env_single_steps_per_s`` — ``AeroMagCompensation-v0`` steps per second, one env, K = 10,
+  zero actions, one ``nominal`` episode (steps only: the flight is simulated in ``reset``),
+  against ``env_numpy_reference_steps_per_s``: the plain-numpy reference filter's samples per
+  second divided by K (an env stepping that filter).
+* ``env_batched_steps_per_s`` — environment steps per second of the vector environment with
+  :data:`VEC_ENVS` environments, the same protocol (seeds 100 000 + i, steps only).
+* ``env_reset_s`` — seconds per reset of one env (simulating a ``nominal`` flight): the part
+  of training that batching does not speed up.
+* ``ppo_batched_steps_per_s``, ``ppo_dummyvec_steps_per_s`` — stable-baselines3 PPO
+  ``learn`` throughput (environment steps per second, resets and updates included) with the
+  training environments of ``aeromag train`` (``agents/hyperparams/ppo.json``, scenario
+  ``nonstationary``: its n_envs, n_steps, batch size, epochs, network), batched or SB3's
+  ``DummyVecEnv``; torch on one thread; the two alternate within each repeat.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.kalman_model import FilterConfig
+from aeromag_env.kalman_reference import run_reference
+
+#: Environments of the batched-environment figure.
+VEC_ENVS = 64
+#: First evaluation seed (the same flights as the single-env figure).
+SEED = 100_000
+
+
+def _episode_rate(env: Any, num_envs: int) -> float:
+    """Env steps per second over one episode of every environment (steps only, no reset)."""
+    env.reset(seed=SEED)
+    action = np.zeros((num_envs, 2) if num_envs > 1 else 2, np.float32)
+    done = np.zeros(num_envs, bool)
+    t0, steps = time.perf_counter(), 0
+    while not done.all():
+        _, _, terminated, truncated, _ = env.step(action)
+        done |= np.asarray(terminated | truncated)
+        steps += num_envs
+    return steps / (time.perf_counter() - t0)
+
+
+def bench_env(repeats: int) -> dict[str, float]:
+    """One env and the vector env, K = 10, ``nominal``; the numpy-filter env as reference."""
+    single = gym.make("AeroMagCompensation-v0", scenario="nominal")
+    batched = gym.make_vec("AeroMagCompensation-v0", num_envs=VEC_ENVS, scenario="nominal",
+                           vectorization_mode="vector_entry_point")  # fmt: skip
+    _episode_rate(single, 1)  # warm: numba cache load, first-step checks
+    _episode_rate(batched, VEC_ENVS)
+    single_rates, batched_rates, resets = [], [], []
+    for _ in range(repeats):
+        single_rates.append(_episode_rate(single, 1))
+        batched_rates.append(_episode_rate(batched, VEC_ENVS))
+        t0 = time.perf_counter()
+        single.reset(seed=SEED)
+        resets.append(time.perf_counter() - t0)
+    ep = single.unwrapped.episode  # type: ignore[attr-defined]
+    n = 1000
+    t_ref = []
+    for _ in range(min(repeats, 3)):
+        t0 = time.perf_counter()
+        run_reference(FilterConfig(), ep.y[:n], ep.t_b[:n], ep.tdot_b[:n])
+        t_ref.append(time.perf_counter() - t0)
+    return {
+        "env_single_steps_per_s": statistics.median(single_rates),
+        "env_numpy_reference_steps_per_s": n / statistics.median(t_ref) / 10,
+        "env_batched_steps_per_s": statistics.median(batched_rates),
+        "env_reset_s": statistics.median(resets),
+    }
+
+
+def bench_ppo(timesteps: int, repeats: int) -> dict[str, Any]:
+    """PPO ``learn(timesteps)`` steps per second, batched vs DummyVecEnv, same settings."""
+    import torch
+
+    from agents.ppo import load_hyperparams, make_ppo, make_training_env
+
+    torch.set_num_threads(1)
+    hp = load_hyperparams("nonstationary")
+    rates: dict[str, list[float]] = {"batched": [], "dummy": []}
+    for _ in range(repeats):
+        for kind in rates:
+            venv = make_training_env("nonstationary", {**hp, "vec_env": kind}, seed=0)
+            model = make_ppo(venv, hp, seed=0)
+            t0 = time.perf_counter()
+            model.learn(timesteps)
+            rates[kind].append(timesteps / (time.perf_counter() - t0))
+            venv.close()
+    return {
+        "ppo_batched_steps_per_s": statistics.median(rates["batched"]),
+        "ppo_dummyvec_steps_per_s": statistics.median(rates["dummy"]),
+        "ppo_n_envs": int(hp["n_envs"]),
+        "ppo_timesteps": timesteps,
+    }

@@ -226,9 +226,64 @@ class ScalarConfig:
         )
 
 
+AUX_KINDS = ("switching", "strobe", "temperature", "random_walk")
+
+
+@dataclass(frozen=True, kw_only=True)
+class AuxChannelConfig:
+    """One simulated auxiliary channel (``cur_*`` [A], ``vol_*`` [V], ``temp_*`` [°C]).
+
+    Kinds (:mod:`aeromag_env.auxiliary`): ``switching`` — a load switched on and off (fan, pump,
+    radio keying) with random dwell times around ``period_s``; ``strobe`` — pulses of 0.2 s at
+    ``60 / period_s`` flashes per minute; ``temperature`` — a warm-up towards ``level`` plus
+    thermostat cycling of period ``period_s``; ``random_walk`` — a slowly wandering reading.
+    ``level`` is the on-current, pulse height, temperature rise or walk scale. A channel carries
+    no field by itself: an effect (e.g. ``onboard_current``) couples it to the magnetometer, and a
+    channel no effect names is a decoy.
+    """
+
+    name: str
+    kind: str = "switching"
+    level: float = 1.0
+    period_s: float = 60.0
+    offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check(
+            self.name.startswith(("cur_", "vol_", "temp_")),
+            f"AuxChannelConfig.name must start with cur_, vol_ or temp_, got {self.name!r}",
+        )
+        _check(self.kind in AUX_KINDS, f"AuxChannelConfig.kind must be one of {AUX_KINDS}")
+        _positive(self, "period_s")
+        _check(math.isfinite(self.level), "AuxChannelConfig.level must be finite")
+        _check(math.isfinite(self.offset), "AuxChannelConfig.offset must be finite")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EffectConfig:
+    """One extra physical effect added to the fluxgate signal (:mod:`aeromag_env.effects`).
+
+    ``name`` is a canonical effect name, ``channel`` the auxiliary channel it follows (if any),
+    ``parameters`` its parameters by name (lists of numbers); each effect validates its own.
+    """
+
+    name: str
+    channel: str | None = None
+    parameters: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        from aeromag_env.effects import check_effect_config
+
+        check_effect_config(self)
+
+
 @dataclass(frozen=True, kw_only=True)
 class SimulationConfig:
-    """Root configuration of one simulated flight."""
+    """Root configuration of one simulated flight.
+
+    ``aux_channels`` are simulated auxiliary channels and ``effects`` the extra physical effects
+    (effects library, :mod:`aeromag_env.effects`) added to the fluxgate on top of paper eq. 5.
+    """
 
     preset: str = "nominal"
     fluxgate: str = "flux_a"
@@ -237,12 +292,16 @@ class SimulationConfig:
     interference: InterferenceConfig = field(default_factory=InterferenceConfig)
     fluxgate_noise: SensorNoiseConfig = field(default_factory=SensorNoiseConfig)
     scalar: ScalarConfig = field(default_factory=ScalarConfig)
+    aux_channels: tuple[AuxChannelConfig, ...] = ()
+    effects: tuple[EffectConfig, ...] = ()
 
     def __post_init__(self) -> None:
         _check(
             len(self.fluxgate) == 6 and self.fluxgate.startswith("flux_"),
             f"fluxgate must look like flux_a, got {self.fluxgate!r}",
         )
+        names = [a.name for a in self.aux_channels]
+        _check(len(set(names)) == len(names), "aux_channels: duplicate channel names")
 
 
 def _paper() -> SimulationConfig:
@@ -339,6 +398,12 @@ def from_json(cls: type[T], text: str) -> T:
     return from_dict(cls, data)
 
 
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{where} expects numbers, got {value!r}")
+    return float(value)
+
+
 def _convert(tp: Any, value: Any, where: str) -> Any:
     origin = typing.get_origin(tp)
     if origin in (Union, types.UnionType):
@@ -348,8 +413,15 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
         return from_dict(tp, value)  # type: ignore[arg-type]
     if origin is tuple:
         if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{where} expects a list of numbers, got {value!r}")
-        return tuple(float(v) for v in value)
+            raise ConfigError(f"{where} expects a list, got {value!r}")
+        item = typing.get_args(tp)[0]
+        if dataclasses.is_dataclass(item):
+            return tuple(from_dict(item, v) for v in value)  # type: ignore[arg-type]
+        return tuple(_number(v, where) for v in value)
+    if origin is dict:
+        if not isinstance(value, dict):
+            raise ConfigError(f"{where} expects a mapping, got {value!r}")
+        return dict(value)
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{where} expects a number, got {value!r}")

@@ -12,8 +12,11 @@ from collections.abc import Callable
 
 import numpy as np
 
+from aeromag_env.auxiliary import aux_channel
 from aeromag_env.config import SimulationConfig, to_json
 from aeromag_env.earth import external_variation_ned, igrf_ned_along_track, parse_date
+from aeromag_env.effects import EffectContext, simulate_effects
+from aeromag_env.errors import ConfigError
 from aeromag_env.flight import Flight, vector_names
 from aeromag_env.frames import dcm_from_euler, nav_to_body, time_derivative
 from aeromag_env.interference import draw_coefficients, scalar_interference, vector_interference
@@ -29,6 +32,7 @@ def simulate_flight(
     config: SimulationConfig,
     rng: np.random.Generator | int,
     progress: Callable[[str], None] | None = None,
+    replay: Flight | None = None,
 ) -> Flight:
     """Simulate one flight.
 
@@ -39,6 +43,11 @@ def simulate_flight(
         Source of every random draw; an int is used as the seed (and recorded in the file).
     progress : callable, optional
         Called with each stage name of :data:`STAGES` as it starts.
+    replay : Flight, optional
+        Fly this flight's time, position, date, attitude, ``line``/``maneuver`` and auxiliary
+        channels instead of ``config.trajectory`` (e.g. to re-simulate a measured flight with a
+        discovered model). Its ``diurnal`` channel, if any, replaces the configured external
+        variation (a base station sees it along the main field).
 
     Returns
     -------
@@ -50,27 +59,37 @@ def simulate_flight(
     """
     seed = rng if isinstance(rng, (int, np.integer)) else None
     gen = np.random.default_rng(rng)
-    r_traj, r_earth, r_coef, r_flux, r_scalar = gen.spawn(5)
+    r_traj, r_earth, r_coef, r_flux, r_scalar, r_extra = gen.spawn(6)
+    r_aux, r_fx = r_extra.spawn(2)
     step = progress or (lambda _stage: None)
 
     step(STAGES[0])
-    traj = generate_trajectory(config.trajectory, r_traj)
-    dt = 1.0 / config.trajectory.sample_rate_hz
-    start = parse_date(config.trajectory.date)
+    if replay is None:
+        traj = generate_trajectory(config.trajectory, r_traj)
+        dt = 1.0 / config.trajectory.sample_rate_hz
+        start = parse_date(config.trajectory.date)
+    else:
+        traj, start = _replayed_trajectory(replay), replay.date()
+        dt = float(np.median(np.diff(traj.tt)))
+    aux = _aux_channels(config, traj.tt, replay, r_aux)
 
     step(STAGES[1])
     earth_n = igrf_ned_along_track(
         traj.tt, traj.lat, traj.lon, traj.alt, start, config.earth.igrf_grid_spacing_s
     )
-    ext_n = external_variation_ned(
-        traj.tt,
-        start,
-        config.earth.daily_amplitude_nt,
-        config.earth.external_fogm_std_nt,
-        config.earth.external_fogm_tau_s,
-        r_earth,
-        config.earth.external_smoothing_s,
-    )
+    if replay is not None and "diurnal" in replay:
+        unit = earth_n / np.linalg.norm(earth_n, axis=1, keepdims=True)
+        ext_n = unit * replay["diurnal"][:, None]
+    else:
+        ext_n = external_variation_ned(
+            traj.tt,
+            start,
+            config.earth.daily_amplitude_nt,
+            config.earth.external_fogm_std_nt,
+            config.earth.external_fogm_tau_s,
+            r_earth,
+            config.earth.external_smoothing_s,
+        )
     c_nb = dcm_from_euler(traj.roll, traj.pitch, traj.yaw)
     t_b = nav_to_body(c_nb, earth_n + ext_n)
     tdot_b = time_derivative(t_b, traj.tt, "central")
@@ -78,10 +97,21 @@ def simulate_flight(
     step(STAGES[2])
     coef = draw_coefficients(config.interference, r_coef)
     interf = vector_interference(coef, t_b, tdot_b)
+    extra = None
+    if config.effects:
+        ctx = EffectContext(
+            tt=traj.tt, c_nb=c_nb, t_b=t_b, tdot_b=tdot_b,
+            t2dot_b=time_derivative(tdot_b, traj.tt, "central"), alt=traj.alt, aux=aux,
+            signal=t_b + interf, rng=r_fx, start=start,
+        )  # fmt: skip
+        extra = simulate_effects(ctx, config.effects)
 
     step(STAGES[3])
     flux = t_b + interf + sensor_noise(traj.tt.size, dt, config.fluxgate_noise, r_flux)
+    if extra is not None:
+        flux += extra
     fields = _navigation_fields(traj, start)
+    fields.update(aux)
     fields.update(zip(vector_names(config.fluxgate), flux.T, strict=True))
     coefficients: dict[str, dict] = {config.fluxgate: coef.to_dict()}
     scalar = config.scalar
@@ -94,7 +124,9 @@ def simulate_flight(
             **coef_s.to_dict(),
             "tolles_lawson": coefficients_from_vector(coef_s, dt).tolist(),
         }
-    if config.earth.daily_amplitude_nt > 0 or config.earth.external_fogm_std_nt > 0:
+    if replay is not None and "diurnal" in replay:
+        fields["diurnal"] = replay["diurnal"].copy()
+    elif config.earth.daily_amplitude_nt > 0 or config.earth.external_fogm_std_nt > 0:
         # a base-station total-field magnetometer sees the projection on the main-field direction
         unit = earth_n / np.linalg.norm(earth_n, axis=1, keepdims=True)
         fields["diurnal"] = np.sum(unit * ext_n, axis=1)
@@ -104,6 +136,8 @@ def simulate_flight(
     fields["maneuver"] = traj.maneuver.astype(float)
     fields.update(zip(vector_names("truth_earth"), t_b.T, strict=True))
     fields.update(zip(vector_names("truth_interf"), interf.T, strict=True))
+    if extra is not None:
+        fields.update(zip(vector_names("truth_effects"), extra.T, strict=True))
     if scalar.enabled:
         fields[f"truth_interf_{scalar.name.removesuffix('_uc')}"] = interf_s
     attrs: dict[str, str] = {
@@ -115,9 +149,36 @@ def simulate_flight(
     }
     if seed is not None:
         attrs["seed"] = str(int(seed))
+    if replay is not None:
+        attrs["replayed_from"] = str(replay.attrs.get("path", "a flight"))
     return Flight(
         fields={k: np.ascontiguousarray(v, float) for k, v in fields.items()}, attrs=attrs
     )
+
+
+def _replayed_trajectory(flight: Flight) -> Trajectory:
+    """The navigation channels of ``flight`` as a :class:`Trajectory` (radians inside)."""
+    lat, lon, alt = flight.position_rad()
+    roll, pitch, yaw = flight.attitude_rad()
+    zeros = np.zeros(flight.n)
+    return Trajectory(
+        tt=flight.tt.copy(), lat=lat, lon=lon, alt=np.asarray(alt, float), roll=roll,
+        pitch=pitch, yaw=yaw,
+        maneuver=np.nan_to_num(flight["maneuver"]).astype(int) if "maneuver" in flight else zeros,
+        line=np.nan_to_num(flight["line"]) if "line" in flight else zeros,
+    )  # fmt: skip
+
+
+def _aux_channels(
+    config: SimulationConfig, tt: np.ndarray, replay: Flight | None, rng: np.random.Generator
+) -> dict[str, np.ndarray]:
+    """Auxiliary channels: the replayed flight's, then the configured simulated ones."""
+    aux = {nm: replay[nm].copy() for nm in replay.aux_channels()} if replay is not None else {}
+    for cfg, r in zip(config.aux_channels, rng.spawn(len(config.aux_channels)), strict=True):
+        if cfg.name in aux:
+            raise ConfigError(f"auxiliary channel {cfg.name} is both replayed and simulated")
+        aux[cfg.name] = aux_channel(cfg, tt, r)
+    return aux
 
 
 def _navigation_fields(traj: Trajectory, start: _dt.datetime) -> dict[str, np.ndarray]:

@@ -1,0 +1,177 @@
+"""Discrepancy workflow: effects library, noise model, selection, gap, CLI and bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aeromag_env.cli import main
+from aeromag_env.config import EffectConfig, SimulationConfig, from_json, to_json
+from aeromag_env.discover import _prepare, discover, fit_noise, ljung_box, whiten
+from aeromag_env.discovery_suite import Case, base_config, build_case, run_case
+from aeromag_env.effects import ABSORBED, EFFECTS, IDENTIFIABLE, simulate_effects
+from aeromag_env.errors import AeromagError, ConfigError
+from aeromag_env.flight import Flight
+from aeromag_env.flightfile import read_flight, write_flight
+from aeromag_env.noise import fogm
+from aeromag_env.simulate import simulate_flight
+
+
+@pytest.fixture(scope="module")
+def null_flight() -> Flight:
+    return simulate_flight(base_config(), 11)
+
+
+def test_config_with_effects_and_aux_round_trips_through_json() -> None:
+    cfg, _ = build_case(Case("single", 20_001, ("onboard_current", "altitude_gradient"), 2.0))
+    back = from_json(SimulationConfig, to_json(cfg))
+    assert back == cfg
+    assert {e.name for e in back.effects} == {"onboard_current", "altitude_gradient"}
+
+
+def test_effect_configs_are_validated_with_one_line_errors() -> None:
+    with pytest.raises(ConfigError, match="unknown effect"):
+        EffectConfig(name="gremlins")
+    with pytest.raises(ConfigError, match="needs 3 numbers"):
+        EffectConfig(name="onboard_current", channel="cur_a", parameters={"k_nt_per_unit": [1.0]})
+    with pytest.raises(ConfigError, match="needs a channel"):
+        EffectConfig(name="onboard_current", parameters={"k_nt_per_unit": [1.0, 0.0, 0.0]})
+    with pytest.raises(ConfigError, match="cannot follow"):
+        EffectConfig(name="altitude_gradient", channel="cur_a")
+
+
+def test_every_fitted_group_re_simulates_its_columns_exactly(null_flight: Flight) -> None:
+    """``simulate(to_parameters(beta))`` reproduces ``columns @ beta`` for every candidate group:
+    what discovery names, the simulator can inject (the shared-library contract)."""
+    ctx = _prepare(null_flight, "flux_a", None).ctx
+    rng = np.random.default_rng(0)
+    for name in IDENTIFIABLE:
+        groups, _ = EFFECTS[name].groups(ctx)
+        for g in groups[:2]:
+            beta = rng.standard_normal(g.columns.shape[2])
+            want = np.einsum("kip,p->ki", g.columns, beta)
+            cfg = EffectConfig(name=name, channel=g.channel, parameters=g.to_parameters(beta))
+            got = simulate_effects(ctx, (cfg,))
+            np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+
+
+def test_noise_model_whitens_white_plus_fogm_and_recovers_its_parameters() -> None:
+    rng = np.random.default_rng(5)
+    n, dt = 12_000, 0.1
+    x = rng.standard_normal((n, 3)) * 1.0 + fogm(n, dt, 2.0, 300.0, rng, dims=3)
+    gap = np.r_[np.inf, np.full(n - 1, dt)]
+    noise = fit_noise(x, gap)
+    np.testing.assert_allclose(noise.white_std_nt, 1.0, rtol=0.05)
+    np.testing.assert_allclose(noise.fogm_std_nt, 2.0, rtol=0.5)
+    w = whiten(x[:, :1], gap, noise.white_std_nt[0], noise.fogm_std_nt[0], noise.fogm_tau_s[0])
+    assert ljung_box(w[:, 0])[1] > 0.01  # whitened: no autocorrelation left
+    assert ljung_box(x[:, 0])[1] < 1e-10  # the raw series is strongly coloured
+
+
+def test_null_flight_names_nothing_and_reports_diagnostics(null_flight: Flight) -> None:
+    rep = discover(null_flight).report
+    assert rep["missing_effects"] == []
+    assert rep["verdict"] == "nothing significant is missing"
+    assert rep["gap"]["evaluated_on"] == "held_out"
+    assert 0.8 < rep["gap"]["shrink"] <= 1.0 + 1e-12
+    assert {c["name"] for c in rep["candidates"] if c["verdict"] == "absorbed"} >= set(ABSORBED)
+    diag = rep["diagnostics"]
+    assert set(diag["aux_partial_correlation"]) == set(null_flight.aux_channels())
+    assert diag["whiteness"]["before"]["p_value"] > 1e-3
+
+
+@pytest.mark.parametrize(
+    ("name", "seed"), [("onboard_current", 20_900), ("altitude_gradient", 20_901),
+                       ("sensor_lag", 20_902), ("external_field_variation", 20_903)]
+)  # fmt: skip
+def test_hidden_effect_at_snr_4_is_named_with_its_channel_and_the_gap_shrinks(
+    name: str, seed: int
+) -> None:
+    row = run_case(Case("single", seed, (name,), 4.0))
+    assert row["named"][:1] == row["truth"], row["named"]  # named first, with its channel
+    assert row["shrink"] >= 2.0
+    assert not row["decoy_named"]
+
+
+@pytest.mark.parametrize("name", ["fluxgate_scale", "misalignment"])
+def test_absorbed_effects_are_never_named(name: str) -> None:
+    row = run_case(Case("absorbed", 30_900, (name,)))
+    assert row["named"] == []
+
+
+def test_file_without_aux_channels_skips_the_current_effect_and_says_so(
+    null_flight: Flight,
+) -> None:
+    fields = {k: v for k, v in null_flight.fields.items() if not k.startswith(("cur_", "vol_"))}
+    rep = discover(Flight(fields, dict(null_flight.attrs))).report
+    skipped = {s["name"]: s["reason"] for s in rep["skipped"]}
+    assert "cur_" in skipped["onboard_current"]
+
+
+def test_bad_input_gives_one_line_errors(null_flight: Flight) -> None:
+    no_att = Flight({k: v for k, v in null_flight.fields.items() if k != "ins_yaw"}, {})
+    with pytest.raises(AeromagError, match="attitude") as e:
+        discover(no_att)
+    assert "\n" not in str(e.value)
+    with pytest.raises(AeromagError, match="at least 300 s"):
+        discover(null_flight, calibration_window=(0.0, 100.0))
+    with pytest.raises(AeromagError, match="T0 < T1"):
+        discover(null_flight, calibration_window=(500.0, 100.0))
+    with pytest.raises(AeromagError, match="no fluxgate flux_b"):
+        discover(null_flight, flux="flux_b")
+
+
+def test_time_gaps_are_bridged_and_counted(null_flight: Flight) -> None:
+    keep = np.ones(null_flight.n, bool)
+    keep[5000:5600] = False  # a 60-s dropout
+    gappy = Flight({k: v[keep] for k, v in null_flight.fields.items()}, dict(null_flight.attrs))
+    rep = discover(gappy).report
+    assert rep["data"]["time_gaps"] == 1
+    assert rep["missing_effects"] == []
+
+
+def test_cli_discover_writes_the_report_and_a_model_that_re_simulates_the_gap(
+    tmp_path: Path,
+) -> None:
+    cfg, _ = build_case(Case("single", 20_910, ("onboard_current",), 4.0))
+    src = tmp_path / "flight.h5"
+    (tmp_path / "cfg.json").write_text(to_json(cfg))
+    assert main(["simulate", "--config", str(tmp_path / "cfg.json"), "--seed", "20910",
+                 "--out", str(src), "--quiet"]) == 0  # fmt: skip
+    out = tmp_path / "disc"
+    assert main(["discover", str(src), "--out", str(out), "--quiet"]) == 0
+    rep = json.loads((out / "report.json").read_text())
+    assert set(rep) >= {"missing_effects", "gap"}
+    assert set(rep["gap"]) >= {"rms_before_nt", "rms_after_nt", "evaluated_on"}
+    (eff,) = rep["missing_effects"]
+    assert set(eff) >= {"name", "channel", "evidence", "parameters"}
+    assert (eff["name"], eff["channel"]) == ("onboard_current", cfg.effects[0].channel)
+    for f in ("report.md", "residual.png", "diagnostics.png", "model_config.json"):
+        assert (out / f).stat().st_size > 0
+    # the augmented model, noise-free, replayed over the measured flight: same held-out gap
+    model = from_json(SimulationConfig, (out / "model_config.json").read_text())
+    quiet = dataclasses.replace(model, fluxgate_noise=dataclasses.replace(
+        model.fluxgate_noise, white_std_nt=0.0, fogm_std_nt=0.0))  # fmt: skip
+    (tmp_path / "quiet.json").write_text(to_json(quiet))
+    sim = tmp_path / "resim.h5"
+    assert main(["simulate", "--config", str(tmp_path / "quiet.json"), "--replay", str(src),
+                 "--out", str(sim), "--quiet"]) == 0  # fmt: skip
+    measured, resim = read_flight(src), read_flight(sim)
+    prep = _prepare(measured, "flux_a", None)
+    diff = (measured.vector("flux_a") - resim.vector("flux_a"))[prep.held_out]
+    raw = float(np.sqrt(np.mean(diff**2)))
+    assert raw == pytest.approx(rep["gap"]["raw_rms_after_nt"], rel=1e-6)
+
+
+def test_cli_discover_bad_input_exits_2_without_traceback(tmp_path: Path, capsys) -> None:
+    flight = simulate_flight(base_config(600.0), 3)
+    src = tmp_path / "short.h5"
+    write_flight(flight, src)
+    code = main(["discover", str(src), "--out", str(tmp_path / "o"), "--calibration-window",
+                 "0", "60", "--quiet"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1

@@ -57,8 +57,38 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "--duration-s", type=float, help="flight duration [s] (default: the pattern's own)"
     )
     p.add_argument("--out", required=True, help="output flight file (.h5 or .csv)")
+    p.add_argument(
+        "--replay",
+        metavar="FILE",
+        help="fly this file's time, position, attitude and auxiliary channels instead of the "
+        "configured trajectory (e.g. with a model_config.json from aeromag discover)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_simulate)
+
+
+def _add_discover(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "discover",
+        help="find what the model is missing in a measured flight",
+        description="Fit the base model (paper eq. 5) on a calibration part, report where the "
+        "simulated and measured fluxgate disagree, name the missing physical effects from the "
+        "effects library (GLS F-tests, Holm-corrected), add them and show the gap on held-out "
+        "data. Writes report.json, report.md, model_config.json, residual.png, diagnostics.png.",
+    )
+    p.add_argument("file", help="flight file (.h5 or .csv), real or simulated")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--flux", default="flux_a", help="vector magnetometer (default flux_a)")
+    p.add_argument(
+        "--calibration-window",
+        nargs=2,
+        type=float,
+        metavar=("T0", "T1"),
+        help="fit on this time window [s] and score the rest (default: interleaved 60-s "
+        "blocks, every third held out)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress messages")
+    p.set_defaults(func=_cmd_discover)
 
 
 def _add_info(sub: argparse._SubParsersAction) -> None:
@@ -205,7 +235,7 @@ def build_parser() -> argparse.ArgumentParser:
         dest="command", required=True, metavar="COMMAND", parser_class=_Parser
     )
     adders = (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_evaluate, _add_train,
-              _add_demo,
+              _add_discover, _add_demo,
               _add_bench)  # fmt: skip
     for add in adders:
         add(sub)
@@ -241,6 +271,14 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise AeromagError(f"--seed must be ≥ 0, got {args.seed}")
     cfg = _simulation_config(args)
+    replay = None
+    if args.replay:
+        from aeromag_env.flightfile import load_flight
+
+        if Path(args.replay).resolve() == out.resolve():
+            raise AeromagError("--out must not be the --replay file (inputs are never overwritten)")
+        replay, _ = load_flight(args.replay, needs=("tt", "position", "attitude", "date"))
+        replay.attrs["path"] = str(args.replay)
     with tqdm(
         total=len(STAGES) + 1,
         desc="simulate",
@@ -253,9 +291,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             bar.set_description(stage)
             bar.update(1)
 
-        flight = simulate_flight(cfg, args.seed, progress=progress)
+        flight = simulate_flight(cfg, args.seed, progress=progress, replay=replay)
         progress("write")
-        write_flight(flight, out, inputs=[args.config] if args.config else ())
+        inputs = [p for p in (args.config, args.replay) if p]
+        write_flight(flight, out, inputs=inputs)
     print(simulation_summary(flight, out, cfg, args.seed))
     return 0
 
@@ -270,6 +309,26 @@ def simulation_summary(flight: Flight, out: Path, cfg: SimulationConfig, seed: i
         f"{len(flight.maneuver_windows())} maneuver windows, "
         f"fluxgate interference {rms:.0f} nT RMS"
     )
+
+
+def _cmd_discover(args: argparse.Namespace) -> int:
+    from aeromag_env.discover_run import run_discover
+
+    out = Path(args.out)
+    window = tuple(args.calibration_window) if args.calibration_window else None
+
+    def say(msg: str) -> None:
+        if not args.quiet:
+            print(f"discover: {msg}", file=sys.stderr, flush=True)
+
+    report = run_discover(Path(args.file), out, args.flux, window, say)
+    gap = report["gap"]
+    print(
+        f"{report['verdict']}; held-out gap {gap['rms_before_nt']:.3g} → "
+        f"{gap['rms_after_nt']:.3g} nT ({gap['shrink']:.2f}×); wrote {out}/report.json, "
+        "report.md, model_config.json, residual.png, diagnostics.png"
+    )
+    return 0
 
 
 def _cmd_info(args: argparse.Namespace) -> int:

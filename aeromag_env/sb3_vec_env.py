@@ -40,6 +40,8 @@ class AeroMagSB3VecEnv(VecEnv):
         ``DummyVecEnv`` of envs wrapped to reset from a seed stream does (training seeds).
         Without it, ``seed()`` seeds the next reset and environments then draw their flights
         from their own generators.
+    prefetch : simulate each environment's next flight in a worker process while the current
+        one runs (:mod:`aeromag_env.prefetch`; the same flights, resets cost no simulation).
 
     Attributes
     ----------
@@ -51,14 +53,20 @@ class AeroMagSB3VecEnv(VecEnv):
         num_envs: int,
         config: EnvConfig | dict | None = None,
         reset_seeds: Sequence[Iterator[int]] | None = None,
+        prefetch: bool = False,
         **overrides: Any,
     ) -> None:
         self.venv = AeroMagCompensationVecEnv(
-            num_envs, config, autoreset_mode=AutoresetMode.DISABLED, **overrides
-        )
+            num_envs, config, autoreset_mode=AutoresetMode.DISABLED, prefetch=prefetch,
+            **overrides,
+        )  # fmt: skip
         if reset_seeds is not None and len(reset_seeds) != num_envs:
             raise ValueError(f"reset_seeds needs one iterator per environment ({num_envs})")
         self._seed_streams = list(reset_seeds) if reset_seeds is not None else None
+        # the seed each environment's next reset takes (drawn one ahead, to prefetch its flight)
+        self._upcoming: list[int | None] = (
+            [next(s) for s in self._seed_streams] if self._seed_streams else [None] * num_envs
+        )
         self._actions = np.zeros((num_envs, 2))
         super().__init__(
             num_envs, self.venv.single_observation_space, self.venv.single_action_space
@@ -70,6 +78,8 @@ class AeroMagSB3VecEnv(VecEnv):
             raise ValueError("reset options must be the same for every environment")
         obs, infos = self.venv.reset(seed=self._next_seeds(self._seeds), options=options)
         self.reset_infos = _info_list(infos, self.num_envs)
+        for i in range(self.num_envs):
+            self.venv.prefetch_next(i, self._upcoming[i])
         self._reset_seeds()
         self._reset_options()
         return obs
@@ -91,6 +101,7 @@ class AeroMagSB3VecEnv(VecEnv):
             obs, reset_infos = self.venv.reset(seed=seeds, options={"reset_mask": dones})
             for i, info in zip(ended, _info_list(reset_infos, self.num_envs, ended), strict=True):
                 self.reset_infos[i] = info
+                self.venv.prefetch_next(i, self._upcoming[i])
         return obs, rewards.astype(np.float32), dones, info_list
 
     def close(self) -> None:
@@ -122,7 +133,7 @@ class AeroMagSB3VecEnv(VecEnv):
         chosen = range(self.num_envs) if mask is None else np.flatnonzero(mask).tolist()
         out: list[int | None] = [None] * self.num_envs
         for i in chosen:
-            out[i] = next(self._seed_streams[i])
+            out[i], self._upcoming[i] = self._upcoming[i], next(self._seed_streams[i])
         return out
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from typing import Any
 
 import numpy as np
@@ -26,7 +27,8 @@ from aeromag_env.env_core import (
 from aeromag_env.kalman import FilterState
 from aeromag_env.kalman_batch import BatchFilterState
 from aeromag_env.kalman_core import INT_DIV, INT_K
-from aeromag_env.scenarios import check_scenario, make_episode
+from aeromag_env.prefetch import FlightKey, FlightPrefetcher, simulate
+from aeromag_env.scenarios import check_scenario
 
 #: Per-step info entries (as the single environment's ``info``) and their rows of the outcome.
 STEP_INFO = (("rmse_window_nt", OUT_RMSE), ("ror", OUT_ROR), ("qoq", OUT_QOQ),
@@ -44,7 +46,8 @@ class AeroMagCompensationVecEnv(VectorEnv):
     ``gym.make_vec(..., vectorization_mode="sync")`` over single environments (tested). The step
     of all N environments — action mapping, filter over K samples, reward, observation — is one
     compiled call (:func:`aeromag_env.env_core.env_step_batch`) spread over the cores; only
-    resets (simulating a new flight) run in Python, one environment at a time.
+    resets (simulating a new flight) run in Python, one environment at a time (or ahead, in a
+    worker process: Prefetching below).
 
     ## Spaces
 
@@ -68,6 +71,13 @@ class AeroMagCompensationVecEnv(VectorEnv):
     Flights of different scenarios have different lengths (``episode_lengths``); each
     environment ends its own episode.
 
+    ## Prefetching
+
+    With ``prefetch=True`` a worker process simulates each environment's next flight while the
+    current one runs (:mod:`aeromag_env.prefetch`), so resets mostly cost no simulation time.
+    With autoreset the next flight is known (the environment's generator); with ``DISABLED``
+    the caller names it with :meth:`prefetch_next`. The flights are the same either way.
+
     ## Seeding
 
     ``reset(seed=s)`` seeds environment i with ``s + i`` (a list gives one seed per
@@ -79,7 +89,8 @@ class AeroMagCompensationVecEnv(VectorEnv):
 
     ``gym.make_vec("AeroMagCompensation-v0", num_envs=N,
     vectorization_mode="vector_entry_point", config=..., autoreset_mode=..., **overrides)``
-    with the single environment's ``config`` and keyword shortcuts. No rendering.
+    with the single environment's ``config`` and keyword shortcuts, and ``prefetch``.
+    No rendering. :meth:`close` stops the prefetching worker.
     """
 
     def __init__(
@@ -88,6 +99,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         config: EnvConfig | dict | None = None,
         render_mode: str | None = None,
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+        prefetch: bool = False,
         **overrides: Any,
     ) -> None:
         if not (isinstance(num_envs, int | np.integer) and num_envs >= 1):
@@ -117,6 +129,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self._obs = np.zeros((n, self._low.size), np.float32)
         self._out = np.zeros((n, env_core.N_OUT))
         self._ended = np.zeros(n, bool)
+        self._prefetcher = FlightPrefetcher() if prefetch else None
 
     @property
     def episode_lengths(self) -> np.ndarray:
@@ -196,6 +209,21 @@ class AeroMagCompensationVecEnv(VectorEnv):
             raise ResetNeeded("call reset() before step()")
         return self._filters
 
+    def prefetch_next(self, i: int, seed: int | None = None) -> None:
+        """Environment i's next reset will be seeded with ``seed`` (None: it draws from its own
+        generator): have that flight simulated now (no-op without ``prefetch``)."""
+        if self._prefetcher is None:
+            return
+        rng = seeding.np_random(seed)[0] if seed is not None else copy.deepcopy(self._rngs[i])
+        if rng is None:  # never reset: its first flight is not known yet
+            return
+        key = FlightKey(self.scenarios[i], int(rng.integers(2**31)), self.config.duration_s)
+        self._prefetcher.expect(i, key)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._prefetcher is not None:
+            self._prefetcher.close()
+
     def _new_flight(
         self, i: int, seed: int | None, options: dict
     ) -> tuple[FilterState, np.ndarray]:
@@ -208,9 +236,13 @@ class AeroMagCompensationVecEnv(VectorEnv):
         rng = self._rngs[i]
         assert rng is not None
         self.flight_seeds[i] = int(rng.integers(2**31))
-        ep = make_episode(self.scenarios[i], int(self.flight_seeds[i]), self.config.duration_s)
-        state = FilterState(ep.filter_cfg, ep.y, ep.t_b, ep.tdot_b, store_states=False)
-        return state, ep.truth_interf
+        key = FlightKey(self.scenarios[i], int(self.flight_seeds[i]), self.config.duration_s)
+        flight = simulate(key) if self._prefetcher is None else self._prefetcher.take(i, key)
+        if self.autoreset_mode != AutoresetMode.DISABLED:
+            self.prefetch_next(i)  # the autoreset after this flight draws from the generator
+        state = FilterState(flight.filter_cfg, flight.y, flight.t_b, flight.tdot_b,
+                            store_states=False)  # fmt: skip
+        return state, flight.truth_interf
 
     def _load(self, i: int, state: FilterState, truth: np.ndarray) -> None:
         filters = self._need_filters()

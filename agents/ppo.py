@@ -66,8 +66,9 @@ VEC_ENVS = ("batched", "dummy")
 
 def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
     """``n_envs`` training environments under ``VecNormalize``; ``hp["vec_env"]`` (one of
-    :data:`VEC_ENVS`, default ``batched``) chooses the vectorisation. Environment ``rank``
-    resets with the seeds of ``_seed_stream(rank, …)`` either way."""
+    :data:`VEC_ENVS`, default ``batched``) chooses the vectorisation, ``hp["prefetch"]``
+    (default true) whether the batched one simulates flights ahead in a worker process.
+    Environment ``rank`` resets with the seeds of ``_seed_stream(rank, …)`` either way."""
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     n_envs, kind = int(hp["n_envs"]), hp.get("vec_env", "batched")
@@ -77,9 +78,9 @@ def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
     if kind == "batched":
         from aeromag_env.sb3_vec_env import AeroMagSB3VecEnv
 
-        venv: Any = AeroMagSB3VecEnv(
-            n_envs, scenario=scenario, reset_seeds=streams, **hp["env_kwargs"]
-        )
+        venv: Any = AeroMagSB3VecEnv(n_envs, scenario=scenario, reset_seeds=streams,
+                                     prefetch=bool(hp.get("prefetch", True)),
+                                     **hp["env_kwargs"])  # fmt: skip
     else:
 
         def factory(rank: int) -> Any:
@@ -141,7 +142,8 @@ def train_ppo(
     torch.set_num_threads(1)
     hp = load_hyperparams(scenario, hyperparams)
     if quick:
-        hp = {**hp, "n_envs": 2, "n_steps": 64, "batch_size": 64, "eval_every": 512}
+        hp = {**hp, "n_envs": 2, "n_steps": 64, "batch_size": 64, "eval_every": 512,
+              "prefetch": False}  # fmt: skip
     venv = make_training_env(scenario, hp, seed)
     ckpt, stats = out / "checkpoint.zip", out / "vecnormalize.pkl"
     if ckpt.exists() and stats.exists():  # resume (pickle files this run wrote itself)
@@ -154,6 +156,7 @@ def train_ppo(
     t0 = time.perf_counter()
     model.learn(timesteps, callback=callback, reset_num_timesteps=not ckpt.exists())
     callback.checkpoint(model)
+    venv.close()  # stops a prefetching worker
     summary = {
         "scenario": scenario,
         "timesteps": int(model.num_timesteps),

@@ -11,14 +11,19 @@
 * ``ppo_batched_steps_per_s``, ``ppo_dummyvec_steps_per_s`` — stable-baselines3 PPO
   ``learn`` throughput (environment steps per second, resets and updates included) with the
   training environments of ``aeromag train`` (``agents/hyperparams/ppo.json``, scenario
-  ``nonstationary``: its n_envs, n_steps, batch size, epochs, network), batched or SB3's
-  ``DummyVecEnv``; torch on one thread; the two alternate within each repeat.
+  ``nonstationary``: its n_envs, n_steps, batch size, epochs, network): batched with flights
+  prefetched in a worker process (the default), SB3's ``DummyVecEnv``, and
+  ``ppo_batched_no_prefetch_steps_per_s`` (batched stepping alone); torch on one thread; the
+  variants alternate within each repeat. With them the share of each run's time spent in the
+  environments (``ppo_*_env_time_share``): the rest — policy inference, rollout buffer,
+  gradient updates — is the same for all.
 """
 
 from __future__ import annotations
 
 import statistics
 import time
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
@@ -76,26 +81,54 @@ def bench_env(repeats: int) -> dict[str, float]:
     }
 
 
+#: PPO variants: name → hyperparameter overrides (the rest as ``aeromag train``).
+PPO_VARIANTS: dict[str, dict[str, Any]] = {
+    "dummyvec": {"vec_env": "dummy"},
+    "batched": {"vec_env": "batched", "prefetch": True},
+    "batched_no_prefetch": {"vec_env": "batched", "prefetch": False},
+}
+
+
 def bench_ppo(timesteps: int, repeats: int) -> dict[str, Any]:
-    """PPO ``learn(timesteps)`` steps per second, batched vs DummyVecEnv, same settings."""
+    """PPO ``learn(timesteps)`` steps per second for each of :data:`PPO_VARIANTS`, same
+    settings otherwise, alternating within each repeat; and the share of each run's time
+    spent inside the environments' ``step_wait`` (stepping, and the resets done there)."""
     import torch
 
     from agents.ppo import load_hyperparams, make_ppo, make_training_env
 
     torch.set_num_threads(1)
     hp = load_hyperparams("nonstationary")
-    rates: dict[str, list[float]] = {"batched": [], "dummy": []}
+    rates: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
+    shares: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
     for _ in range(repeats):
-        for kind in rates:
-            venv = make_training_env("nonstationary", {**hp, "vec_env": kind}, seed=0)
+        for name, overrides in PPO_VARIANTS.items():
+            venv = make_training_env("nonstationary", {**hp, **overrides}, seed=0)
+            inner, in_env = venv.venv, [0.0]
+            inner.step_wait = _timed(inner.step_wait, in_env)
             model = make_ppo(venv, hp, seed=0)
+            time.sleep(1.0)  # a prefetching worker starts up (in training: once per run)
             t0 = time.perf_counter()
             model.learn(timesteps)
-            rates[kind].append(timesteps / (time.perf_counter() - t0))
+            seconds = time.perf_counter() - t0
+            rates[name].append(timesteps / seconds)
+            shares[name].append(in_env[0] / seconds)
             venv.close()
-    return {
-        "ppo_batched_steps_per_s": statistics.median(rates["batched"]),
-        "ppo_dummyvec_steps_per_s": statistics.median(rates["dummy"]),
-        "ppo_n_envs": int(hp["n_envs"]),
-        "ppo_timesteps": timesteps,
-    }
+    figures: dict[str, Any] = {"ppo_n_envs": int(hp["n_envs"]), "ppo_timesteps": timesteps}
+    for name in PPO_VARIANTS:
+        figures[f"ppo_{name}_steps_per_s"] = statistics.median(rates[name])
+        figures[f"ppo_{name}_env_time_share"] = statistics.median(shares[name])
+    return figures
+
+
+def _timed(fn: Callable[[], Any], total: list[float]) -> Callable[[], Any]:
+    """``fn`` that adds its wall time to ``total[0]``."""
+
+    def wrapper() -> Any:
+        t0 = time.perf_counter()
+        try:
+            return fn()
+        finally:
+            total[0] += time.perf_counter() - t0
+
+    return wrapper

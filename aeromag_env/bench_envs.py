@@ -11,12 +11,14 @@
 * ``ppo_batched_steps_per_s``, ``ppo_dummyvec_steps_per_s`` — stable-baselines3 PPO
   ``learn`` throughput (environment steps per second, resets and updates included) with the
   training environments of ``aeromag train`` (``agents/hyperparams/ppo.json``, scenario
-  ``nonstationary``: its n_envs, n_steps, batch size, epochs, network): batched with flights
+  ``nonstationary``: its 8 envs, n_steps, batch size, epochs, network): batched with flights
   prefetched in a worker process (the default), SB3's ``DummyVecEnv``, and
   ``ppo_batched_no_prefetch_steps_per_s`` (batched stepping alone); torch on one thread; the
-  variants alternate within each repeat. With them the share of each run's time spent in the
-  environments (``ppo_*_env_time_share``): the rest — policy inference, rollout buffer,
-  gradient updates — is the same for all.
+  variants alternate within each repeat; runs long enough for five episodes per environment,
+  so that the first reset weighs as little as in a real training run. With them the share of
+  each run's time spent in the environments (``ppo_*_env_time_share``): the rest — policy
+  inference, rollout buffer, gradient updates — is the same for all. ``ppo64_*``: the same
+  with 64 environments (two episodes each).
 """
 
 from __future__ import annotations
@@ -89,16 +91,19 @@ PPO_VARIANTS: dict[str, dict[str, Any]] = {
 }
 
 
-def bench_ppo(timesteps: int, repeats: int) -> dict[str, Any]:
-    """PPO ``learn(timesteps)`` steps per second for each of :data:`PPO_VARIANTS`, same
-    settings otherwise, alternating within each repeat; and the share of each run's time
-    spent inside the environments' ``step_wait`` (stepping, and the resets done there)."""
+def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
+              prefix: str = "ppo") -> dict[str, Any]:  # fmt: skip
+    """PPO ``learn(timesteps)`` steps per second for each of :data:`PPO_VARIANTS`, with
+    ``ppo.json``'s hyperparameters (``n_envs`` overridden if given), alternating within each
+    repeat; and the share of each run's time spent inside the environments' ``step_wait``
+    (stepping, and the resets done there). Figures are named ``{prefix}_{variant}_…``."""
     import torch
 
     from agents.ppo import load_hyperparams, make_ppo, make_training_env
 
     torch.set_num_threads(1)
     hp = load_hyperparams("nonstationary")
+    hp = {**hp, "n_envs": n_envs or int(hp["n_envs"])}
     rates: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
     shares: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
     for _ in range(repeats):
@@ -107,17 +112,17 @@ def bench_ppo(timesteps: int, repeats: int) -> dict[str, Any]:
             inner, in_env = venv.venv, [0.0]
             inner.step_wait = _timed(inner.step_wait, in_env)
             model = make_ppo(venv, hp, seed=0)
-            time.sleep(1.0)  # a prefetching worker starts up (in training: once per run)
+            time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
             t0 = time.perf_counter()
             model.learn(timesteps)
             seconds = time.perf_counter() - t0
             rates[name].append(timesteps / seconds)
             shares[name].append(in_env[0] / seconds)
             venv.close()
-    figures: dict[str, Any] = {"ppo_n_envs": int(hp["n_envs"]), "ppo_timesteps": timesteps}
+    figures: dict[str, Any] = {f"{prefix}_n_envs": hp["n_envs"], f"{prefix}_timesteps": timesteps}
     for name in PPO_VARIANTS:
-        figures[f"ppo_{name}_steps_per_s"] = statistics.median(rates[name])
-        figures[f"ppo_{name}_env_time_share"] = statistics.median(shares[name])
+        figures[f"{prefix}_{name}_steps_per_s"] = statistics.median(rates[name])
+        figures[f"{prefix}_{name}_env_time_share"] = statistics.median(shares[name])
     return figures
 
 

@@ -1,5 +1,6 @@
-"""Benchmark: PPO training throughput with the batched environments against SB3's DummyVecEnv,
-same hyperparameters (``agents/hyperparams/ppo.json``; same code as ``aeromag bench``).
+"""Benchmark: PPO training throughput with the batched environments (with and without flight
+prefetching) against SB3's DummyVecEnv, same hyperparameters (``agents/hyperparams/ppo.json``:
+8 envs, and again with 64; same code as ``aeromag bench``).
 
 Run: ``.venv/bin/python benchmarks/bench_ppo.py [--quick]``
 """
@@ -13,4 +14,7 @@ from aeromag_env.bench_envs import bench_ppo
 
 if __name__ == "__main__":
     quick = "--quick" in sys.argv[1:]
-    print(json.dumps(bench_ppo(4096 if quick else 16384, 1 if quick else 3), indent=2))
+    repeats = 1 if quick else 3
+    figures = bench_ppo(16384 if quick else 49152, repeats)
+    figures |= bench_ppo(32768 if quick else 163840, repeats, n_envs=64, prefix="ppo64")
+    print(json.dumps(figures, indent=2))

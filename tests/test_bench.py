@@ -23,10 +23,12 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
         "filter_numpy_samples_per_s": 8e3, "filterpy_samples_per_s": None,
         "env_single_steps_per_s": 5e4, "env_numpy_reference_steps_per_s": 800.0,
         "env_batched_steps_per_s": 2e5, "env_reset_s": 0.03,
-        "ppo_batched_steps_per_s": 6e3, "ppo_dummyvec_steps_per_s": 5e3, "ppo_n_envs": 8,
-        "ppo_batched_env_time_share": 0.4, "ppo_dummyvec_env_time_share": 0.5,
-        "ppo_batched_no_prefetch_steps_per_s": 5.5e3,
-        "ppo_batched_no_prefetch_env_time_share": 0.45,
+        **{f"{prefix}_{variant}_{what}": value
+           for prefix in ("ppo", "ppo64")
+           for variant, rate in (("batched", 6e3), ("batched_no_prefetch", 5.5e3),
+                                 ("dummyvec", 5e3))
+           for what, value in (("steps_per_s", rate), ("env_time_share", 0.4))},
+        "ppo_n_envs": 8, "ppo64_n_envs": 64,
         "discover_s_per_flight_hour": None,
         "compensate_10h_peak_mb": 600.0, "compensate_baseline_mb": 40.0,
     }  # fmt: skip
@@ -35,6 +37,8 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
     assert rows["env steps, 64 envs batched, K = 10"][2] == "4.0× 1 env"
     assert rows["PPO learn, batched + prefetch, 8 envs"][2:] == (
         "1.20× DummyVecEnv (env: 40% of the time)", "≥ 1.5× DummyVecEnv", False)  # fmt: skip
+    assert rows["PPO learn, DummyVecEnv, 64 envs"][2:] == (
+        "1.00× DummyVecEnv (env: 40% of the time)", "", None)  # fmt: skip
     assert rows["discover 1 flight-hour"][1:3] == ("n/a", "n/a")
     assert rows["compensate 10-hour flight, peak RSS"][4] is True
     assert np.isfinite(peak_rss_mb()) and peak_rss_mb() > 0

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from aeromag_env.config import AuxChannelConfig
-from aeromag_env.earth import _first_order_lag
+from aeromag_env.earth import first_order_lag
 
 #: Rise/fall time of a switched load [s] (inrush and electronics smooth the step).
 SWITCH_TAU_S = 0.3
@@ -28,7 +28,7 @@ def aux_channel(cfg: AuxChannelConfig, tt: np.ndarray, rng: np.random.Generator)
     t = tt - tt[0]
     if cfg.kind == "switching":
         x = _on_off(t, cfg.period_s, rng)
-        x = _first_order_lag(x * cfg.level, dt, SWITCH_TAU_S)
+        x = first_order_lag(x * cfg.level, dt, SWITCH_TAU_S)
     elif cfg.kind == "strobe":
         phase = rng.uniform(0.0, cfg.period_s)
         x = cfg.level * (((t + phase) % cfg.period_s) < STROBE_PULSE_S)
@@ -38,7 +38,7 @@ def aux_channel(cfg: AuxChannelConfig, tt: np.ndarray, rng: np.random.Generator)
         x = cfg.level * (warm + 0.3 * cycle)
     else:  # random_walk
         steps = rng.standard_normal(n) * np.sqrt(dt / cfg.period_s)
-        x = cfg.level * _first_order_lag(np.cumsum(steps), dt, 5.0)
+        x = cfg.level * first_order_lag(np.cumsum(steps), dt, 5.0)
     return np.asarray(x, float) + cfg.offset
 
 

@@ -300,38 +300,33 @@ class _Problem:
         self.yw = np.empty(0)
         self.r0 = np.empty(0)
         self.perp: list[np.ndarray] = []
+        self._spans: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = {}
 
     def set_noise(self, noise: NoiseModel) -> None:
         self.noise = noise
-        m = self.idx.size
-        allc = np.concatenate(self.columns, axis=2)  # (m, 3, P)
-        yw, cw = np.empty(3 * m), np.empty((3 * m, allc.shape[2]))
-        for i in range(3):
-            x = np.column_stack([self.y[:, i], allc[:, i, :]])
-            w = whiten(
-                x, self.gap, noise.white_std_nt[i], noise.fogm_std_nt[i], noise.fogm_tau_s[i]
-            )
-            yw[i * m : (i + 1) * m], cw[i * m : (i + 1) * m] = w[:, 0], w[:, 1:]
-        self.yw = yw
+        self.yw = self._whiten_columns(self.y[:, :, None])[:, 0]
+        allc = self._whiten_columns(np.concatenate(self.columns, axis=2))
         edges = np.cumsum([0] + [c.shape[2] for c in self.columns])
-        self.white = [cw[:, edges[j] : edges[j + 1]] for j in range(len(self.columns))]
-        q0 = _orthonormal(self.white[0])
-        self._q0 = q0
-        self.r0 = yw - q0 @ (q0.T @ yw)
-        self.perp = [w - q0 @ (q0.T @ w) for w in self.white]
-        self.k0 = q0.shape[1]
+        self.white = [allc[:, edges[j] : edges[j + 1]] for j in range(len(self.columns))]
+        self._q0 = _orthonormal(self.white[0])
+        self.r0 = self._off_base(self.yw)
+        self.perp = [self._off_base(w) for w in self.white]
+        self.k0 = self._q0.shape[1]
+        self._spans = {}
 
     def add(self, columns: np.ndarray) -> int:
         """Append a candidate (n, 3, p) built after :meth:`set_noise`; returns its index."""
-        assert self.noise is not None
         self.columns.append(columns[self.idx])
         w = self._whiten_columns(self.columns[-1])
         self.white.append(w)
-        q0 = self._q0
-        self.perp.append(w - q0 @ (q0.T @ w))
+        self.perp.append(self._off_base(w))
         return len(self.columns) - 1
 
+    def _off_base(self, x: np.ndarray) -> np.ndarray:
+        return x - self._q0 @ (self._q0.T @ x)
+
     def _whiten_columns(self, cols: np.ndarray) -> np.ndarray:
+        """Whitened, axis-stacked copy (3m, p) of calibration-row columns (m, 3, p)."""
         noise = self.noise
         assert noise is not None
         m = self.idx.size
@@ -346,13 +341,22 @@ class _Problem:
             )
         return out
 
-    def _span(self, chosen: list[int]) -> np.ndarray:
-        extra = [self.perp[j] for j in chosen if j != 0]
-        return _orthonormal(np.concatenate(extra, axis=1)) if extra else np.zeros((self.yw.size, 0))
+    def _span(self, chosen: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Orthonormal basis of the chosen effects (off the base) and the residual off it;
+        cached per noise model, since every candidate of a step is tested against it."""
+        key = tuple(chosen)
+        if key not in self._spans:
+            extra = [self.perp[j] for j in chosen if j != 0]
+            q = (
+                _orthonormal(np.concatenate(extra, axis=1))
+                if extra
+                else np.zeros((self.yw.size, 0))
+            )
+            self._spans[key] = (q, self.r0 - q @ (q.T @ self.r0))
+        return self._spans[key]
 
     def whitened_residual(self, chosen: list[int]) -> np.ndarray:
-        q = self._span(chosen)
-        return self.r0 - q @ (q.T @ self.r0)
+        return self._span(chosen)[1]
 
     def fit(self, chosen: list[int]) -> tuple[np.ndarray, np.ndarray]:
         """GLS coefficients of ``chosen`` (base first) and their covariance."""
@@ -372,19 +376,15 @@ class _Problem:
 
     def test_columns(self, chosen: list[int], columns: np.ndarray) -> dict[str, float] | None:
         """:meth:`test` for columns (n, 3, p) not in the problem."""
-        w = self._whiten_columns(columns[self.idx])
-        self.white.append(w)
-        self.perp.append(w - self._q0 @ (self._q0.T @ w))
+        idx = self.add(columns)
         try:
-            return self.test(chosen, len(self.white) - 1)
+            return self.test(chosen, idx)
         finally:
-            self.white.pop()
-            self.perp.pop()
+            del self.columns[idx], self.white[idx], self.perp[idx]
 
     def test(self, chosen: list[int], candidate: int) -> dict[str, float] | None:
         """Residual sums for adding ``candidate`` to ``chosen`` (None: nothing identifiable)."""
-        q = self._span(chosen)
-        r = self.r0 - q @ (q.T @ self.r0)
+        q, r = self._span(chosen)
         g = self.perp[candidate]
         g = g - q @ (q.T @ g)
         scale = float(np.linalg.norm(self.white[candidate], axis=0).max())
@@ -434,7 +434,7 @@ def _best_of_families(
     return {j: _statistics(tests[j], int(size[fam] > 1)) for fam, j in best.items()}  # type: ignore[arg-type]
 
 
-class _BaseSpan:
+class BaseSpan:
     """Projector off the un-whitened base regressors on the calibration rows."""
 
     def __init__(self, base: np.ndarray, rows: np.ndarray) -> None:
@@ -495,7 +495,7 @@ def discover(
     data = _prepare(flight, flux, calibration_window)
     ctx = data.ctx
     base = base_columns(ctx.t_b, ctx.tdot_b)
-    span = _BaseSpan(base, data.calibration)
+    span = BaseSpan(base, data.calibration)
     groups: list[Group] = []
     fractions: list[float] = []
     skipped: list[dict[str, str]] = []
@@ -623,7 +623,7 @@ def discover(
         "verdict": (
             "nothing significant is missing"
             if not missing
-            else "missing: " + ", ".join(_group_key_d(e) for e in missing)
+            else "missing: " + ", ".join(groups[j - 1].family for j in chosen[1:])
         ),
         "candidates": candidates,
         "skipped": skipped,
@@ -656,8 +656,6 @@ def discover(
         "residual_before": res_before,
         "residual_after": res_after,
         "held_out": data.held_out,
-        "calibration": data.calibration,
-        "yaw": np.arctan2(ctx.c_nb[:, 1, 0], ctx.c_nb[:, 0, 0]),
     }
     return Discovery(report=report, model=model, series=series)
 
@@ -777,7 +775,7 @@ def _gap(
 
 def _diagnostics(
     data: _Data,
-    span: _BaseSpan,
+    span: BaseSpan,
     res: np.ndarray,
     noise0: NoiseModel | None,
     noise1: NoiseModel | None,
@@ -877,10 +875,6 @@ def _physical(g: Group, b: np.ndarray, se: np.ndarray) -> dict[str, Any]:
             "magnitude": float(np.linalg.norm(b)),
         }
     return {"coefficients": dict(zip(g.labels, b.tolist(), strict=True))}
-
-
-def _group_key_d(e: dict[str, Any]) -> str:
-    return e["name"] if e["channel"] is None else f"{e['name']}[{e['channel']}]"
 
 
 def _base_dict(state: np.ndarray) -> dict[str, list[float]]:

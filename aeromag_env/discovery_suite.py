@@ -31,7 +31,7 @@ from aeromag_env.config import (
     preset,
     with_overrides,
 )
-from aeromag_env.discover import base_columns, discover
+from aeromag_env.discover import BaseSpan, base_columns, discover
 from aeromag_env.flight import Flight
 from aeromag_env.frames import time_derivative
 from aeromag_env.simulate import simulate_flight
@@ -139,14 +139,9 @@ def _scaled(eff: EffectConfig, factor: float) -> EffectConfig:
 def identifiable_rms(flight: Flight) -> float:
     """RMS of ``truth_effects`` outside the base span (true Earth field, whole flight) [nT]."""
     t_b = flight.vector("truth_earth")
-    x = base_columns(t_b, time_derivative(t_b, flight.tt, "central"))
-    d = flight.vector("truth_effects")
-    resid = np.empty_like(d)
-    for i in range(3):
-        a = x[:, i, 7 * i : 7 * i + 7]
-        coef, *_ = np.linalg.lstsq(a / np.linalg.norm(a, axis=0), d[:, i], rcond=None)
-        resid[:, i] = d[:, i] - (a / np.linalg.norm(a, axis=0)) @ coef
-    return float(np.sqrt(np.mean(resid**2)))
+    span = BaseSpan(base_columns(t_b, time_derivative(t_b, flight.tt, "central")),
+                    np.ones(flight.n, bool))  # fmt: skip
+    return float(np.sqrt(np.mean(span.perp(flight.vector("truth_effects")[:, :, None]) ** 2)))
 
 
 @dataclass

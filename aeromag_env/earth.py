@@ -112,7 +112,7 @@ def igrf_ned_along_track(
     return b + CubicSpline(t_grid, grad, axis=0)(tt) * dh[:, None]
 
 
-def _first_order_lag(x: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
+def first_order_lag(x: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
     """``y' = (x − y) / τ``, exactly discretised, started at ``y[0] = x[0]`` (along axis 0)."""
     from scipy.signal import lfilter
 
@@ -166,5 +166,5 @@ def external_variation_ned(
     cycle = np.sin(omega * (seconds_of_day + tt)[:, None] + phase) * weights * daily_amplitude_nt
     dt = float(np.median(np.diff(tt))) if tt.size > 1 else 1.0
     irregular = fogm(tt.size, dt, fogm_std_nt, fogm_tau_s, rng, dims=3)
-    variation = cycle + _first_order_lag(irregular, dt, smoothing_s)
+    variation = cycle + first_order_lag(irregular, dt, smoothing_s)
     return variation - variation[0]

@@ -18,6 +18,7 @@ on the flight's time span mapped to [-1, 1] (parameter ``time_span_s``).
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -26,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env.earth import external_variation_ned, first_order_lag
 from aeromag_env.errors import ConfigError
 
 #: Scale of the quadratic terms of ``induced_second_order`` [nT].
@@ -136,14 +138,6 @@ def _vec(params: dict[str, Any], key: str, size: int) -> np.ndarray | None:
     return None if v is None else np.asarray(v, float).reshape(size)
 
 
-def _first_order_lag(x: np.ndarray, dt: float, tau: float) -> np.ndarray:
-    from scipy.signal import lfilter
-
-    a = float(np.exp(-dt / tau))
-    y, _ = lfilter([1.0 - a], [1.0, -a], x, axis=0, zi=a * x[:1])
-    return np.asarray(y)
-
-
 class Effect:
     """Base class: name, parameters by name and size, and the channels it needs."""
 
@@ -167,7 +161,6 @@ class Effect:
             )
         for key, value in params.items():
             size = self.parameter_sizes[key]
-            arr = np.asarray(value, dtype=object)
             try:
                 arr = np.asarray(value, float)
             except (TypeError, ValueError):
@@ -252,7 +245,6 @@ class ExternalFieldVariation(Effect):
     def simulate(
         self, ctx: EffectContext, channel: str | None, params: dict[str, Any]
     ) -> np.ndarray:
-        from aeromag_env.earth import external_variation_ned
         from aeromag_env.frames import nav_to_body
 
         d_n = np.zeros((ctx.n, 3))
@@ -399,7 +391,7 @@ class EddyTimeConstant(Effect):
     @staticmethod
     def _lagged_rate(ctx: EffectContext, tau: float) -> np.ndarray:
         dt = float(np.median(np.diff(ctx.tt)))
-        return _first_order_lag(ctx.tdot_b, dt, tau) - ctx.tdot_b
+        return first_order_lag(ctx.tdot_b, dt, tau) - ctx.tdot_b
 
     def simulate(
         self, ctx: EffectContext, channel: str | None, params: dict[str, Any]
@@ -580,6 +572,6 @@ def simulate_effects(ctx: EffectContext, configs: tuple[Any, ...]) -> np.ndarray
     for c in additive:
         total += effect(c.name).simulate(ctx, c.channel, c.parameters)
     for c in signal_fx:
-        ctx_sig = EffectContext(**{**ctx.__dict__, "signal": base + total})
+        ctx_sig = dataclasses.replace(ctx, signal=base + total)
         total += effect(c.name).simulate(ctx_sig, c.channel, c.parameters)
     return total

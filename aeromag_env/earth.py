@@ -9,6 +9,8 @@ the vertical gradient, evaluated on the same grid. The interpolation agrees with
 from __future__ import annotations
 
 import datetime as _dt
+import functools
+import warnings
 
 import numpy as np
 
@@ -33,7 +35,7 @@ def parse_date(date: str | _dt.date | _dt.datetime) -> _dt.datetime:
 def igrf_ned(
     lat: np.ndarray, lon: np.ndarray, alt_m: np.ndarray, date: str | _dt.datetime
 ) -> np.ndarray:
-    """IGRF-14 core field in NED at geodetic positions, by a direct ``ppigrf`` call.
+    """IGRF-14 core field in NED at geodetic positions, as ``ppigrf.igrf`` computes it.
 
     Parameters
     ----------
@@ -48,16 +50,67 @@ def igrf_ned(
     -------
     ndarray, shape (n, 3)
         ``[B_north, B_east, B_down]`` [nT].
+
+    Notes
+    -----
+    ``ppigrf.igrf`` re-reads the coefficient file and interpolates it in time with pandas on
+    every call (~25 ms, most of a simulated episode's reset). Here that step is done once per
+    date (:func:`_igrf_coefficients`) and the synthesis follows ``ppigrf.igrf_gc`` operation
+    for operation with ppigrf's own Legendre functions and coordinate conversions, so the
+    result equals ``ppigrf.igrf``'s (tested to 1e-9 nT).
     """
-    import ppigrf  # lazy: pulls in pandas
+    from ppigrf.ppigrf import RE, geoc2geod, geod2geoc, get_legendre
 
     lat, lon, alt_m = np.broadcast_arrays(
         np.atleast_1d(np.asarray(lat, float)),
         np.atleast_1d(np.asarray(lon, float)),
         np.atleast_1d(np.asarray(alt_m, float)),
     )
-    be, bn, bu = ppigrf.igrf(np.rad2deg(lon), np.rad2deg(lat), alt_m / 1000.0, parse_date(date))
-    return np.column_stack([np.ravel(bn), np.ravel(be), -np.ravel(bu)])
+    h_km = np.ravel(alt_m) / 1000.0
+    theta, r, _, _ = geod2geoc(np.rad2deg(np.ravel(lat)), h_km, h_km, h_km)
+    keys, gh = _igrf_coefficients(parse_date(date))
+    r, theta, phi = (np.reshape(x, (-1, 1)) for x in (r, theta, np.rad2deg(np.ravel(lon))))
+    n, m = np.array(keys).T.reshape(2, 1, -1)
+    p, dp = get_legendre(theta, keys)
+    phi_rad = np.radians(phi)
+    cos_mphi, sin_mphi = np.cos(phi_rad * m), np.sin(phi_rad * m)
+    nn, mm = np.tile(n, 2), np.tile(m, 2)
+    b_r = ((RE / r) ** (nn + 2) * (nn + 1) * np.hstack((p * cos_mphi, p * sin_mphi))).dot(gh.T).T
+    g_theta = -((RE / r) ** (nn + 1)) * np.hstack((dp * cos_mphi, dp * sin_mphi)) * RE / r
+    b_theta = g_theta.dot(gh.T).T
+    g_phi = (
+        -((RE / r) ** (nn + 1))
+        * mm
+        * np.hstack((-p * sin_mphi, p * cos_mphi))
+        * RE
+        / r
+        / np.sin(np.radians(theta))
+    )
+    b_phi = g_phi.dot(gh.T).T
+    _, _, b_n, b_u = geoc2geod(theta.ravel(), r.ravel(), b_theta.ravel(), b_r.ravel())
+    return np.column_stack([np.ravel(b_n), np.ravel(b_phi), -np.ravel(b_u)])
+
+
+@functools.lru_cache(maxsize=32)
+def _igrf_coefficients(date: _dt.datetime) -> tuple[list[tuple[int, int]], np.ndarray]:
+    """IGRF Gauss coefficients at ``date``: the ``(n, m)`` keys and ``[g, h]``, shape (1, 2K).
+
+    Read and interpolated in time exactly as ``ppigrf.igrf_gc`` does it.
+    """
+    from ppigrf.ppigrf import read_shc
+
+    g, h = read_shc()
+    if not g.index[0] <= date <= g.index[-1]:
+        warnings.warn(
+            f"date {date:%Y-%m-%d} is outside the IGRF coefficient file "
+            f"({g.index[0]:%Y-%m-%d} to {g.index[-1]:%Y-%m-%d})",
+            stacklevel=3,
+        )
+    when = np.array([date])
+    index = g.index.union(when)
+    g = g.reindex(index).groupby(index).first().interpolate(method="time").loc[when, :]
+    h = h.reindex(index).groupby(index).first().interpolate(method="time").loc[when, :]
+    return list(g.columns), np.hstack((g.values, h.values))
 
 
 def igrf_ned_along_track(

@@ -16,6 +16,26 @@ def test_igrf_ned_matches_ppigrf_components():
     assert ned[0, 2] > 0 and 45_000 < np.linalg.norm(ned[0]) < 60_000
 
 
+@pytest.mark.parametrize("date", ["2026-06-01", "2016-03-04", "2029-12-31", "1965-01-01"])
+def test_cached_coefficient_synthesis_equals_ppigrf_everywhere(date):
+    """igrf_ned caches the coefficients per date; its field must still be ppigrf's, worldwide."""
+    rng = np.random.default_rng(7)
+    lat, lon, h = (
+        rng.uniform(-89.9, 89.9, 400),
+        rng.uniform(-180, 180, 400),
+        rng.uniform(0, 12e3, 400),
+    )
+    be, bn, bu = ppigrf.igrf(lon, lat, h / 1000.0, dt.datetime.fromisoformat(date))
+    ned = igrf_ned(np.deg2rad(lat), np.deg2rad(lon), h, date)
+    ref = np.column_stack([bn.ravel(), be.ravel(), -bu.ravel()])
+    np.testing.assert_allclose(ned, ref, rtol=0, atol=1e-9)  # [nT]
+
+
+def test_igrf_date_outside_the_model_warns():
+    with pytest.warns(UserWarning, match="outside the IGRF coefficient file"):
+        igrf_ned(np.deg2rad([45.0]), np.deg2rad([-75.0]), np.array([0.0]), "2040-01-01")
+
+
 @pytest.mark.parametrize("pattern", ["calibration", "calibration+survey"])
 def test_interpolated_igrf_within_0p1_nt_of_direct(pattern):
     f = simulated("paper", 3, trajectory__pattern=pattern)

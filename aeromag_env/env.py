@@ -16,6 +16,7 @@ from aeromag_env.env_core import (
     OUT_EPISODE_RMSE,
     OUT_Q_SCALE,
     OUT_QOQ,
+    OUT_QP_SCALE,
     OUT_R_SCALE,
     OUT_REWARD,
     OUT_RMSE,
@@ -52,6 +53,15 @@ class EnvConfig:
         ``log10(Q / Q(0)) = lo + (a + 1)/2 · (hi − lo)`` within ``absolute_q_log10``, likewise R
         within ``absolute_r_log10``) — a learning aid: a constant tuning is a constant action
     absolute_q_log10, absolute_r_log10 : (lo, hi) ranges of the absolute mode
+    absolute_qp_log10 : (lo, hi) range of the T_p block's Q in the absolute mode with ``split_q``
+    split_q : a third action scales the Q of the permanent-field block T_p (3 states) on its own,
+        mapped like ``a_q``, which then scales the induced and eddy blocks (18 states) only — a
+        design switch beyond the paper: an interference step (equipment switching on) moves
+        T_p, and raising the whole Q to follow it also unsettles the 18 coefficients
+    innovation_power : with ``extras``, two more observations, each log10 of a power over
+        ``tr R(0)``: the mean innovation power ``mean |r|²`` over the statistics window (the
+        noise level) and the power of the mean innovation ``|mean r|²`` over the last decision
+        window (a step: noise averages out of it, a step does not); neither depends on R
     """
 
     scenario: str = "nominal"
@@ -66,6 +76,9 @@ class EnvConfig:
     action_mode: str = "relative"
     absolute_q_log10: tuple[float, ...] = (-10.0, 10.0)
     absolute_r_log10: tuple[float, ...] = (-3.0, 3.0)
+    absolute_qp_log10: tuple[float, ...] = (-10.0, 10.0)
+    split_q: bool = False
+    innovation_power: bool = False
 
     def __post_init__(self) -> None:
         check_scenario(self.scenario)
@@ -75,7 +88,8 @@ class EnvConfig:
         _check(0.0 <= self.score_from < 1.0, "score_from must be in [0, 1)")
         _check(self.scale_limit > 1.0, "scale_limit must be > 1")
         _check(self.action_mode in ("relative", "absolute"), "action_mode: relative or absolute")
-        for nm in ("absolute_q_log10", "absolute_r_log10"):
+        _check(self.extras or not self.innovation_power, "innovation_power needs extras=True")
+        for nm in ("absolute_q_log10", "absolute_r_log10", "absolute_qp_log10"):
             lo_hi = getattr(self, nm)
             _check(len(lo_hi) == 2 and lo_hi[0] < lo_hi[1], f"{nm} must be (lo, hi), lo < hi")
 
@@ -99,7 +113,10 @@ class AeroMagCompensationEnv(gym.Env):
     ``Box(-1, 1, (2,), float32)``: ``[a_q, a_r]`` → ``s_a = s_max ** a_q``, ``s_r = s_max ** a_r``
     (log scale; ``s_max = 2`` by default, so one step at most doubles or halves Q or R). Values
     outside [-1, 1] are clipped; a non-finite action raises ``ValueError``. The cumulative scales
-    are kept within ``[1/scale_limit, scale_limit]`` of the initial Q and R.
+    are kept within ``[1/scale_limit, scale_limit]`` of the initial Q and R. With
+    ``action_mode="absolute"`` an action sets the log scale within a fixed range instead. With
+    ``split_q=True`` the space is ``(3,)``: ``[a_q, a_r, a_qp]``, where ``a_qp`` scales the Q of
+    the permanent-field states T_p and ``a_q`` that of the other 18.
 
     ## Observation Space
 
@@ -113,7 +130,9 @@ class AeroMagCompensationEnv(gym.Env):
     With ``extras=True`` five more: log10 of the cumulative Q scale and R scale, the lag-1
     autocorrelation of the innovations over the last window (whiteness, in [-1, 1]), the
     progress through the flight (in [0, 1]) and log10 of the ROR over the last decision window
-    only (it reacts to an interference step within K samples, the M-window ROR only slowly).
+    only (it reacts to an interference step within K samples, the M-window ROR only slowly);
+    with ``split_q`` an eighth, log10 of the cumulative T_p Q scale; with ``innovation_power``
+    two more (see :class:`EnvConfig`).
 
     ## Rewards
 
@@ -138,7 +157,8 @@ class AeroMagCompensationEnv(gym.Env):
 
     ``gym.make("AeroMagCompensation-v0", config=EnvConfig(...) or dict, render_mode=None |
     "rgb_array")``; keyword shortcuts: ``scenario=``, ``decision_window=``, ``extras=``.
-    ``info`` holds ``rmse_window_nt``, ``ror``, ``qoq``, ``q_scale``, ``r_scale``, ``sample``,
+    ``info`` holds ``rmse_window_nt``, ``ror``, ``qoq``, ``q_scale``, ``r_scale``,
+    ``q_permanent_scale`` (1 unless ``split_q``), ``sample``,
     ``flight_seed``, and at the end ``episode_rmse_nt`` (over the flight after ``score_from``).
 
     ## Version History
@@ -155,8 +175,10 @@ class AeroMagCompensationEnv(gym.Env):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
-        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
-        dim = 7 if self.config.extras else 2
+        self._action_size = env_core.action_size(self.config)
+        self.action_space = spaces.Box(-1.0, 1.0, (self._action_size,), np.float32)
+        c = self.config
+        dim = (7 + c.split_q + 2 * c.innovation_power) if c.extras else 2
         low = np.full(dim, -OBS_LIMIT, np.float32)
         high = np.full(dim, OBS_LIMIT, np.float32)
         if self.config.extras:
@@ -196,9 +218,9 @@ class AeroMagCompensationEnv(gym.Env):
         return float(self._run[RUN_LOG_Q]), float(self._run[RUN_LOG_R])
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        a = env_core.check_actions(action)
+        a = env_core.check_actions(action, size=self._action_size)
         f, obs, out = self.filter, np.empty(self._obs_low.size, np.float32), self._out
-        env_core.env_step(a[0], a[1], self._run, self._par, self._score_start, f.n, self._truth,
+        env_core.env_step(a, self._run, self._par, self._score_start, f.n, self._truth,
                           self._obs_low, self._obs_high, obs, out, f.mode, *f.arrays())  # fmt: skip
         reward = float(out[OUT_REWARD])
         terminated, truncated = bool(out[OUT_TERMINATED]), bool(out[OUT_TRUNCATED])
@@ -213,6 +235,7 @@ class AeroMagCompensationEnv(gym.Env):
             "qoq": float(out[OUT_QOQ]),
             "q_scale": float(out[OUT_Q_SCALE]),
             "r_scale": float(out[OUT_R_SCALE]),
+            "q_permanent_scale": float(out[OUT_QP_SCALE]),
             "sample": self.filter.k,
             "flight_seed": self._flight_seed,
         }

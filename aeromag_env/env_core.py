@@ -26,17 +26,21 @@ from aeromag_env.threads import run_chunks
 if TYPE_CHECKING:
     from aeromag_env.env import EnvConfig
 
-# running values of one environment (float vector)
-RUN_LOG_Q, RUN_LOG_R, RUN_SQ_ERR, RUN_N_ERR = range(4)
-N_RUN = 4
+# running values of one environment (float vector); RUN_LOG_Q is the Q of all 21 states, or with
+# split_q of the coefficient blocks (A, B) only, and RUN_LOG_QP that of the permanent block T_p
+RUN_LOG_Q, RUN_LOG_R, RUN_SQ_ERR, RUN_N_ERR, RUN_LOG_QP = range(5)
+N_RUN = 5
 # environment parameters (float vector, see parameters())
 (PAR_K, PAR_LOG_S_MAX, PAR_LOG_LIMIT, PAR_ABSOLUTE, PAR_Q_LO, PAR_Q_HI, PAR_R_LO, PAR_R_HI,
- PAR_REWARD_NT, PAR_PENALTY, PAR_EXTRAS, PAR_LN10) = range(12)  # fmt: skip
-N_PAR = 12
+ PAR_REWARD_NT, PAR_PENALTY, PAR_EXTRAS, PAR_LN10, PAR_SPLIT_Q, PAR_QP_LO,
+ PAR_QP_HI, PAR_POWER) = range(16)  # fmt: skip
+N_PAR = 16
+#: States of the permanent-field block T_p (the first block of the 21-state vector).
+N_PERMANENT = 3
 # outcome of one step (float vector)
 (OUT_REWARD, OUT_RMSE, OUT_ROR, OUT_QOQ, OUT_Q_SCALE, OUT_R_SCALE, OUT_TERMINATED,
- OUT_TRUNCATED, OUT_EPISODE_RMSE) = range(9)  # fmt: skip
-N_OUT = 9
+ OUT_TRUNCATED, OUT_EPISODE_RMSE, OUT_QP_SCALE) = range(10)  # fmt: skip
+N_OUT = 10
 
 
 def parameters(config: EnvConfig) -> np.ndarray:
@@ -52,24 +56,32 @@ def parameters(config: EnvConfig) -> np.ndarray:
     par[PAR_PENALTY] = config.divergence_penalty
     par[PAR_EXTRAS] = float(config.extras)
     par[PAR_LN10] = math.log(10.0)
+    par[PAR_SPLIT_Q] = float(config.split_q)
+    par[PAR_QP_LO], par[PAR_QP_HI] = config.absolute_qp_log10
+    par[PAR_POWER] = float(config.innovation_power)
     return par
 
 
-def check_actions(actions: object, num_envs: int | None = None) -> np.ndarray:
-    """The action of one environment as float64 (2,), or with ``num_envs`` the actions of a
-    vector environment (num_envs, 2); a one-line ValueError when the size is wrong or a value
+def action_size(config: EnvConfig) -> int:
+    """Entries of one action: ``[a_q, a_r]``, or with ``split_q`` ``[a_q, a_r, a_qp]``."""
+    return 3 if config.split_q else 2
+
+
+def check_actions(actions: object, num_envs: int | None = None, size: int = 2) -> np.ndarray:
+    """The action of one environment as float64 (size,), or with ``num_envs`` the actions of a
+    vector environment (num_envs, size); a one-line ValueError when the size is wrong or a value
     is not finite (values outside [-1, 1] are clipped later, not refused)."""
     try:
         a = np.asarray(actions, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"actions must be numbers in [-1, 1], got {actions!r}") from None
     if num_envs is None:
-        if a.size != 2 or not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be 2 finite numbers in [-1, 1], got {actions!r}")
-        return a.reshape(2)
-    if a.shape != (num_envs, 2):
+        if a.size != size or not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be {size} finite numbers in [-1, 1], got {actions!r}")
+        return a.reshape(size)
+    if a.shape != (num_envs, size):
         raise ValueError(
-            f"actions must have shape ({num_envs}, 2) (one [a_q, a_r] row per environment), "
+            f"actions must have shape ({num_envs}, {size}) (one action per environment), "
             f"got shape {a.shape}"
         )
     finite = np.isfinite(a)
@@ -95,6 +107,22 @@ def _action_scales(a0: float, a1: float, run: np.ndarray, par: np.ndarray) -> tu
     new_r = min(max(log_r + step_r, -limit), limit)
     run[RUN_LOG_Q], run[RUN_LOG_R] = new_q, new_r
     return math.exp(new_q - log_q), math.exp(new_r - log_r)
+
+
+@njit(cache=True)
+def _permanent_scale(a2: float, run: np.ndarray, par: np.ndarray) -> float:
+    """The split-Q action ``a_qp`` → scale factor of the T_p block's Q, mapped like ``a_q``
+    (absolute mode: within ``absolute_qp_log10``); updates ``run[RUN_LOG_QP]``."""
+    a2 = min(max(a2, -1.0), 1.0)
+    log_qp, limit = run[RUN_LOG_QP], par[PAR_LOG_LIMIT]
+    if par[PAR_ABSOLUTE] != 0.0:
+        lo, hi = par[PAR_QP_LO], par[PAR_QP_HI]
+        step = par[PAR_LN10] * (lo + 0.5 * (a2 + 1.0) * (hi - lo)) - log_qp
+    else:
+        step = a2 * par[PAR_LOG_S_MAX]
+    new_qp = min(max(log_qp + step, -limit), limit)
+    run[RUN_LOG_QP] = new_qp
+    return math.exp(new_qp - log_qp)
 
 
 @njit(cache=True)
@@ -163,6 +191,22 @@ def _recent_ratio(m: int, ints: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray) 
 
 
 @njit(cache=True)
+def _recent_power(m: int, ints: np.ndarray, rbuf: np.ndarray) -> tuple[float, float]:
+    """Over the last ``m`` updates: the mean innovation power ``mean |r|²`` and the power of
+    the mean innovation ``|mean r|²`` [nT²] (NaN before any update). Noise averages out of the
+    second, a step does not."""
+    m = min(m, ints[INT_COUNT])
+    if m == 0:
+        return np.nan, np.nan
+    power, s0, s1, s2 = 0.0, 0.0, 0.0, 0.0
+    for j in range(m):
+        w = (ints[INT_POS] - 1 - j) % ints[INT_WINDOW]
+        power += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
+        s0, s1, s2 = s0 + rbuf[w, 0], s1 + rbuf[w, 1], s2 + rbuf[w, 2]
+    return power / m, (s0 * s0 + s1 * s1 + s2 * s2) / (m * m)
+
+
+@njit(cache=True)
 def _log10_or_zero(v: float) -> float:
     return math.log10(v) if v > 0.0 and np.isfinite(v) else 0.0
 
@@ -170,7 +214,7 @@ def _log10_or_zero(v: float) -> float:
 @njit(cache=True)
 def _observe(
     k1: int, n: int, run: np.ndarray, par: np.ndarray, ror: np.ndarray, qoq: np.ndarray,
-    innov: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray, ints: np.ndarray,
+    innov: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray, ints: np.ndarray, r0: np.ndarray,
     low: np.ndarray, high: np.ndarray, obs: np.ndarray,
 ) -> None:  # fmt: skip
     """Write the observation at the end of the window (float32, clipped to the bounds)."""
@@ -184,13 +228,21 @@ def _observe(
         obs[5] = k1 / n
         short = _recent_ratio(int(par[PAR_K]), ints, rbuf, sbuf)
         obs[6] = _log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
+        j = 7
+        if par[PAR_SPLIT_Q] != 0.0:
+            obs[j] = run[RUN_LOG_QP] / par[PAR_LN10]
+            j += 1
+        if par[PAR_POWER] != 0.0:  # over tr R(0): the noise level and a step, R aside
+            tr_r0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
+            obs[j] = _log10_or_zero(_recent_power(ints[INT_WINDOW], ints, rbuf)[0] / tr_r0)
+            obs[j + 1] = _log10_or_zero(_recent_power(int(par[PAR_K]), ints, rbuf)[1] / tr_r0)
     for j in range(obs.shape[0]):
         obs[j] = min(max(obs[j], low[j]), high[j])
 
 
 @njit(cache=True)
 def env_step(
-    a0: float, a1: float, run: np.ndarray, env_par: np.ndarray, score_start: int, n: int,
+    a: np.ndarray, run: np.ndarray, env_par: np.ndarray, score_start: int, n: int,
     truth: np.ndarray, low: np.ndarray, high: np.ndarray, obs: np.ndarray, out: np.ndarray,
     mode: int, y: np.ndarray, t: np.ndarray, td: np.ndarray, valid: np.ndarray, d: np.ndarray,
     z: np.ndarray, p: np.ndarray, qd: np.ndarray, rm: np.ndarray, z_good: np.ndarray,
@@ -199,7 +251,7 @@ def env_step(
     ror: np.ndarray, qoq: np.ndarray, q_scale: np.ndarray, r_scale: np.ndarray,
     states: np.ndarray,
 ) -> None:  # fmt: skip
-    """One environment step for the finite action ``(a0, a1)``.
+    """One environment step for the finite action ``a`` (2,) or, with ``split_q``, (3,).
 
     ``run`` (N_RUN,) running values, ``env_par`` (N_PAR,) from :func:`parameters`,
     ``score_start`` first scored sample, ``n`` flight length, ``truth`` (≥ n, 3) true
@@ -207,8 +259,12 @@ def env_step(
     ``out`` (N_OUT,) outcome (written); then the filter's ``mode`` and arrays in the order of
     :data:`aeromag_env.kalman.CORE_ARRAYS` (updated in place).
     """
-    s_q, s_r = _action_scales(a0, a1, run, env_par)
-    qd *= s_q  # eq. 21: Q ← s_a Q, R ← s_r R
+    s_q, s_r = _action_scales(a[0], a[1], run, env_par)
+    if env_par[PAR_SPLIT_Q] != 0.0:  # T_p's Q on its own, the coefficient blocks' by s_q
+        qd[:N_PERMANENT] *= _permanent_scale(a[2], run, env_par)
+        qd[N_PERMANENT:] *= s_q
+    else:
+        qd *= s_q  # eq. 21: Q ← s_a Q, R ← s_r R
     rm *= s_r
     k0, divergences = ints[INT_K], ints[INT_DIV]
     k1 = min(k0 + int(env_par[PAR_K]), n)
@@ -222,11 +278,12 @@ def env_step(
     out[OUT_RMSE] = rmse
     out[OUT_ROR], out[OUT_QOQ] = ror[k1 - 1], qoq[k1 - 1]
     out[OUT_Q_SCALE], out[OUT_R_SCALE] = math.exp(run[RUN_LOG_Q]), math.exp(run[RUN_LOG_R])
+    out[OUT_QP_SCALE] = math.exp(run[RUN_LOG_QP])
     out[OUT_TERMINATED] = 1.0 if terminated else 0.0
     out[OUT_TRUNCATED] = 1.0 if k1 >= n and not terminated else 0.0
     n_err = run[RUN_N_ERR]
     out[OUT_EPISODE_RMSE] = math.sqrt(run[RUN_SQ_ERR] / n_err) if n_err > 0 else np.nan
-    _observe(k1, n, run, env_par, ror, qoq, innov, rbuf, sbuf, ints, low, high, obs)
+    _observe(k1, n, run, env_par, ror, qoq, innov, rbuf, sbuf, ints, r0, low, high, obs)
 
 
 @njit(cache=True, nogil=True)
@@ -245,7 +302,7 @@ def _env_step_range(
     for i in range(lo, hi):
         if active[i]:
             env_step(
-                actions[i, 0], actions[i, 1], run[i], env_par, score_start[i], n[i], truth[i],
+                actions[i], run[i], env_par, score_start[i], n[i], truth[i],
                 low, high, obs[i], out[i], modes[i], y[i], t[i], td[i], valid[i], d[i], z[i],
                 p[i], qd[i], rm[i], z_good[i], p0[i], q0[i], r0[i], rbuf[i], sbuf[i], acc[i],
                 ints[i], par[i], est[i], innov[i], ror[i], qoq[i], q_scale[i], r_scale[i],
@@ -260,7 +317,7 @@ def env_step_batch(
 ) -> None:  # fmt: skip
     """:func:`env_step` for every environment i with ``active[i]`` (N,) bool, on all cores.
 
-    ``actions`` (N, 2) float64 finite; ``arrays`` the filters' arrays in the order of
+    ``actions`` (N, 2 or 3) float64 finite; ``arrays`` the filters' arrays in the order of
     :data:`aeromag_env.kalman.CORE_ARRAYS`; every array has a leading environment axis except
     ``env_par``, ``low`` and ``high`` (shared).
     """

@@ -24,6 +24,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
+from aeromag_env import env_core
 from aeromag_env.env import EnvConfig
 from aeromag_env.vec_env import AeroMagCompensationVecEnv
 
@@ -67,7 +68,7 @@ class AeroMagSB3VecEnv(VecEnv):
         self._upcoming: list[int | None] = (
             [next(s) for s in self._seed_streams] if self._seed_streams else [None] * num_envs
         )
-        self._actions = np.zeros((num_envs, 2))
+        self._actions = np.zeros((num_envs, env_core.action_size(self.venv.config)))
         super().__init__(
             num_envs, self.venv.single_observation_space, self.venv.single_action_space
         )

@@ -17,6 +17,7 @@ from aeromag_env.env_core import (
     OUT_EPISODE_RMSE,
     OUT_Q_SCALE,
     OUT_QOQ,
+    OUT_QP_SCALE,
     OUT_R_SCALE,
     OUT_REWARD,
     OUT_RMSE,
@@ -32,7 +33,8 @@ from aeromag_env.scenarios import check_scenario
 
 #: Per-step info entries (as the single environment's ``info``) and their rows of the outcome.
 STEP_INFO = (("rmse_window_nt", OUT_RMSE), ("ror", OUT_ROR), ("qoq", OUT_QOQ),
-             ("q_scale", OUT_Q_SCALE), ("r_scale", OUT_R_SCALE))  # fmt: skip
+             ("q_scale", OUT_Q_SCALE), ("r_scale", OUT_R_SCALE),
+             ("q_permanent_scale", OUT_QP_SCALE))  # fmt: skip
 
 
 class AeroMagCompensationVecEnv(VectorEnv):
@@ -52,9 +54,10 @@ class AeroMagCompensationVecEnv(VectorEnv):
     ## Spaces
 
     ``single_action_space`` and ``single_observation_space`` are the single environment's;
-    ``action_space`` and ``observation_space`` batch them: actions (N, 2), observations (N, 2)
-    or (N, 7) with ``extras``, float32. Actions are clipped to [-1, 1]; a wrong shape or a
-    non-finite value raises ``ValueError`` naming the environment.
+    ``action_space`` and ``observation_space`` batch them: actions (N, 2), or (N, 3) with
+    ``split_q``; observations (N, 2), or (N, 7) with ``extras`` (N, 8 with ``split_q`` too),
+    float32. Actions are clipped to [-1, 1]; a wrong shape or a non-finite value raises
+    ``ValueError`` naming the environment.
 
     ## Autoreset
 
@@ -170,7 +173,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         filters = self._need_filters()
-        a = env_core.check_actions(actions, self.num_envs)
+        a = env_core.check_actions(actions, self.num_envs, env_core.action_size(self.config))
         infos: dict[str, Any] = {}
         active = self._restart_ended(infos)
         self._out[~active] = 0.0

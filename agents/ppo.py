@@ -182,12 +182,15 @@ def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
             "ent_coef", "clip_range")  # fmt: skip
     kwargs = {k: hp[k] for k in keys}
     kwargs["policy_kwargs"] = {"net_arch": list(hp["net_arch"])}
+    if "log_std_init" in hp:  # initial exploration noise of the Gaussian policy (SB3 default 0)
+        kwargs["policy_kwargs"]["log_std_init"] = float(hp["log_std_init"])
     return kwargs
 
 
 def _load_curve(out: Path) -> list[dict[str, float]]:
-    path = out / "training.json"
-    return json.loads(path.read_text())["curve"] if path.exists() else []
+    """The validation curve so far (written with every checkpoint, so a resumed run keeps it)."""
+    path = out / "curve.json"
+    return json.loads(path.read_text()) if path.exists() else []
 
 
 def _callback_base() -> Any:
@@ -251,3 +254,4 @@ class _Callback(_callback_base()):  # type: ignore[misc]
     def checkpoint(self, model: Any) -> None:
         model.save(str(self.out / "checkpoint.zip"))
         self.venv.save(str(self.out / "vecnormalize.pkl"))
+        write_text(self.out / "curve.json", json.dumps(self.curve, indent=1))

@@ -8,7 +8,9 @@ trains PPO (hyperparameters of ``agents/hyperparams/ppo.json``) with the given a
 
 ``python experiments/ppo_design_study.py headroom`` runs privileged schedules (true noise
 variance for R, Q raised for a few seconds after each true interference step): what a tuner that
-knew everything could reach, i.e. the ceiling for any learned tuner in this scenario.
+knew everything could reach, i.e. the ceiling for any learned tuner in this scenario. With the
+whole Q raised (the paper's single Q action) and then with only T_p's Q raised (``split_q``),
+also with the raise delayed by 1 and 3 s (a detector that needs time) and with a constant R.
 """
 
 from __future__ import annotations
@@ -64,9 +66,40 @@ def headroom() -> None:
     print(f"fis {_mean_rmse(base, make_policy('fis', base)):.3f} nT")
     for args in [(-10, 4, 30, 0), (-10, 8, 10, 0), (-10, 9, 5, 0), (-10, 8, 10, -1)]:
         print(f"privileged {args}: {_mean_rmse(env, PrivilegedSchedule(env, *args)):.3f} nT")
+    episodes = []
+    for seed in SEEDS:
+        base.reset(seed=seed)
+        episodes.append(base.unwrapped.episode)
+    for kw in [{}, {"delay_s": 1.0}, {"delay_s": 3.0}, {"r_log10": 2.0}]:
+        rmse = np.mean([privileged_split(ep, **kw) for ep in episodes])
+        print(f"privileged, T_p's Q only, 10^10 for 3 s, {kw or 'R true'}: {rmse:.3f} nT")
 
 
-def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool) -> None:
+def privileged_split(
+    episode: Any, delay_s: float = 0.0, r_log10: float | None = None, window: int = 10
+) -> float:
+    """RMSE (second half) of the filter with T_p's Q at 10^10 × Q(0) for 3 s after each true
+    step (``delay_s`` late) and the other 18 states' Q at Q(0); R the true noise variance, or
+    ``10^r_log10`` × R(0)."""
+    from aeromag_env.kalman import FilterState
+
+    ep = episode
+    f = FilterState(ep.filter_cfg, ep.y, ep.t_b, ep.tdot_b, store_states=False)
+    jumps = np.abs(np.diff(ep.truth_interf, axis=0)).max(axis=1) > 5.0
+    steps = np.flatnonzero(jumps) + 1 + round(delay_s * 10)
+    r0 = f.rm.copy()
+    for k in range(0, ep.n, window):
+        scale = np.ones(f.qd.size)
+        if np.any((k - steps >= 0) & (k - steps < 30)):
+            scale[:3] = 1e10
+        f.qd[:] = f.q0 * scale
+        f.rm[:] = np.eye(3) * ep.noise_var[k] if r_log10 is None else r0 * 10**r_log10
+        f.advance(k + window)
+    err = (f.est - ep.truth_interf)[ep.n // 2 :]
+    return float(np.sqrt(np.mean(err**2)))
+
+
+def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: bool) -> None:
     import torch
     from stable_baselines3 import PPO
 
@@ -77,6 +110,8 @@ def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool) -> None:
 
     hp = load_hyperparams("nonstationary")
     env_kwargs = {"extras": not paper_obs, "s_max": s_max, "action_mode": action_mode}
+    if split_q:
+        env_kwargs["split_q"] = True
     hp = {**hp, "env_kwargs": env_kwargs}
     venv = make_training_env("nonstationary", hp, seed=0)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", **_ppo_kwargs(hp))
@@ -99,12 +134,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     t.add_argument("--s-max", type=float, default=2.0)
     t.add_argument("--action-mode", default="relative", choices=("relative", "absolute"))
     t.add_argument("--paper-obs", action="store_true")
+    t.add_argument("--split-q", action="store_true", help="T_p's Q as a third action")
     sub.add_parser("headroom")
     args = parser.parse_args(argv)
     if args.cmd == "headroom":
         headroom()
     else:
-        trial(args.steps, args.s_max, args.action_mode, args.paper_obs)
+        trial(args.steps, args.s_max, args.action_mode, args.paper_obs, args.split_q)
     return 0
 
 

@@ -19,12 +19,12 @@ def _make(**kw):
     return gym.make("AeroMagCompensation-v0", **kw)
 
 
-@pytest.mark.parametrize("extras", [False, True])
-def test_gymnasium_and_sb3_checkers_pass_without_warnings(extras):
+@pytest.mark.parametrize("extras, split_q", [(False, False), (True, False), (True, True)])
+def test_gymnasium_and_sb3_checkers_pass_without_warnings(extras, split_q):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # any warning fails the test
-        gym_check_env(_make(extras=extras).unwrapped)
-        sb3_check_env(_make(extras=extras).unwrapped)
+        gym_check_env(_make(extras=extras, split_q=split_q).unwrapped)
+        sb3_check_env(_make(extras=extras, split_q=split_q).unwrapped)
 
 
 def _rollout(env, seed, actions):
@@ -132,3 +132,47 @@ def test_misspecified_and_nonstationary_do_what_they_say():
     assert levels <= {round(s**2 + 1.0, 6) for s in REGIME_STD_NT}  # white² + 1 nT² FOGM
     jumps = np.abs(np.diff(ep.truth_interf, axis=0)).max(axis=1)
     assert np.sum(jumps > 10.0) >= 1  # an interference step (equipment switching on)
+
+
+def test_split_q_scales_the_permanent_block_on_its_own():
+    """Equal a_q and a_qp is the unsplit environment bitwise; a_qp moves only T_p's Q."""
+    kw = {"scenario": "nonstationary", "extras": True, "action_mode": "absolute"}
+    split, plain = _make(split_q=True, **kw), _make(**kw)
+    assert split.action_space.shape == (3,) and split.observation_space.shape == (8,)
+    rng = np.random.default_rng(1)
+    actions = rng.uniform(-1, 1, (40, 2)).astype(np.float32)
+    a = _rollout(split, 100_000, [np.r_[x, x[0]] for x in actions])
+    b = _rollout(plain, 100_000, actions)
+    for (obs_a, *rest_a), (obs_b, *rest_b) in zip(a[1:], b[1:], strict=True):
+        np.testing.assert_array_equal(obs_a[:7], obs_b)
+        assert obs_a[7] == obs_a[2]  # the T_p scale followed the other blocks' scale
+        assert rest_a[:3] == rest_b[:3]
+    split.reset(seed=100_000)
+    q0 = split.unwrapped.filter.qd.copy()
+    split.step(np.array([0.0, 0.5, 0.6], np.float32))  # T_p at 10^6, the rest at 10^0
+    qd = split.unwrapped.filter.qd
+    np.testing.assert_allclose(qd[:3] / q0[:3], 1e6, rtol=1e-5)  # 0.6 in float32
+    np.testing.assert_allclose(qd[3:] / q0[3:], 1.0, rtol=1e-9)
+    _, _, _, _, info = split.step(np.array([0.0, 0.5, 0.6], np.float32))
+    assert info["q_permanent_scale"] == pytest.approx(1e6, rel=1e-5) and info["q_scale"] == 1.0
+    with pytest.raises(ValueError, match="3 finite numbers"):
+        split.step(np.zeros(2, np.float32))
+
+
+def test_innovation_power_observations_follow_their_definition():
+    env = _make(scenario="nonstationary", extras=True, innovation_power=True)
+    assert env.observation_space.shape == (9,)
+    env.reset(seed=100_003)
+    f = env.unwrapped.filter
+    tr_r0 = float(np.trace(f.r0))
+    window = f.cfg.window
+    for _ in range(60):
+        obs, *_ = env.step(np.zeros(2, np.float32))
+    r = f.innov[: f.k]
+    r = r[np.all(np.isfinite(r), axis=1)]
+    power = np.mean(np.sum(r[-window:] ** 2, axis=1))
+    mean_power = np.sum(np.mean(r[-10:], axis=0) ** 2)
+    assert obs[7] == pytest.approx(np.log10(power / tr_r0), rel=1e-5)
+    assert obs[8] == pytest.approx(np.log10(mean_power / tr_r0), rel=1e-5)
+    with pytest.raises(ConfigError, match="innovation_power needs extras"):
+        _make(innovation_power=True)

@@ -37,15 +37,20 @@ def _pair(n, mode, **kw):
     return ours, sync
 
 
-@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
-def test_equals_gymnasium_sync_vector_env_of_single_envs(mode):
+@pytest.mark.parametrize(
+    "mode, split_q",
+    [(AutoresetMode.NEXT_STEP, False), (AutoresetMode.SAME_STEP, False),
+     (AutoresetMode.NEXT_STEP, True)],
+)  # fmt: skip
+def test_equals_gymnasium_sync_vector_env_of_single_envs(mode, split_q):
     """Over two autoresets (30-step flights), random actions beyond the clip range."""
-    ours, sync = _pair(3, mode, scenario="misspecified", extras=True, duration_s=30.0)
+    ours, sync = _pair(3, mode, scenario="misspecified", extras=True, duration_s=30.0,
+                       split_q=split_q)  # fmt: skip
     _assert_identical(ours.reset(seed=100_000), sync.reset(seed=100_000))
     rng = np.random.default_rng(0)
     ends = 0
     for _ in range(70):
-        actions = rng.uniform(-1.5, 1.5, (3, 2)).astype(np.float32)
+        actions = rng.uniform(-1.5, 1.5, (3, 2 + split_q)).astype(np.float32)
         step = ours.step(actions)
         _assert_identical(step, sync.step(actions))
         ends += int(np.any(step[2] | step[3]))

@@ -21,8 +21,10 @@ Steps (:func:`discover`):
    best by ΔBIC among those passing Holm's correction (``p < α / m`` with m groups left) is
    added, and the search repeats until nothing passes. Groups that differ only in a non-linear
    parameter (the eddy time constant, the lag) are profiled: the best grid value competes with
-   one more degree of freedom, and is refined between its grid neighbours once it enters. A backward
-   pass then drops any named effect that is no longer significant given the others.
+   one more degree of freedom, and is refined between its grid neighbours once it enters. After
+   each entry the noise model is re-fitted; its coloured part may shrink only where the entered
+   group cannot have absorbed it (:func:`_ratchet`). A backward pass then drops any named effect
+   that is no longer significant given the others.
 5. **Gap.** Base and augmented models predict the held-out part; the gap is the RMS of measured
    minus simulated there above the white-noise floor, ``sqrt(RMS² − σ_w²)`` with ``σ_w`` from the
    final noise model (the sensor's white noise is no model gap; the raw RMS is reported too).
@@ -64,6 +66,9 @@ MIN_HELD_OUT_S = 60.0
 GAP_GUARD_SAMPLES = 2
 #: Forward-selection steps at most.
 MAX_EFFECTS = 5
+#: An entered group that could absorb less than this share of the coloured noise's variance
+#: (per axis) cannot be why the re-fitted coloured part shrank: the re-fit stands.
+ABSORBABLE_SHARE = 0.05
 _BASE_LABELS = ("T_p", "A_x", "A_y", "A_z", "B_x", "B_y", "B_z")
 
 
@@ -116,6 +121,24 @@ def _innovations(
         ll -= 0.5 * (math.log(2.0 * math.pi * s) + v0 * v0)
         p = (1.0 - g) * p
     return ll
+
+
+@njit(cache=True)
+def _fogm_quadratic(q: np.ndarray, gap: np.ndarray, tau: float) -> np.ndarray:
+    """``q_jᵀ K q_j`` for each column of ``q`` (m, c), with ``K_kl = exp(−|t_k − t_l| / τ)`` the
+    correlation of a unit FOGM over rows ``gap`` apart (as in :func:`_innovations`).
+
+    One forward pass: ``qᵀ K q = 2 Σ_k q_k F_k − Σ_k q_k²`` with ``F_k = q_k + a_k F_{k−1}``,
+    ``a_k = exp(−gap[k] / τ)`` (``F_k = Σ_{l≤k} K_kl q_l``).
+    """
+    m, c = q.shape
+    out = np.zeros(c)
+    for j in range(c):
+        f = 0.0
+        for k in range(m):
+            f = q[k, j] + math.exp(-gap[k] / tau) * f
+            out[j] += (2.0 * f - q[k, j]) * q[k, j]
+    return out
 
 
 def whiten(x: np.ndarray, gap: np.ndarray, white: float, fogm: float, tau: float) -> np.ndarray:
@@ -374,6 +397,29 @@ class _Problem:
         x = np.concatenate([self.columns[j] for j in chosen], axis=2)
         return self.y - np.einsum("kip,p->ki", x, beta)
 
+    def absorbable_share(self, chosen: list[int], candidate: int, tau_s: np.ndarray) -> np.ndarray:
+        """Per axis, the share of a FOGM's variance that ``candidate``'s columns outside the span
+        of ``chosen`` could absorb, for each row of correlation times ``tau_s`` (k, 3) → (k, 3).
+
+        Notes
+        -----
+        With ``q_j`` an orthonormal basis of the candidate's columns off the chosen ones
+        (un-whitened, axis-stacked) and ``e`` a unit FOGM on axis i, least squares removes
+        ``E‖P e‖² = Σ_j q_jiᵀ K_i q_ji`` of ``E‖e‖² = m``. Columns on the time scale of the
+        eddy or lag effects (T̈-like) absorb next to nothing of a slow FOGM; slow, flexible
+        groups (the external-field splines) absorb much of it.
+        """
+        x = _stack(self.columns[candidate])
+        q0 = _orthonormal(_stack(np.concatenate([self.columns[j] for j in chosen], axis=2)))
+        xp = (x - q0 @ (q0.T @ x)) / np.maximum(np.linalg.norm(x, axis=0), 1e-300)
+        u, s, _ = np.linalg.svd(xp, full_matrices=False)
+        m = self.idx.size
+        q = [np.ascontiguousarray(u[i * m : (i + 1) * m, s > 1e-6]) for i in range(3)]
+        return np.array(
+            [[_fogm_quadratic(q[i], self.gap, t).sum() / m for i, t in enumerate(row)]
+             for row in np.atleast_2d(tau_s)]
+        )  # fmt: skip
+
     def test_columns(self, chosen: list[int], columns: np.ndarray) -> dict[str, float] | None:
         """:meth:`test` for columns (n, 3, p) not in the problem."""
         idx = self.add(columns)
@@ -550,8 +596,7 @@ def discover(
         evidence[best] = {**stats, "holm_threshold": alpha / m, "step": len(steps)}
         chosen.append(best)
         remaining = [j for j in remaining if groups[j - 1].family != groups[best - 1].family]
-        b, _ = prob.fit(chosen)
-        prob.set_noise(_ratchet(prob.noise, fit_noise(prob.residual(chosen, b), prob.gap)))
+        steps[-1]["noise_model"] = _renoise(prob, chosen)
     chosen, retracted = _backward(prob, groups, chosen, alpha)
     beta, cov = prob.fit(chosen)
     lb_after = ljung_box(prob.whitened_residual(chosen))
@@ -667,17 +712,44 @@ def _ols(prob: _Problem, chosen: list[int]) -> np.ndarray:
     return np.asarray(beta)
 
 
-def _ratchet(old: NoiseModel | None, new: NoiseModel) -> NoiseModel:
-    """Noise model after an effect entered: the new white part, but the coloured part never
-    shrinks (per axis, the larger FOGM of the two, with its correlation time)."""
-    if old is None:
-        return new
-    keep = old.fogm_std_nt > new.fogm_std_nt
-    return NoiseModel(
+def _renoise(prob: _Problem, chosen: list[int]) -> dict[str, Any]:
+    """Re-fit the noise model after ``chosen[-1]`` entered and set it (through :func:`_ratchet`);
+    returns what was done, for the report."""
+    old = prob.noise
+    assert old is not None
+    b, _ = prob.fit(chosen)
+    new = fit_noise(prob.residual(chosen, b), prob.gap)
+    taus = np.array([old.fogm_tau_s, new.fogm_tau_s])
+    share = prob.absorbable_share(chosen[:-1], chosen[-1], taus).max(axis=0)
+    noise, kept = _ratchet(old, new, share)
+    prob.set_noise(noise)
+    return {
+        "absorbable_share": np.round(share, 6).tolist(),
+        "coloured_part_kept": kept.tolist(),
+        **noise.to_dict(),
+    }
+
+
+def _ratchet(old: NoiseModel, new: NoiseModel, share: np.ndarray) -> tuple[NoiseModel, np.ndarray]:
+    """Noise model after an effect entered, and the axes (3,) whose coloured part was kept.
+
+    The re-fit's white part always; its coloured part too, except that it does not shrink
+    (per axis, the larger FOGM of the two, with its correlation time) where the entered group
+    could absorb at least :data:`ABSORBABLE_SHARE` of the coloured noise (``share``, per axis,
+    from :meth:`_Problem.absorbable_share`): a slow, flexible group fitted to a flight also fits
+    part of its slow sensor noise, and a re-fit on its residual would then under-state that
+    noise and let further slow groups pass. A group that cannot absorb it (the eddy lag, the
+    sensor lag: T̈-like columns) leaves an honest re-fit, and the old coloured part was that
+    effect's own field, fitted as noise before it entered; keeping it would leave the slow
+    sensor noise unmodelled and the tests that follow naive.
+    """
+    keep = (old.fogm_std_nt > new.fogm_std_nt) & (share >= ABSORBABLE_SHARE)
+    noise = NoiseModel(
         white_std_nt=new.white_std_nt,
         fogm_std_nt=np.where(keep, old.fogm_std_nt, new.fogm_std_nt),
         fogm_tau_s=np.where(keep, old.fogm_tau_s, new.fogm_tau_s),
     )
+    return noise, keep
 
 
 def _refine(

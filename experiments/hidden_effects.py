@@ -7,7 +7,10 @@ every flight), runs the discrepancy workflow on each and writes to ``--out``
 (the README tables), ``confusion.png`` and ``power.png``.
 
 Run: ``.venv/bin/python experiments/hidden_effects.py [--single N] [--null N] [--jobs 2]``
-(the README's numbers: the defaults; about 15 minutes on these 2-core machines).
+(the README's numbers: the defaults; about 15 minutes on these 2-core machines). A subset:
+``--only KIND... [--effects NAME...]`` re-runs the cases of those kinds (injecting one of those
+effects; null flights always match) and replaces them in ``OUT/results.json``; ``--jobs 1`` runs
+in this process.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import json
 import math
 import time
 from collections import Counter
+from collections.abc import Iterable, Iterator
 from multiprocessing import Pool
 from pathlib import Path
 from typing import Any
@@ -24,7 +28,10 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.atomic import write_text
-from aeromag_env.discovery_suite import SINGLE, SNRS, run_case, suite_cases
+from aeromag_env.discovery_suite import SINGLE, SNRS, Case, run_case, suite_cases
+
+#: Case kinds without an injected effect: an ``--effects`` subset keeps them.
+NULL_KINDS = ("null", "coloured_null")
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -87,7 +94,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "absorbed_effect_named": sum(len(r["absorbed_named"]) for r in rows),
             "anything_named_on_absorbed_cases": _rate(
                 [bool(r["named"]) for r in rows if r["kind"] == "absorbed"]
-            ),  # fmt: skip
+            ),
         },
         "decoy_named": sum(len(r["decoy_named"]) for r in rows),
         "cases_with_decoys": len(rows),
@@ -103,14 +110,16 @@ def markdown(s: dict[str, Any], seconds: float, jobs: int) -> str:
     fa = s["false_alarm"]
 
     def pct(r: dict[str, Any]) -> str:
-        return f"{100 * r['rate']:.0f} % ({r['k']}/{r['n']}; 95 % CI {100 * r['ci95'][0]:.0f}–{100 * r['ci95'][1]:.0f} %)"
+        lo, hi = (100 * v for v in r["ci95"])
+        return f"{100 * r['rate']:.0f} % ({r['k']}/{r['n']}; 95 % CI {lo:.0f}–{hi:.0f} %)"
 
     lines = [
         "| claim | target | result |",
         "|---|---|---|",
         f"| single effects at SNR ≥ 2, exact set named | ≥ 90 % | {pct(one['exact_set'])} |",
         f"| single effects at SNR ≥ 2, first named = truth | – | {pct(one['top1'])} |",
-        f"| false alarms on null flights (nominal + coloured noise) | ≤ 5 % | {pct(fa['all_nulls'])} |",
+        "| false alarms on null flights (nominal + coloured noise) | ≤ 5 % | "
+        f"{pct(fa['all_nulls'])} |",
         f"| … coloured-noise nulls only | – | {pct(fa['coloured_null'])} |",
         f"| absorbed effects named | 0 | {s['absorbed']['absorbed_effect_named']} |",
         f"| decoy channels named (all {s['cases_with_decoys']} flights) | 0 | {s['decoy_named']} |",
@@ -175,6 +184,15 @@ def figures(s: dict[str, Any], out: Path) -> None:
     plt.close(fig)
 
 
+def _run(cases: list[Case], jobs: int) -> Iterator[dict[str, Any]]:
+    """Each case's row, in order: in this process with one job, else in a pool."""
+    if jobs == 1:
+        yield from map(run_case, cases)
+        return
+    with Pool(jobs) as pool:
+        yield from pool.imap(run_case, cases, chunksize=4)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -186,22 +204,38 @@ def main() -> None:
     ap.add_argument("--pairs", type=int, default=10, help="flights per pair")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("docs/discovery"))
-    ap.add_argument("--only", nargs="+", metavar="KIND",
-                    help="run only these case kinds and replace them in OUT/results.json")  # fmt: skip
+    ap.add_argument(
+        "--only",
+        nargs="+",
+        metavar="KIND",
+        help="run only these case kinds and replace them in OUT/results.json",
+    )
+    ap.add_argument(
+        "--effects",
+        nargs="+",
+        metavar="NAME",
+        help="with --only: only the cases injecting one of these effects (and the nulls)",
+    )
     args = ap.parse_args()
+    if args.effects and not args.only:
+        ap.error("--effects needs --only (the subset replaces its cases in OUT/results.json)")
     cases = suite_cases(args.null, args.coloured, args.single, args.absorbed, args.pairs)
     kept: list[dict[str, Any]] = []
     if args.only:
-        cases = [c for c in cases if c.kind in args.only]
+
+        def selected(kind: str, effects: Iterable[str]) -> bool:
+            hit = not args.effects or kind in NULL_KINDS or bool(set(effects) & set(args.effects))
+            return kind in args.only and hit
+
+        cases = [c for c in cases if selected(c.kind, c.effects)]
         old = json.loads((args.out / "results.json").read_text())
-        kept = [r for r in old if r["kind"] not in args.only]
+        kept = [r for r in old if not selected(r["kind"], r["effects"])]
     t0 = time.perf_counter()
-    with Pool(args.jobs) as pool:
-        rows = []
-        for i, r in enumerate(pool.imap(run_case, cases, chunksize=4)):
-            rows.append(r)
-            if (i + 1) % 50 == 0:
-                print(f"{i + 1}/{len(cases)} cases, {time.perf_counter() - t0:.0f} s", flush=True)
+    rows = []
+    for i, r in enumerate(_run(cases, args.jobs)):
+        rows.append(r)
+        if (i + 1) % 50 == 0:
+            print(f"{i + 1}/{len(cases)} cases, {time.perf_counter() - t0:.0f} s", flush=True)
     seconds = time.perf_counter() - t0
     rows = kept + rows
     s = summarise(rows)

@@ -11,7 +11,19 @@ import pytest
 
 from aeromag_env.cli import main
 from aeromag_env.config import EffectConfig, SimulationConfig, from_json, to_json
-from aeromag_env.discover import _prepare, discover, fit_noise, ljung_box, whiten
+from aeromag_env.discover import (
+    ABSORBABLE_SHARE,
+    NoiseModel,
+    _fogm_quadratic,
+    _prepare,
+    _Problem,
+    _ratchet,
+    base_columns,
+    discover,
+    fit_noise,
+    ljung_box,
+    whiten,
+)
 from aeromag_env.discovery_suite import Case, base_config, build_case, run_case
 from aeromag_env.effects import ABSORBED, EFFECTS, IDENTIFIABLE, simulate_effects
 from aeromag_env.errors import AeromagError, ConfigError
@@ -95,6 +107,57 @@ def test_hidden_effect_at_snr_4_is_named_with_its_channel_and_the_gap_shrinks(
     assert row["named"][:1] == row["truth"], row["named"]  # named first, with its channel
     assert row["shrink"] >= 2.0
     assert not row["decoy_named"]
+
+
+def test_fogm_quadratic_form_matches_the_dense_correlation_matrix() -> None:
+    """The one-pass ``qᵀ K q`` equals the dense ``exp(−|Δt| / τ)`` form, across a gap."""
+    rng = np.random.default_rng(2)
+    tt = np.r_[np.arange(200) * 0.1, 60.0 + np.arange(150) * 0.1]  # a 40-s held-out gap
+    gap = np.r_[np.inf, np.diff(tt)]
+    q = rng.standard_normal((tt.size, 3))
+    for tau in (0.3, 5.0, 600.0):
+        k = np.exp(-np.abs(tt[:, None] - tt[None, :]) / tau)
+        want = np.einsum("kj,kl,lj->j", q, k, q)
+        got = _fogm_quadratic(q, gap, tau)
+        np.testing.assert_allclose(got, want, rtol=1e-10)  # the same sums reordered: rounding
+
+
+def test_fast_groups_cannot_absorb_slow_sensor_noise_but_the_external_splines_can(
+    null_flight: Flight,
+) -> None:
+    """The share of a slow FOGM (the suite's 600 s) a group could absorb decides whether the
+    noise model's coloured part may shrink after it enters: eddy lags and sensor lags at both
+    ends of their grids are T̈-like (well below :data:`ABSORBABLE_SHARE`), the 120-s splines
+    are not (about 40 %)."""
+    data = _prepare(null_flight, "flux_a", None)
+    ctx = data.ctx
+    fast = [g for nm in ("eddy_time_constant", "sensor_lag")
+            for g in (EFFECTS[nm].groups(ctx)[0][i] for i in (0, -1))]  # fmt: skip
+    splines = EFFECTS["external_field_variation"].groups(ctx)[0][0]
+    base = base_columns(ctx.t_b, ctx.tdot_b)
+    prob = _Problem(data, [base] + [g.columns for g in (*fast, splines)])
+    share = [prob.absorbable_share([0], j, np.full(3, 600.0))[0] for j in range(1, 6)]
+    assert max(s.max() for s in share[:4]) < ABSORBABLE_SHARE / 4
+    assert share[4].min() > 4 * ABSORBABLE_SHARE
+
+
+def test_ratchet_keeps_the_coloured_part_only_where_the_entered_group_could_absorb_it() -> None:
+    old = NoiseModel(np.zeros(3), np.array([6.0, 6.0, 0.1]), np.full(3, 0.2))
+    new = NoiseModel(np.ones(3), np.full(3, 0.5), np.full(3, 150.0))
+    noise, kept = _ratchet(old, new, np.array([0.5, 0.001, 0.5]))
+    assert kept.tolist() == [True, False, False]  # axis 2: the re-fit is the larger anyway
+    np.testing.assert_array_equal(noise.fogm_std_nt, [6.0, 0.5, 0.5])
+    np.testing.assert_array_equal(noise.fogm_tau_s, [0.2, 150.0, 150.0])
+    np.testing.assert_array_equal(noise.white_std_nt, new.white_std_nt)
+
+
+def test_eddy_time_constant_at_snr_4_is_named_alone_and_no_decoy_follows() -> None:
+    """Before the absorbable-share ratchet, the base noise fit took the eddy field for a 0.2-s
+    FOGM and kept it after eddy entered; the slow sensor noise went unmodelled and drift, the
+    decoys vol_bus and cur_ac_hi and temp_flux followed eddy on this flight."""
+    row = run_case(Case("single", 20_904, ("eddy_time_constant",), 4.0))
+    assert row["named"] == row["truth"] == [["eddy_time_constant", None]]
+    assert row["shrink"] >= 2.0
 
 
 @pytest.mark.parametrize("name", ["fluxgate_scale", "misalignment"])

@@ -110,7 +110,7 @@ def markdown(s: dict[str, Any], seconds: float, jobs: int) -> str:
     fa = s["false_alarm"]
 
     def pct(r: dict[str, Any]) -> str:
-        lo, hi = (100 * v for v in r["ci95"])
+        lo, hi = (max(100 * v, 0.0) for v in r["ci95"])  # no "-0" from round-off
         return f"{100 * r['rate']:.0f} % ({r['k']}/{r['n']}; 95 % CI {lo:.0f}–{hi:.0f} %)"
 
     lines = [

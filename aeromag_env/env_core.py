@@ -92,37 +92,21 @@ def check_actions(actions: object, num_envs: int | None = None, size: int = 2) -
 
 
 @njit(cache=True)
-def _action_scales(a0: float, a1: float, run: np.ndarray, par: np.ndarray) -> tuple[float, float]:
-    """Clip to [-1, 1], map to Q and R scale factors, keep the cumulative log scales within
-    ±log(scale_limit); updates ``run[RUN_LOG_Q]``, ``run[RUN_LOG_R]``."""
-    a0, a1 = min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)
-    log_q, log_r, limit = run[RUN_LOG_Q], run[RUN_LOG_R], par[PAR_LOG_LIMIT]
-    if par[PAR_ABSOLUTE] != 0.0:  # log10(scale) = lo + (a + 1)/2 (hi − lo)
-        q_lo, q_hi, r_lo, r_hi = par[PAR_Q_LO], par[PAR_Q_HI], par[PAR_R_LO], par[PAR_R_HI]
-        step_q = par[PAR_LN10] * (q_lo + 0.5 * (a0 + 1.0) * (q_hi - q_lo)) - log_q
-        step_r = par[PAR_LN10] * (r_lo + 0.5 * (a1 + 1.0) * (r_hi - r_lo)) - log_r
-    else:  # s = s_max ** a
-        step_q, step_r = a0 * par[PAR_LOG_S_MAX], a1 * par[PAR_LOG_S_MAX]
-    new_q = min(max(log_q + step_q, -limit), limit)
-    new_r = min(max(log_r + step_r, -limit), limit)
-    run[RUN_LOG_Q], run[RUN_LOG_R] = new_q, new_r
-    return math.exp(new_q - log_q), math.exp(new_r - log_r)
+def _scale(a: float, slot: int, lo: float, hi: float, run: np.ndarray, par: np.ndarray) -> float:
+    """One action → the factor that moves the cumulative log scale ``run[slot]`` to its new value.
 
-
-@njit(cache=True)
-def _permanent_scale(a2: float, run: np.ndarray, par: np.ndarray) -> float:
-    """The split-Q action ``a_qp`` → scale factor of the T_p block's Q, mapped like ``a_q``
-    (absolute mode: within ``absolute_qp_log10``); updates ``run[RUN_LOG_QP]``."""
-    a2 = min(max(a2, -1.0), 1.0)
-    log_qp, limit = run[RUN_LOG_QP], par[PAR_LOG_LIMIT]
+    The action is clipped to [-1, 1]; absolute mode: ``log10(scale) = lo + (a + 1)/2 (hi − lo)``,
+    relative mode: ``s = s_max ** a``; the log scale stays within ±log(scale_limit).
+    """
+    a = min(max(a, -1.0), 1.0)
+    old, limit = run[slot], par[PAR_LOG_LIMIT]
     if par[PAR_ABSOLUTE] != 0.0:
-        lo, hi = par[PAR_QP_LO], par[PAR_QP_HI]
-        step = par[PAR_LN10] * (lo + 0.5 * (a2 + 1.0) * (hi - lo)) - log_qp
+        step = par[PAR_LN10] * (lo + 0.5 * (a + 1.0) * (hi - lo)) - old
     else:
-        step = a2 * par[PAR_LOG_S_MAX]
-    new_qp = min(max(log_qp + step, -limit), limit)
-    run[RUN_LOG_QP] = new_qp
-    return math.exp(new_qp - log_qp)
+        step = a * par[PAR_LOG_S_MAX]
+    new = min(max(old + step, -limit), limit)
+    run[slot] = new
+    return math.exp(new - old)
 
 
 @njit(cache=True)
@@ -259,9 +243,11 @@ def env_step(
     ``out`` (N_OUT,) outcome (written); then the filter's ``mode`` and arrays in the order of
     :data:`aeromag_env.kalman.CORE_ARRAYS` (updated in place).
     """
-    s_q, s_r = _action_scales(a[0], a[1], run, env_par)
-    if env_par[PAR_SPLIT_Q] != 0.0:  # T_p's Q on its own, the coefficient blocks' by s_q
-        qd[:N_PERMANENT] *= _permanent_scale(a[2], run, env_par)
+    e = env_par
+    s_q = _scale(a[0], RUN_LOG_Q, e[PAR_Q_LO], e[PAR_Q_HI], run, e)
+    s_r = _scale(a[1], RUN_LOG_R, e[PAR_R_LO], e[PAR_R_HI], run, e)
+    if e[PAR_SPLIT_Q] != 0.0:  # T_p's Q on its own, the coefficient blocks' by s_q
+        qd[:N_PERMANENT] *= _scale(a[2], RUN_LOG_QP, e[PAR_QP_LO], e[PAR_QP_HI], run, e)
         qd[N_PERMANENT:] *= s_q
     else:
         qd *= s_q  # eq. 21: Q ← s_a Q, R ← s_r R

@@ -5,7 +5,10 @@ Figures (``bench.json`` → ``figures``):
 
 * ``simulate_s_per_flight_hour`` — seconds to simulate a 1-hour 10 Hz ``nominal``
   calibration+survey flight (target < 1 s), against ``simulate_direct_igrf_s_per_flight_hour``,
-  the same flight with IGRF evaluated directly at every sample instead of on the coarse grid.
+  the same flight with IGRF evaluated directly at every sample instead of on the coarse grid;
+  both cold (:func:`aeromag_env.simulate.clear_caches` before each run). With it
+  ``simulate_warm_s_per_flight_hour``: another seed of the same pattern, whose track and IGRF
+  are remembered — what every episode of a training run costs.
 * the filters on the first :data:`FILTER_SAMPLES` samples of that flight
   (:mod:`aeromag_env.bench_filters`): compiled, batched (64 flights), plain numpy, filterpy.
 * environments and PPO training (:mod:`aeromag_env.bench_envs`).
@@ -63,15 +66,31 @@ def _hour_config(hours: float = 1.0) -> Any:
 
 
 def bench_simulate(repeats: int) -> dict[str, float]:
-    """Seconds per simulated flight-hour: coarse-grid IGRF vs IGRF at every sample."""
-    from aeromag_env.simulate import simulate_flight
+    """Seconds per simulated flight-hour: coarse-grid IGRF vs IGRF at every sample, both cold
+    (the pattern and its IGRF not remembered from an earlier run); and warm: the same pattern
+    again with another seed, as every episode of a training run flies it."""
+    from aeromag_env.simulate import clear_caches, simulate_flight
 
     cfg = _hour_config()
     every_sample = with_overrides(cfg, {"earth.igrf_grid_spacing_s": 0.1})
-    simulate_flight(cfg, 0)  # warm caches (ppigrf coefficient file, imports)
-    grid = _median_seconds(lambda: simulate_flight(cfg, 0), repeats)
-    ref = _median_seconds(lambda: simulate_flight(every_sample, 0), repeats)
-    return {"simulate_s_per_flight_hour": grid, "simulate_direct_igrf_s_per_flight_hour": ref}
+    simulate_flight(cfg, 0)  # warm the rest (ppigrf coefficient file, imports)
+
+    def cold(c: Any) -> Callable[[], object]:
+        def run() -> object:
+            clear_caches()
+            return simulate_flight(c, 0)
+
+        return run
+
+    grid = _median_seconds(cold(cfg), repeats)
+    ref = _median_seconds(cold(every_sample), repeats)
+    simulate_flight(cfg, 0)
+    warm = _median_seconds(lambda: simulate_flight(cfg, 1), repeats)
+    return {
+        "simulate_s_per_flight_hour": grid,
+        "simulate_direct_igrf_s_per_flight_hour": ref,
+        "simulate_warm_s_per_flight_hour": warm,
+    }
 
 
 def bench_filter_figures(flight: Flight, samples: int, repeats: int) -> dict[str, float | None]:
@@ -184,6 +203,9 @@ def _rows(f: dict[str, Any]) -> list[Row]:
         ("simulate 1 flight-hour (grid IGRF)", f"{sim:.3f} s",
          f"{f['simulate_direct_igrf_s_per_flight_hour'] / sim:.0f}× faster than IGRF at every "
          "sample", "< 1 s", sim < 1.0),
+        ("simulate it again (pattern remembered)", f"{f['simulate_warm_s_per_flight_hour']:.3f} s",
+         f"{sim / f['simulate_warm_s_per_flight_hour']:.1f}× faster than the first time", "",
+         None),
         ("filter, compiled, 1 flight", f"{comp:,.0f} samples/s",
          _ratio(comp, fp, "filterpy", ".1f"), "≥ 30× filterpy",
          None if fp is None else comp >= 30 * fp),

@@ -375,7 +375,7 @@ def from_dict(cls: type[T], data: dict[str, Any] | Any) -> T:
         return data
     if not isinstance(data, dict):
         raise ConfigError(f"{cls.__name__} expects a mapping, got {type(data).__name__}")
-    hints = typing.get_type_hints(cls)
+    hints = _type_hints(cls)
     names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
     unknown = sorted(set(data) - set(names))
     if unknown:
@@ -387,6 +387,16 @@ def from_dict(cls: type[T], data: dict[str, Any] | Any) -> T:
         return cls(**kwargs)
     except TypeError as e:
         raise ConfigError(f"{cls.__name__}: {e}") from None
+
+
+_hints: dict[type, dict[str, Any]] = {}
+
+
+def _type_hints(cls: type) -> dict[str, Any]:
+    """``typing.get_type_hints`` once per class (it compiles the string annotations)."""
+    if cls not in _hints:
+        _hints[cls] = typing.get_type_hints(cls)
+    return _hints[cls]
 
 
 def from_json(cls: type[T], text: str) -> T:

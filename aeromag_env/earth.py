@@ -156,13 +156,41 @@ def igrf_ned_along_track(
     if idx.size < 4:
         idx = np.unique(np.linspace(0, n - 1, 4).round().astype(int))
     g_lat, g_lon, g_alt = lat[idx], lon[idx], alt_m[idx]
-    both = igrf_ned(np.r_[g_lat, g_lat], np.r_[g_lon, g_lon], np.r_[g_alt, g_alt + _DH_M], date)
+    both = _igrf_grid(np.r_[g_lat, g_lat], np.r_[g_lon, g_lon], np.r_[g_alt, g_alt + _DH_M], date)
     b_grid, b_up = both[: idx.size], both[idx.size :]
     grad = (b_up - b_grid) / _DH_M
     t_grid = tt[idx]
     b = CubicSpline(t_grid, b_grid, axis=0)(tt)
     dh = alt_m - CubicSpline(t_grid, g_alt)(tt)
     return b + CubicSpline(t_grid, grad, axis=0)(tt) * dh[:, None]
+
+
+#: Grid evaluations kept by :func:`_igrf_grid` (a few hundred points each).
+_GRID_CACHE_SIZE = 16
+_grid_cache: dict[tuple, np.ndarray] = {}
+
+
+def _igrf_grid(
+    lat: np.ndarray, lon: np.ndarray, alt_m: np.ndarray, date: str | _dt.datetime
+) -> np.ndarray:
+    """:func:`igrf_ned` at grid points, remembered by their exact values: a training run flies
+    the same pattern again and again, and each IGRF synthesis costs milliseconds in ppigrf's
+    Python Legendre loop however few the points. The key is the points' bytes and the date, so
+    a hit returns exactly what the synthesis would."""
+    key = (lat.tobytes(), lon.tobytes(), alt_m.tobytes(), str(parse_date(date)))
+    hit = _grid_cache.get(key)
+    if hit is None:
+        hit = igrf_ned(lat, lon, alt_m, date)
+        hit.flags.writeable = False
+        if len(_grid_cache) >= _GRID_CACHE_SIZE:
+            del _grid_cache[next(iter(_grid_cache))]  # the oldest
+        _grid_cache[key] = hit
+    return hit
+
+
+def clear_caches() -> None:
+    """Forget remembered IGRF grid evaluations (benchmarks time a cold simulation)."""
+    _grid_cache.clear()
 
 
 def first_order_lag(x: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:

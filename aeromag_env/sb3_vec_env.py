@@ -89,11 +89,10 @@ class AeroMagSB3VecEnv(VecEnv):
         self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
-        obs, rewards, terminated, truncated, infos = self.venv.step(self._actions)
+        obs, rewards, terminated, truncated, info_list = self.venv.step_rows(self._actions)
         dones = terminated | truncated
-        info_list = _info_list(infos, self.num_envs)
-        for i, info in enumerate(info_list):
-            info["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+        for info, limit in zip(info_list, (truncated & ~terminated).tolist(), strict=True):
+            info["TimeLimit.truncated"] = limit
         if dones.any():
             ended = np.flatnonzero(dones).tolist()
             for i in ended:

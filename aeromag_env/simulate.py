@@ -12,6 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from aeromag_env import earth, trajectory
 from aeromag_env.auxiliary import aux_channel
 from aeromag_env.config import SimulationConfig, to_json
 from aeromag_env.earth import external_variation_ned, igrf_ned_along_track, parse_date
@@ -26,6 +27,14 @@ from aeromag_env.trajectory import MANEUVER_KINDS, Trajectory, generate_trajecto
 
 #: Simulation stages, in order, as reported to a progress callback.
 STAGES = ("trajectory", "earth field", "interference", "sensors", "assemble")
+
+
+def clear_caches() -> None:
+    """Forget the remembered deterministic parts of earlier simulations (the trajectory pattern
+    of a configuration and the IGRF along it): the next simulation is timed cold. Results do
+    not depend on the caches."""
+    trajectory._track.cache_clear()
+    earth.clear_caches()
 
 
 def simulate_flight(

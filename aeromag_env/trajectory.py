@@ -13,6 +13,7 @@ lines.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -208,12 +209,34 @@ def generate_trajectory(cfg: TrajectoryConfig, rng: np.random.Generator) -> Traj
         ``round(duration_s * sample_rate_hz)`` samples when ``duration_s`` is set (the pattern is
         cut there), else the pattern's natural length.
     """
+    track = _track(cfg)
+    n, cmd = track["tt"].size, track
+    dt = 1.0 / cfg.sample_rate_hz
+    jitter = fogm(n, dt, 1.0, cfg.jitter_tau_s, rng, dims=3)
+    sig = np.deg2rad([cfg.jitter_roll_deg, cfg.jitter_pitch_deg, cfg.jitter_yaw_deg])
+    return Trajectory(
+        tt=track["tt"].copy(),
+        lat=track["lat"].copy(),
+        lon=track["lon"].copy(),
+        alt=track["alt"].copy(),
+        roll=cmd["bank"] + cmd["droll"] + sig[0] * jitter[:, 0],
+        pitch=cmd["dpitch"] + sig[1] * jitter[:, 1],
+        yaw=_wrap_angle(track["course"] + cmd["dyaw"] + sig[2] * jitter[:, 2]),
+        maneuver=cmd["maneuver"].copy(),
+        line=cmd["line"].copy(),
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _track(cfg: TrajectoryConfig) -> dict[str, np.ndarray]:
+    """The deterministic part of :func:`generate_trajectory` (everything but the turbulence):
+    the commands, course and position, read-only. Remembered per configuration: a training run
+    flies the same pattern for every episode, and building it costs milliseconds of Python."""
     cmd, heading0, alt0 = _commands(cfg)
     n = cmd["rate"].size if cfg.duration_s is None else round(cfg.duration_s * cfg.sample_rate_hz)
     cmd = {k: v[:n] for k, v in cmd.items()}
     fs, v = cfg.sample_rate_hz, cfg.speed_m_s
     dt = 1.0 / fs
-    tt = np.arange(n) * dt
     course = heading0 + dt * np.r_[0.0, np.cumsum(cmd["rate"])[:-1]]
     gamma = cmd["gamma"]
     alt = alt0 + dt * np.r_[0.0, np.cumsum(v * np.sin(gamma))[:-1]]
@@ -223,16 +246,7 @@ def generate_trajectory(cfg: TrajectoryConfig, rng: np.random.Generator) -> Traj
     lat = lat0 + dt * np.r_[0.0, np.cumsum(v_h * np.cos(course) / (r_m + alt))[:-1]]
     _, r_n = earth_radii_m(lat)
     lon = lon0 + dt * np.r_[0.0, np.cumsum(v_h * np.sin(course) / ((r_n + alt) * np.cos(lat)))[:-1]]
-    jitter = fogm(n, dt, 1.0, cfg.jitter_tau_s, rng, dims=3)
-    sig = np.deg2rad([cfg.jitter_roll_deg, cfg.jitter_pitch_deg, cfg.jitter_yaw_deg])
-    return Trajectory(
-        tt=tt,
-        lat=lat,
-        lon=lon,
-        alt=alt,
-        roll=cmd["bank"] + cmd["droll"] + sig[0] * jitter[:, 0],
-        pitch=cmd["dpitch"] + sig[1] * jitter[:, 1],
-        yaw=_wrap_angle(course + cmd["dyaw"] + sig[2] * jitter[:, 2]),
-        maneuver=cmd["maneuver"],
-        line=cmd["line"],
-    )
+    track = {**cmd, "tt": np.arange(n) * dt, "course": course, "lat": lat, "lon": lon, "alt": alt}
+    for a in track.values():
+        a.flags.writeable = False
+    return track

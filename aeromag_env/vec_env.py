@@ -35,6 +35,8 @@ from aeromag_env.scenarios import check_scenario
 STEP_INFO = (("rmse_window_nt", OUT_RMSE), ("ror", OUT_ROR), ("qoq", OUT_QOQ),
              ("q_scale", OUT_Q_SCALE), ("r_scale", OUT_R_SCALE),
              ("q_permanent_scale", OUT_QP_SCALE))  # fmt: skip
+_STEP_KEYS = tuple(key for key, _ in STEP_INFO)
+_STEP_COLS = np.array([col for _, col in STEP_INFO])
 
 
 class AeroMagCompensationVecEnv(VectorEnv):
@@ -172,24 +174,54 @@ class AeroMagCompensationVecEnv(VectorEnv):
     def step(
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        filters = self._need_filters()
-        a = env_core.check_actions(actions, self.num_envs, env_core.action_size(self.config))
         infos: dict[str, Any] = {}
         active = self._restart_ended(infos)
-        self._out[~active] = 0.0
-        env_core.env_step_batch(active, a, self._run, self._par, self._score_start, filters.n,
-                                self._truth, self._low, self._high, self._obs, self._out,
-                                filters.mode, *filters.arrays())  # fmt: skip
-        out = self._out
-        terminated, truncated = out[:, OUT_TERMINATED] > 0, out[:, OUT_TRUNCATED] > 0
-        rewards = out[:, OUT_REWARD].copy()
-        self._ended = terminated | truncated
+        rewards, terminated, truncated = self._advance(actions, active)
         if self.autoreset_mode == AutoresetMode.SAME_STEP and self._ended.any():
             obs = self._same_step_reset(infos, active)
         else:
             obs = self._obs.copy()
             self._step_infos(infos, active, self._ended)
         return obs, rewards, terminated, truncated, infos
+
+    def step_rows(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
+        """:meth:`step` with every environment's info as its own dict (the single env's info),
+        for adapters that want one dict per environment (stable-baselines3): building them
+        straight from the outcome rows skips the batched layout. Autoreset must be disabled."""
+        if self.autoreset_mode != AutoresetMode.DISABLED:
+            raise ValueError("step_rows needs autoreset_mode=AutoresetMode.DISABLED")
+        active = self._restart_ended({})
+        rewards, terminated, truncated = self._advance(actions, active)
+        filters = self._need_filters()
+        rows = [
+            dict(zip(_STEP_KEYS, values, strict=True))
+            for values in self._out[:, _STEP_COLS].tolist()
+        ]
+        samples, seeds = filters.ints[:, INT_K].tolist(), self.flight_seeds.tolist()
+        for row, sample, seed in zip(rows, samples, seeds, strict=True):
+            row["sample"], row["flight_seed"] = sample, seed
+        for i in np.flatnonzero(self._ended).tolist():
+            rows[i]["episode_rmse_nt"] = float(self._out[i, OUT_EPISODE_RMSE])
+            rows[i]["divergences"] = int(filters.ints[i, INT_DIV])
+        return self._obs.copy(), rewards, terminated, truncated, rows
+
+    def _advance(
+        self, actions: np.ndarray, active: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Step the ``active`` environments (the others' outcome rows zeroed): rewards,
+        terminated, truncated; sets ``_ended``."""
+        filters = self._need_filters()
+        a = env_core.check_actions(actions, self.num_envs, env_core.action_size(self.config))
+        self._out[~active] = 0.0
+        env_core.env_step_batch(active, a, self._run, self._par, self._score_start, filters.n,
+                                self._truth, self._low, self._high, self._obs, self._out,
+                                filters.mode, *filters.arrays())  # fmt: skip
+        out = self._out
+        terminated, truncated = out[:, OUT_TERMINATED] > 0, out[:, OUT_TRUNCATED] > 0
+        self._ended = terminated | truncated
+        return out[:, OUT_REWARD].copy(), terminated, truncated
 
     def _restart_ended(self, infos: dict[str, Any]) -> np.ndarray:
         """Environments that ended on the previous step: ``NEXT_STEP`` restarts them now, which

@@ -5,7 +5,7 @@ import pytest
 
 from aeromag_env.earth import igrf_ned
 from aeromag_env.frames import dcm_from_euler, nav_to_body, time_derivative
-from aeromag_env.simulate import simulate_flight
+from aeromag_env.simulate import clear_caches, simulate_flight
 from tests._flights import config_for, simulated
 
 
@@ -128,6 +128,22 @@ def test_same_seed_same_flight_different_seed_different():
         np.testing.assert_array_equal(a[nm], b[nm])
     assert not np.array_equal(a["flux_a_x"], c["flux_a_x"])
     assert a.attrs["truth_coefficients"] != c.attrs["truth_coefficients"]
+
+
+def test_remembered_pattern_and_igrf_change_nothing():
+    """The trajectory pattern and its IGRF are remembered between simulations: a warm run must
+    equal a cold one bit for bit, and changing a returned flight must not reach the next."""
+    cfg = config_for("nominal")
+    clear_caches()
+    cold = simulate_flight(cfg, 6)
+    cold["flux_a_x"][:] = 0.0  # a caller scribbling on its flight
+    cold["lat"][:] = 0.0
+    warm = simulate_flight(cfg, 6)
+    clear_caches()
+    again = simulate_flight(cfg, 6)
+    for nm in again.names:
+        np.testing.assert_array_equal(warm[nm], again[nm], err_msg=nm)
+    assert np.all(warm["lat"] != 0.0)
 
 
 def test_noise_change_keeps_trajectory_and_coefficients():

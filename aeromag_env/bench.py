@@ -196,6 +196,7 @@ def _rows(f: dict[str, Any]) -> list[Row]:
     sim, fp, comp = f["simulate_s_per_flight_hour"], f["filterpy_samples_per_s"], \
         f["filter_compiled_samples_per_s"]  # fmt: skip
     batched, numpy_ref = f["filter_batched_samples_per_s"], f["filter_numpy_samples_per_s"]
+    warm = f.get("simulate_warm_s_per_flight_hour")  # not in bench.json before 2026-11
     env1, envn = f["env_single_steps_per_s"], f["env_batched_steps_per_s"]
     disc, peak, base = f["discover_s_per_flight_hour"], f["compensate_10h_peak_mb"], \
         f["compensate_baseline_mb"]  # fmt: skip
@@ -203,9 +204,8 @@ def _rows(f: dict[str, Any]) -> list[Row]:
         ("simulate 1 flight-hour (grid IGRF)", f"{sim:.3f} s",
          f"{f['simulate_direct_igrf_s_per_flight_hour'] / sim:.0f}× faster than IGRF at every "
          "sample", "< 1 s", sim < 1.0),
-        ("simulate it again (pattern remembered)", f"{f['simulate_warm_s_per_flight_hour']:.3f} s",
-         f"{sim / f['simulate_warm_s_per_flight_hour']:.1f}× faster than the first time", "",
-         None),
+        ("simulate it again (pattern remembered)", _num(warm, "s", ".3f"),
+         "n/a" if warm is None else f"{sim / warm:.1f}× faster than the first time", "", None),
         ("filter, compiled, 1 flight", f"{comp:,.0f} samples/s",
          _ratio(comp, fp, "filterpy", ".1f"), "≥ 30× filterpy",
          None if fp is None else comp >= 30 * fp),

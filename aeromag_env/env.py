@@ -62,6 +62,11 @@ class EnvConfig:
         ``tr R(0)``: the mean innovation power ``mean |r|²`` over the statistics window (the
         noise level) and the power of the mean innovation ``|mean r|²`` over the last decision
         window (a step: noise averages out of it, a step does not); neither depends on R
+    step_statistic : with ``extras``, one more observation: log10 of a two-window change
+        statistic, the mean innovation over the last decision window against that over the
+        rest of the statistics window, over the latter's innovation variance (about 0 without
+        a change at any noise level; an interference step of a few noise std lifts it by
+        decades within one window)
     """
 
     scenario: str = "nominal"
@@ -79,6 +84,7 @@ class EnvConfig:
     absolute_qp_log10: tuple[float, ...] = (-10.0, 10.0)
     split_q: bool = False
     innovation_power: bool = False
+    step_statistic: bool = False
 
     def __post_init__(self) -> None:
         check_scenario(self.scenario)
@@ -89,6 +95,7 @@ class EnvConfig:
         _check(self.scale_limit > 1.0, "scale_limit must be > 1")
         _check(self.action_mode in ("relative", "absolute"), "action_mode: relative or absolute")
         _check(self.extras or not self.innovation_power, "innovation_power needs extras=True")
+        _check(self.extras or not self.step_statistic, "step_statistic needs extras=True")
         for nm in ("absolute_q_log10", "absolute_r_log10", "absolute_qp_log10"):
             lo_hi = getattr(self, nm)
             _check(len(lo_hi) == 2 and lo_hi[0] < lo_hi[1], f"{nm} must be (lo, hi), lo < hi")
@@ -132,7 +139,7 @@ class AeroMagCompensationEnv(gym.Env):
     progress through the flight (in [0, 1]) and log10 of the ROR over the last decision window
     only (it reacts to an interference step within K samples, the M-window ROR only slowly);
     with ``split_q`` an eighth, log10 of the cumulative T_p Q scale; with ``innovation_power``
-    two more (see :class:`EnvConfig`).
+    two more, with ``step_statistic`` one more, in that order (see :class:`EnvConfig`).
 
     ## Rewards
 
@@ -178,7 +185,7 @@ class AeroMagCompensationEnv(gym.Env):
         self._action_size = env_core.action_size(self.config)
         self.action_space = spaces.Box(-1.0, 1.0, (self._action_size,), np.float32)
         c = self.config
-        dim = (7 + c.split_q + 2 * c.innovation_power) if c.extras else 2
+        dim = (7 + c.split_q + 2 * c.innovation_power + c.step_statistic) if c.extras else 2
         low = np.full(dim, -OBS_LIMIT, np.float32)
         high = np.full(dim, OBS_LIMIT, np.float32)
         if self.config.extras:

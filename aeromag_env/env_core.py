@@ -33,8 +33,8 @@ N_RUN = 5
 # environment parameters (float vector, see parameters())
 (PAR_K, PAR_LOG_S_MAX, PAR_LOG_LIMIT, PAR_ABSOLUTE, PAR_Q_LO, PAR_Q_HI, PAR_R_LO, PAR_R_HI,
  PAR_REWARD_NT, PAR_PENALTY, PAR_EXTRAS, PAR_LN10, PAR_SPLIT_Q, PAR_QP_LO,
- PAR_QP_HI, PAR_POWER) = range(16)  # fmt: skip
-N_PAR = 16
+ PAR_QP_HI, PAR_POWER, PAR_STEP_STAT) = range(17)  # fmt: skip
+N_PAR = 17
 #: States of the permanent-field block T_p (the first block of the 21-state vector).
 N_PERMANENT = 3
 # outcome of one step (float vector)
@@ -59,6 +59,7 @@ def parameters(config: EnvConfig) -> np.ndarray:
     par[PAR_SPLIT_Q] = float(config.split_q)
     par[PAR_QP_LO], par[PAR_QP_HI] = config.absolute_qp_log10
     par[PAR_POWER] = float(config.innovation_power)
+    par[PAR_STEP_STAT] = float(config.step_statistic)
     return par
 
 
@@ -191,6 +192,39 @@ def _recent_power(m: int, ints: np.ndarray, rbuf: np.ndarray) -> tuple[float, fl
 
 
 @njit(cache=True)
+def _step_statistic(m: int, ints: np.ndarray, rbuf: np.ndarray) -> float:
+    """Two-window change statistic ``m |mean₁ r − mean₀ r|² / tr C₀``: the mean innovation of
+    the last ``m`` updates against that of the earlier updates in the statistics window, over
+    the earlier ones' innovation covariance trace. About 1 + m/(M − m) without a change,
+    whatever the noise level or R; an interference step raises it by m |step|² / tr C₀. NaN
+    with fewer than 3 earlier updates."""
+    count = ints[INT_COUNT]
+    m = min(m, count)
+    earlier = count - m
+    if m < 1 or earlier < 3:
+        return np.nan
+    size = ints[INT_WINDOW]
+    recent, before, sq = np.zeros(3), np.zeros(3), np.zeros(3)
+    for j in range(count):
+        w = (ints[INT_POS] - 1 - j) % size
+        for i in range(3):
+            if j < m:
+                recent[i] += rbuf[w, i]
+            else:
+                before[i] += rbuf[w, i]
+    recent /= m
+    before /= earlier
+    for j in range(m, count):
+        w = (ints[INT_POS] - 1 - j) % size
+        for i in range(3):
+            sq[i] += (rbuf[w, i] - before[i]) ** 2
+    tr_c = sq.sum() / (earlier - 1)
+    if not tr_c > 0.0:
+        return np.nan
+    return m * ((recent - before) ** 2).sum() / tr_c
+
+
+@njit(cache=True)
 def _log10_or_zero(v: float) -> float:
     return math.log10(v) if v > 0.0 and np.isfinite(v) else 0.0
 
@@ -220,6 +254,9 @@ def _observe(
             tr_r0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
             obs[j] = _log10_or_zero(_recent_power(ints[INT_WINDOW], ints, rbuf)[0] / tr_r0)
             obs[j + 1] = _log10_or_zero(_recent_power(int(par[PAR_K]), ints, rbuf)[1] / tr_r0)
+            j += 2
+        if par[PAR_STEP_STAT] != 0.0:
+            obs[j] = _log10_or_zero(_step_statistic(int(par[PAR_K]), ints, rbuf))
     for j in range(obs.shape[0]):
         obs[j] = min(max(obs[j], low[j]), high[j])
 

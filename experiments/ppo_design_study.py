@@ -11,6 +11,11 @@ variance for R, Q raised for a few seconds after each true interference step): w
 knew everything could reach, i.e. the ceiling for any learned tuner in this scenario. With the
 whole Q raised (the paper's single Q action) and then with only T_p's Q raised (``split_q``),
 also with the raise delayed by 1 and 3 s (a detector that needs time) and with a constant R.
+
+``python experiments/ppo_design_study.py detector`` runs a hand-written causal detector on the
+``step_statistic`` observation: T_p's Q at 10^10 × Q(0) for 3 s once the two-window change
+statistic exceeds a threshold, Q(0) otherwise, R at 100 × R(0) — the privileged split schedule
+with the true step times replaced by what the innovations show.
 """
 
 from __future__ import annotations
@@ -99,6 +104,40 @@ def privileged_split(
     return float(np.sqrt(np.mean(err**2)))
 
 
+def detector() -> None:
+    """The privileged split schedule's actions, triggered by the change statistic instead of
+    the true step times (``split_q`` and ``step_statistic``, absolute actions; one batched run
+    over the 20 validation flights per threshold)."""
+    from aeromag_env.vec_env import AeroMagCompensationVecEnv
+
+    ranges = {"absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
+              "absolute_qp_log10": (-2.0, 10.0)}  # fmt: skip
+    cfg = {"scenario": "nonstationary", "extras": True, "action_mode": "absolute",
+           "split_q": True, "step_statistic": True, **ranges}  # fmt: skip
+    n = len(SEEDS)
+
+    def action(log_q: float, log_r: float, log_qp: np.ndarray) -> np.ndarray:
+        (q_lo, q_hi), (r_lo, r_hi), (p_lo, p_hi) = ranges.values()
+        a_q = np.full(n, 2 * (log_q - q_lo) / (q_hi - q_lo) - 1)
+        a_r = np.full(n, 2 * (log_r - r_lo) / (r_hi - r_lo) - 1)
+        return np.stack([a_q, a_r, 2 * (log_qp - p_lo) / (p_hi - p_lo) - 1], 1)
+
+    for threshold in (0.5, 1.0, 1.5, 2.0):  # log10 of the statistic (about 0.1 without a change)
+        env = AeroMagCompensationVecEnv(n, cfg)
+        obs, _ = env.reset(seed=list(SEEDS))
+        done, rmse, hold = np.zeros(n, bool), np.full(n, np.nan), np.zeros(n, int)
+        while not done.all():
+            hold = np.where(obs[:, 8] > threshold, 3, np.maximum(hold - 1, 0))  # 3 windows
+            a = action(0.0, 2.0, np.where(hold > 0, 10.0, 0.0))
+            obs, _, terminated, truncated, info = env.step(a.astype(np.float32))
+            ended = (terminated | truncated) & ~done
+            if ended.any():
+                rmse[ended] = info["episode_rmse_nt"][ended]
+            done |= terminated | truncated
+        env.close()
+        print(f"detector, log10 statistic > {threshold}: {np.mean(rmse):.3f} nT")
+
+
 def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: bool) -> None:
     import torch
     from stable_baselines3 import PPO
@@ -136,9 +175,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     t.add_argument("--paper-obs", action="store_true")
     t.add_argument("--split-q", action="store_true", help="T_p's Q as a third action")
     sub.add_parser("headroom")
+    sub.add_parser("detector")
     args = parser.parse_args(argv)
     if args.cmd == "headroom":
         headroom()
+    elif args.cmd == "detector":
+        detector()
     else:
         trial(args.steps, args.s_max, args.action_mode, args.paper_obs, args.split_q)
     return 0

@@ -176,3 +176,38 @@ def test_innovation_power_observations_follow_their_definition():
     assert obs[8] == pytest.approx(np.log10(mean_power / tr_r0), rel=1e-5)
     with pytest.raises(ConfigError, match="innovation_power needs extras"):
         _make(innovation_power=True)
+
+
+def test_step_statistic_follows_its_definition_and_flags_a_step():
+    """The two-window change statistic equals its formula on the filter's innovations, sits
+    near 1 + K/(M − K) on white noise at any level, and a 5-sigma step lifts it by decades."""
+    from aeromag_env.env_core import _step_statistic
+    from aeromag_env.kalman_core import INT_COUNT, INT_POS, INT_WINDOW
+
+    env = _make(scenario="nonstationary", extras=True, step_statistic=True, split_q=True)
+    assert env.observation_space.shape == (9,)
+    env.reset(seed=100_003)
+    f = env.unwrapped.filter
+    for _ in range(60):
+        obs, *_ = env.step(np.zeros(3, np.float32))
+    r = f.innov[: f.k]
+    r = r[np.all(np.isfinite(r), axis=1)][-f.cfg.window :]
+    recent, before = r[-10:], r[:-10]
+    expect = 10 * np.sum((recent.mean(0) - before.mean(0)) ** 2) / np.sum(before.var(0, ddof=1))
+    assert obs[8] == pytest.approx(np.log10(expect), rel=1e-5)
+
+    m, k = 50, 10
+    ints = np.zeros(8, np.int64)
+    ints[INT_COUNT], ints[INT_POS], ints[INT_WINDOW] = m, 17, m  # a full, wrapped window
+    rng = np.random.default_rng(0)
+    for std in (1.0, 15.0):
+        stats = [_step_statistic(k, ints, std * rng.standard_normal((m, 3))) for _ in range(2000)]
+        # E = (1 + k/(m−k)) · ν/(ν − 2) with ν = 3(m − k − 1) = 117 (the variance's degrees of
+        # freedom); the mean of 2000 draws has a 1.8 % std, so ±5 % is a 2.7-sigma bound
+        assert np.mean(stats) == pytest.approx(1.25 * 117 / 115, rel=0.05)
+    buf = rng.standard_normal((m, 3))
+    order = [(17 - 1 - j) % m for j in range(k)]  # the last k updates in the circular buffer
+    buf[order] += 5.0
+    assert _step_statistic(k, ints, buf) > 100.0
+    with pytest.raises(ConfigError, match="step_statistic needs extras"):
+        _make(step_statistic=True)

@@ -17,14 +17,23 @@ Steps (:func:`discover`):
    part outside the base regressors' span is below :data:`ABSORBED_FRACTION` of its variance is
    *absorbed* (Frisch–Waugh–Lovell) and never tested or named; effects marked ``absorbed_by``
    in the library (offset, scale, non-orthogonality, misalignment) are always such groups.
-4. **Forward selection.** Each remaining group gets a partial F-test on the whitened problem; the
-   best by ΔBIC among those passing Holm's correction (``p < α / m`` with m groups left) is
-   added, and the search repeats until nothing passes. Groups that differ only in a non-linear
+4. **Forward selection.** Each remaining group gets a partial F-test on the whitened problem; a
+   group has evidence when it passes Holm's correction (``p < α / m`` with m groups left) *and*
+   its ΔBIC is positive (:func:`_significant`); the best by ΔBIC among those is added, and the
+   search repeats until none has evidence. The F-test alone keeps a fixed false-inclusion rate
+   per flight (about α) and trusts the fitted noise model, whose slow part a 20-min calibration
+   under-states; the BIC penalty, ``log(rows)`` per regressor, grows with the data and asks a
+   3-regressor group for F > 10 rather than F > 6. Groups that differ only in a non-linear
    parameter (the eddy time constant, the lag) are profiled: the best grid value competes with
    one more degree of freedom, and is refined between its grid neighbours once it enters. After
    each entry the noise model is re-fitted; its coloured part may shrink only where the entered
-   group cannot have absorbed it (:func:`_ratchet`). A backward pass then drops any named effect
-   that is no longer significant given the others.
+   group cannot have absorbed it (:func:`_ratchet`). A chosen ``sensor_lag`` shifts the whole
+   modelled signal — Earth field, base aircraft field and the other named additive effects — not
+   the Earth field alone (:func:`_lag_on_signal`): a lag also delays the aircraft's eddy field,
+   ``−τ B T̈``, which is exactly the signature of ``eddy_time_constant``; with the Earth field
+   alone shifted, that remainder let ``eddy_time_constant`` follow a true lag. A backward pass
+   then drops any named effect without evidence (same rule, Holm over the named ones) given
+   all the others.
 5. **Gap.** Base and augmented models predict the held-out part; the gap is the RMS of measured
    minus simulated there above the white-noise floor, ``sqrt(RMS² − σ_w²)`` with ``σ_w`` from the
    final noise model (the sensor's white noise is no model gap; the raw RMS is reported too).
@@ -40,6 +49,7 @@ blocks). Non-finite samples are dropped and counted.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -48,7 +58,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from aeromag_env.effects import EFFECTS, EffectContext, Group
+from aeromag_env.effects import EFFECTS, EffectContext, Group, SensorLag
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight import ATTITUDE_NAMES, Flight, vector_names
 
@@ -69,6 +79,10 @@ MAX_EFFECTS = 5
 #: An entered group that could absorb less than this share of the coloured noise's variance
 #: (per axis) cannot be why the re-fitted coloured part shrank: the re-fit stands.
 ABSORBABLE_SHARE = 0.05
+#: A group needs ΔBIC above this (besides the Holm-corrected F-test) to enter or to stay.
+MIN_DELTA_BIC = 0.0
+#: Alternations of the joint fit and the shifted modelled signal of a chosen sensor_lag.
+LAG_SIGNAL_ITERATIONS = 3
 _BASE_LABELS = ("T_p", "A_x", "A_y", "A_z", "B_x", "B_y", "B_z")
 
 
@@ -345,6 +359,13 @@ class _Problem:
         self.perp.append(self._off_base(w))
         return len(self.columns) - 1
 
+    def replace(self, index: int, columns: np.ndarray) -> None:
+        """Rebuild candidate ``index`` from new columns (n, 3, p), under the current noise."""
+        self.columns[index] = columns[self.idx]
+        self.white[index] = self._whiten_columns(self.columns[index])
+        self.perp[index] = self._off_base(self.white[index])
+        self._spans = {}
+
     def _off_base(self, x: np.ndarray) -> np.ndarray:
         return x - self._q0 @ (self._q0.T @ x)
 
@@ -463,6 +484,22 @@ def _statistics(t: dict[str, float], extra_dof: int) -> dict[str, float]:
     }
 
 
+def _significant(stats: dict[str, float], threshold: float) -> bool:
+    """Evidence for a group: its F-test passes the (Holm) ``threshold`` and its ΔBIC exceeds
+    :data:`MIN_DELTA_BIC`.
+
+    Notes
+    -----
+    ``ΔBIC = ΔRSS/σ² − p log(rows) > 0`` is ``F > log(rows)`` (about 10.5 on a 20-min, 10-Hz
+    calibration, three axes): a Bayes factor for the group (Schwarz's approximation). Its
+    false-inclusion rate falls as the flight grows, where a fixed α would name a spurious group
+    in about α of all flights — over hundreds of flights, decoy channels among them; and it
+    leaves a margin for the fitted noise model, whose slow part a short calibration under-
+    states (the whitened residual keeps slow power, and slow channels then look significant).
+    """
+    return stats["p_value"] < threshold and stats["delta_bic"] > MIN_DELTA_BIC
+
+
 def _best_of_families(
     groups: list[Group], tests: dict[int, dict[str, float] | None]
 ) -> dict[int, dict[str, float]]:
@@ -573,13 +610,13 @@ def discover(
     lb_before = ljung_box(prob.whitened_residual(chosen))
     beta_base, _ = prob.fit(chosen)
     steps: list[dict[str, Any]] = []
-    evidence: dict[int, dict[str, float]] = {}
+    evidence: dict[int, dict[str, Any]] = {}
     remaining = list(range(1, len(prob.columns)))
     while remaining and len(chosen) - 1 < MAX_EFFECTS:
         say(f"testing {len(remaining)} candidate groups")
         live = _best_of_families(groups, {j: prob.test(chosen, j) for j in remaining})
         m = len(live)
-        passing = {j: t for j, t in live.items() if t["p_value"] < alpha / m}
+        passing = {j: t for j, t in live.items() if _significant(t, alpha / m)}
         steps.append(
             {
                 "step": len(steps) + 1,
@@ -596,8 +633,10 @@ def discover(
         evidence[best] = {**stats, "holm_threshold": alpha / m, "step": len(steps)}
         chosen.append(best)
         remaining = [j for j in remaining if groups[j - 1].family != groups[best - 1].family]
+        _lag_on_signal(prob, groups, chosen, base, ctx, evidence)
         steps[-1]["noise_model"] = _renoise(prob, chosen)
     chosen, retracted = _backward(prob, groups, chosen, alpha)
+    _lag_on_signal(prob, groups, chosen, base, ctx, evidence)
     beta, cov = prob.fit(chosen)
     lb_after = ljung_box(prob.whitened_residual(chosen))
     noise_after = (
@@ -675,7 +714,16 @@ def discover(
         "selection": {
             "alpha": alpha,
             "correction": "Holm over candidate groups at each step",
-            "criterion": "partial F-test on GLS-whitened residuals; best ΔBIC enters",
+            "criterion": (
+                "partial F-test on GLS-whitened residuals below the Holm threshold and "
+                f"ΔBIC > {MIN_DELTA_BIC:g}; best ΔBIC enters; backward: each named effect "
+                "must meet the same rule given all the others"
+            ),
+            "sensor_lag_model": (
+                "the whole modelled signal (Earth field, base aircraft field, other named "
+                "additive effects) shifted by the lag, so the lag's shift of the aircraft eddy "
+                "field is not left for eddy_time_constant"
+            ),
             "steps": steps,
             "retracted": [groups[j - 1].family for j in retracted],
         },
@@ -752,6 +800,50 @@ def _ratchet(old: NoiseModel, new: NoiseModel, share: np.ndarray) -> tuple[Noise
     return noise, keep
 
 
+def _lag_on_signal(
+    prob: _Problem,
+    groups: list[Group],
+    chosen: list[int],
+    base: np.ndarray,
+    ctx: EffectContext,
+    evidence: dict[int, dict[str, Any]],
+) -> None:
+    """Rebuild a chosen ``sensor_lag`` group as the modelled fluxgate signal shifted by its lag.
+
+    A lag delays everything the magnetometer sees: ``S(t − τ) − S(t)`` with ``S`` the Earth
+    field plus the aircraft field ``T_p + A T + B Ṫ`` plus the additive effects named with it.
+    Its part outside the base span is ``τ²/2 T̈ − τ B T̈`` (to first order in the small B); the
+    candidate built from the Earth field alone leaves ``−τ B T̈``, which ``eddy_time_constant``
+    (columns ``L_τ Ṫ − Ṫ ≈ −τ_e T̈``, free B_e) then fits — a true lag was named as lag plus
+    eddy. ``S`` comes from the joint fit with the lag in, and the two are alternated
+    :data:`LAG_SIGNAL_ITERATIONS` times (the coupling is of order τ: a few iterations settle
+    it). ``eddy_time_constant`` is then tested against the lag's full signature, and only a
+    T̈ term the lag cannot explain names it. The fitted form (``signal_gain``) re-simulates:
+    the simulator shifts its signal, base aircraft field and additive effects, the same way.
+    """
+    lag = next((j for j in chosen[1:] if groups[j - 1].effect == "sensor_lag"), None)
+    if lag is None:
+        return
+    g = groups[lag - 1]
+    lag_effect = EFFECTS["sensor_lag"]
+    assert g.profile is not None and isinstance(lag_effect, SensorLag)
+    for _ in range(LAG_SIGNAL_ITERATIONS):
+        beta, _ = prob.fit(chosen)
+        signal = ctx.t_b.copy()
+        offset = 0
+        for j in chosen:
+            cols = base if j == 0 else groups[j - 1].columns
+            p = cols.shape[2]
+            if j != lag:
+                signal += np.einsum("kip,p->ki", cols, beta[offset : offset + p])
+            offset += p
+        g = lag_effect.group(dataclasses.replace(ctx, signal=signal), g.profile)
+        groups[lag - 1] = g
+        prob.replace(lag, g.columns)
+    if lag in evidence:
+        evidence[lag]["lag_model"] = "modelled signal shifted (S(t − τ) − S(t))"
+
+
 def _refine(
     prob: _Problem,
     groups: list[Group],
@@ -795,7 +887,8 @@ def _refine(
 def _backward(
     prob: _Problem, groups: list[Group], chosen: list[int], alpha: float
 ) -> tuple[list[int], list[int]]:
-    """Drop named groups that are not significant given the others (weakest first)."""
+    """Drop named groups without evidence (:func:`_significant`, Holm over the k named) given
+    all the others, the lowest ΔBIC first, until every one left has it."""
     retracted: list[int] = []
     while len(chosen) > 1:
         k = len(chosen) - 1
@@ -803,10 +896,10 @@ def _backward(
         for j in chosen[1:]:
             t = prob.test([c for c in chosen if c != j], j)
             tests[j] = None if t is None else _statistics(t, int(groups[j - 1].profile is not None))
-        weak = [j for j, t in tests.items() if t is None or t["p_value"] >= alpha / k]
+        weak = [j for j, t in tests.items() if t is None or not _significant(t, alpha / k)]
         if not weak:
             break
-        worst = max(weak, key=lambda j: 1.0 if tests[j] is None else tests[j]["p_value"])  # type: ignore[index]
+        worst = min(weak, key=lambda j: -math.inf if tests[j] is None else tests[j]["delta_bic"])  # type: ignore[index]
         chosen = [c for c in chosen if c != worst]
         retracted.append(worst)
     return chosen, retracted
@@ -926,11 +1019,11 @@ def _physical(g: Group, b: np.ndarray, se: np.ndarray) -> dict[str, Any]:
     """Parameters in physical units with 95 % intervals, where the effect has a natural one."""
     ci = lambda v, s: [float(v - 1.96 * s), float(v + 1.96 * s)]  # noqa: E731
     if g.effect == "sensor_lag":
-        c = float(b[0])
         return {
-            "t2dot_coefficient_s2": c,
-            "ci95": ci(c, float(se[0])),
-            "implied_lag_s": math.sqrt(2.0 * c) if c > 0 else None,
+            "lag_s": g.profile,
+            "gain": float(b[0]),
+            "ci95": ci(float(b[0]), float(se[0])),
+            "shifted": g.labels[0],
         }
     if g.effect in ("onboard_current", "altitude_gradient") or (
         g.effect == "permanent_field_drift" and g.channel

@@ -421,10 +421,11 @@ class EddyTimeConstant(Effect):
 class SensorLag(Effect):
     name = "sensor_lag"
     description = (
-        "time offset between magnetometer and attitude: S(t − τ) − S(t) ≈ −τ Ṡ + τ²/2 T̈; "
-        "the first-order part is absorbed by the eddy matrix B, τ²/2 T̈ (isotropic) is not"
+        "time offset between magnetometer and attitude: S(t − τ) − S(t) ≈ −τ Ṡ + τ²/2 S̈ for the "
+        "whole signal S = T + T_p + A T + B Ṫ (+ additive effects); the part −τ (I + A) Ṫ is "
+        "absorbed by the eddy matrix, τ²/2 T̈ and the shifted aircraft eddy field −τ B T̈ are not"
     )
-    parameter_sizes = MappingProxyType({"lag_s": 0, "field_gain": 0})
+    parameter_sizes = MappingProxyType({"lag_s": 0, "field_gain": 0, "signal_gain": 0})
 
     @staticmethod
     def _shift(ctx: EffectContext, x: np.ndarray, lag: float) -> np.ndarray:
@@ -443,14 +444,24 @@ class SensorLag(Effect):
             return np.zeros((ctx.n, 3))
         if "field_gain" in params:  # the fitted form: the Earth field shifted, times a gain
             return float(params["field_gain"]) * self._shift(ctx, ctx.t_b, lag)
+        if "signal_gain" in params:  # the fitted form: the modelled signal shifted, times a gain
+            sig = ctx.t_b if ctx.signal is None else ctx.signal
+            return float(params["signal_gain"]) * self._shift(ctx, sig, lag)
         if ctx.signal is None:
             raise ConfigError("sensor_lag: lag_s alone needs the simulated signal")
         return self._shift(ctx, ctx.signal, lag)
 
     def group(self, ctx: EffectContext, lag: float) -> Group:
-        return Group(self.name, None, self._shift(ctx, ctx.t_b, lag)[:, :, None],
-                     ["T(t − τ) − T(t)"], lambda b: {"lag_s": lag, "field_gain": float(b[0])},
-                     lag, lambda v: self.group(ctx, v))  # fmt: skip
+        """The Earth field shifted by ``lag`` (one gain); with ``ctx.signal`` (a modelled
+        fluxgate signal: Earth field, aircraft field and additive effects) that signal shifted,
+        so the lag also moves the aircraft's own eddy field."""
+        if ctx.signal is None:
+            cols, label, key = self._shift(ctx, ctx.t_b, lag), "T(t − τ) − T(t)", "field_gain"
+        else:
+            cols, label, key = self._shift(ctx, ctx.signal, lag), "S(t − τ) − S(t)", "signal_gain"
+        return Group(self.name, None, cols[:, :, None], [label],
+                     lambda b: {"lag_s": lag, key: float(b[0])}, lag,
+                     lambda v: self.group(ctx, v))  # fmt: skip
 
     def groups(self, ctx: EffectContext) -> tuple[list[Group], str | None]:
         return [self.group(ctx, lag) for lag in LAG_GRID_S], None

@@ -13,11 +13,13 @@ from aeromag_env.cli import main
 from aeromag_env.config import EffectConfig, SimulationConfig, from_json, to_json
 from aeromag_env.discover import (
     ABSORBABLE_SHARE,
+    MIN_DELTA_BIC,
     NoiseModel,
     _fogm_quadratic,
     _prepare,
     _Problem,
     _ratchet,
+    _significant,
     base_columns,
     discover,
     fit_noise,
@@ -69,6 +71,24 @@ def test_every_fitted_group_re_simulates_its_columns_exactly(null_flight: Flight
             cfg = EffectConfig(name=name, channel=g.channel, parameters=g.to_parameters(beta))
             got = simulate_effects(ctx, (cfg,))
             np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+
+
+def test_the_lag_on_the_modelled_signal_re_simulates_its_column_exactly(
+    null_flight: Flight,
+) -> None:
+    """The form discovery fits once a lag is chosen (the modelled signal shifted, a gain) is what
+    the simulator injects for ``signal_gain``: it shifts its signal the same way."""
+    ctx = _prepare(null_flight, "flux_a", None).ctx
+    aircraft = np.column_stack(
+        [ctx.tdot_b[:, 1] * 3e-4, ctx.t_b[:, 0] * 1e-3, np.full(ctx.n, 40.0)]
+    )
+    ctx = dataclasses.replace(ctx, signal=ctx.t_b + aircraft)
+    g = EFFECTS["sensor_lag"].group(ctx, 0.03)  # type: ignore[attr-defined]
+    want = g.columns[:, :, 0] * 0.9
+    cfg = EffectConfig(name="sensor_lag", parameters=g.to_parameters(np.array([0.9])))
+    assert set(cfg.parameters) == {"lag_s", "signal_gain"}
+    got = simulate_effects(ctx, (cfg,))
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
 
 
 def test_noise_model_whitens_white_plus_fogm_and_recovers_its_parameters() -> None:
@@ -157,6 +177,36 @@ def test_eddy_time_constant_at_snr_4_is_named_alone_and_no_decoy_follows() -> No
     decoys vol_bus and cur_ac_hi and temp_flux followed eddy on this flight."""
     row = run_case(Case("single", 20_904, ("eddy_time_constant",), 4.0))
     assert row["named"] == row["truth"] == [["eddy_time_constant", None]]
+    assert row["shrink"] >= 2.0
+
+
+def test_evidence_needs_both_the_holm_f_test_and_a_positive_delta_bic() -> None:
+    assert _significant({"p_value": 1e-5, "delta_bic": MIN_DELTA_BIC + 1.0}, 1e-3)
+    assert not _significant({"p_value": 1e-5, "delta_bic": MIN_DELTA_BIC - 10.0}, 1e-3)
+    assert not _significant({"p_value": 2e-3, "delta_bic": MIN_DELTA_BIC + 50.0}, 1e-3)
+
+
+@pytest.mark.parametrize(
+    ("name", "snr", "seed"),
+    [("altitude_gradient", 1.0, 20_351), ("eddy_time_constant", 2.0, 20_457)],
+)
+def test_a_decoy_channel_is_not_named_after_the_true_effect(
+    name: str, snr: float, seed: int
+) -> None:
+    """Suite flights where, with the Holm F-test alone, a decoy followed the true effect: the fuel
+    temperature as ``permanent_field_drift`` (p 8e-5 against a 9e-4 threshold; the fitted slow
+    noise was 0.5 nT / 60–250 s against a true 1 nT / 600 s) and ``cur_com_1`` as a current
+    (p 3e-4). Neither had a positive ΔBIC."""
+    row = run_case(Case("single", seed, (name,), snr))
+    assert row["named"] == row["truth"] == [[name, None]]
+    assert not row["decoy_named"]
+
+
+def test_a_sensor_lag_is_named_alone_its_shift_of_the_eddy_field_is_the_lags() -> None:
+    """A lag delays the aircraft's eddy field too (−τ B T̈); with only the Earth field shifted,
+    ``eddy_time_constant`` followed ``sensor_lag`` on this flight (F 12 on 10 dof, ΔBIC +15)."""
+    row = run_case(Case("single", 20_541, ("sensor_lag",), 4.0))
+    assert row["named"] == row["truth"] == [["sensor_lag", None]]
     assert row["shrink"] >= 2.0
 
 

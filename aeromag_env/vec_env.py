@@ -203,8 +203,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         for row, sample, seed in zip(rows, samples, seeds, strict=True):
             row["sample"], row["flight_seed"] = sample, seed
         for i in np.flatnonzero(self._ended).tolist():
-            rows[i]["episode_rmse_nt"] = float(self._out[i, OUT_EPISODE_RMSE])
-            rows[i]["divergences"] = int(filters.ints[i, INT_DIV])
+            rows[i] = self._info(i)  # with the episode's totals
         return self._obs.copy(), rewards, terminated, truncated, rows
 
     def _advance(

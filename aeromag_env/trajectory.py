@@ -210,20 +210,18 @@ def generate_trajectory(cfg: TrajectoryConfig, rng: np.random.Generator) -> Traj
         cut there), else the pattern's natural length.
     """
     track = _track(cfg)
-    n, cmd = track["tt"].size, track
-    dt = 1.0 / cfg.sample_rate_hz
-    jitter = fogm(n, dt, 1.0, cfg.jitter_tau_s, rng, dims=3)
+    jitter = fogm(track["tt"].size, 1.0 / cfg.sample_rate_hz, 1.0, cfg.jitter_tau_s, rng, dims=3)
     sig = np.deg2rad([cfg.jitter_roll_deg, cfg.jitter_pitch_deg, cfg.jitter_yaw_deg])
     return Trajectory(
         tt=track["tt"].copy(),
         lat=track["lat"].copy(),
         lon=track["lon"].copy(),
         alt=track["alt"].copy(),
-        roll=cmd["bank"] + cmd["droll"] + sig[0] * jitter[:, 0],
-        pitch=cmd["dpitch"] + sig[1] * jitter[:, 1],
-        yaw=_wrap_angle(track["course"] + cmd["dyaw"] + sig[2] * jitter[:, 2]),
-        maneuver=cmd["maneuver"].copy(),
-        line=cmd["line"].copy(),
+        roll=track["bank"] + track["droll"] + sig[0] * jitter[:, 0],
+        pitch=track["dpitch"] + sig[1] * jitter[:, 1],
+        yaw=_wrap_angle(track["course"] + track["dyaw"] + sig[2] * jitter[:, 2]),
+        maneuver=track["maneuver"].copy(),
+        line=track["line"].copy(),
     )
 
 

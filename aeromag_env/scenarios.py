@@ -13,6 +13,8 @@ scenario                    what varies and what the tuner must do
                             noise std drawn from {1, 5, 15} nT per regime, switching at random
                             times) and one or two interference steps (equipment switching on:
                             ``T_p`` jumps by N(0, 30²) nT per axis) — both R and Q must move
+``nonstationary_dense``     ``nonstationary`` with 4 to 8 interference steps: a training
+                            variant that shows a learner the rare event more often
 ``calibration_then_survey`` ``nominal`` box, descent and survey lines (1500 s): the filter learns
                             in the box and must not drift in the poorly excited survey
 =========================== ================================================================
@@ -35,10 +37,14 @@ from aeromag_env.kalman_model import FilterConfig, paper_filter_config
 from aeromag_env.simulate import simulate_flight
 
 SCENARIOS = ("paper", "nominal", "misspecified", "nonstationary", "calibration_then_survey")
+#: Scenarios for training only (not evaluated or tabled): ``nonstationary_dense``.
+TRAINING_SCENARIOS = ("nonstationary_dense",)
 #: Noise regimes of ``nonstationary``: white-noise std per axis [nT].
 REGIME_STD_NT = (1.0, 5.0, 15.0)
 #: Std of each interference step of ``nonstationary``, per axis [nT].
 STEP_STD_NT = 30.0
+#: Interference steps per flight (inclusive range): ``nonstationary`` and ``nonstationary_dense``.
+STEP_COUNTS = {"nonstationary": (1, 2), "nonstationary_dense": (4, 8)}
 
 
 @dataclass
@@ -69,8 +75,9 @@ class Episode:
 
 def check_scenario(name: str) -> str:
     """Return ``name`` if known; else a one-line error listing the valid ones."""
-    if name not in SCENARIOS:
-        raise ConfigError(f"unknown scenario {name!r}; valid scenarios: {', '.join(SCENARIOS)}")
+    if name not in SCENARIOS + TRAINING_SCENARIOS:
+        valid = ", ".join(SCENARIOS + TRAINING_SCENARIOS)
+        raise ConfigError(f"unknown scenario {name!r}; valid scenarios: {valid}")
     return name
 
 
@@ -87,9 +94,9 @@ def make_episode(name: str, seed: int, duration_s: float | None = None) -> Episo
         sim_cfg = with_overrides(sim_cfg, {"trajectory.duration_s": duration_s})
     flight = simulate_flight(sim_cfg, sim_seed)
     noise_var = np.full(flight.n, _noise_var(sim_cfg))
-    if name == "nonstationary":
+    if name in STEP_COUNTS:
         white = sim_cfg.fluxgate_noise.white_std_nt
-        flight, noise_var = _nonstationary(flight, noise_var, white, rng)
+        flight, noise_var = _nonstationary(flight, noise_var, white, STEP_COUNTS[name], rng)
     t_b, tdot_b = earth_model(flight, filter_cfg.rate_scheme)
     return Episode(
         y=flight.vector("flux_a") - t_b,
@@ -117,7 +124,7 @@ def _settings(name: str, rng: np.random.Generator) -> tuple[SimulationConfig, Fi
             r_std_nt=base.r_std_nt * float(np.sqrt(r_factor)),
         )
         return nominal, cfg
-    if name == "nonstationary":
+    if name in STEP_COUNTS:
         return with_overrides(nominal, {"trajectory.duration_s": 1200.0}), FilterConfig()
     pattern = {"trajectory.pattern": "calibration+survey", "trajectory.duration_s": 1500.0}
     return with_overrides(nominal, pattern), FilterConfig()
@@ -129,10 +136,15 @@ def _noise_var(cfg: SimulationConfig) -> float:
 
 
 def _nonstationary(
-    flight: Flight, noise_var: np.ndarray, white_std: float, rng: np.random.Generator
+    flight: Flight,
+    noise_var: np.ndarray,
+    white_std: float,
+    step_count: tuple[int, int],
+    rng: np.random.Generator,
 ) -> tuple[Flight, np.ndarray]:
     """Three noise regimes (white std from :data:`REGIME_STD_NT`, realised by adding white noise
-    to the configured ``white_std``) and one or two interference steps, in fluxgate and truth."""
+    to the configured ``white_std``) and ``step_count`` (lo, hi inclusive) interference steps, in
+    fluxgate and truth."""
     n = flight.n
     cuts = np.sort(rng.integers(n // 6, n - n // 6, 2))
     fields = dict(flight.fields)
@@ -145,7 +157,8 @@ def _nonstationary(
         extra = np.sqrt(max(std**2 - white_std**2, 0.0))
         flux[lo:hi] += extra * rng.standard_normal((hi - lo, 3))
         noise_var[lo:hi] = base_var + extra**2
-    for start in rng.integers(n // 5, n - n // 10, int(rng.integers(1, 3))):
+    count = int(rng.integers(step_count[0], step_count[1] + 1))
+    for start in rng.integers(n // 5, n - n // 10, count):
         step = rng.normal(0.0, STEP_STD_NT, 3)
         flux[start:] += step
         interf[start:] += step

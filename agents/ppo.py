@@ -24,6 +24,7 @@ import numpy as np
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.atomic import write_text
 from aeromag_env.errors import AeromagError
+from aeromag_env.scenarios import check_scenario
 from agents.evaluate import TRAIN_SEEDS, VALIDATION_SEEDS, run_episode
 from agents.numpy_policy import NumpyPPOPolicy
 
@@ -68,10 +69,13 @@ def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
     """``n_envs`` training environments under ``VecNormalize``; ``hp["vec_env"]`` (one of
     :data:`VEC_ENVS`, default ``batched``) chooses the vectorisation, ``hp["prefetch"]``
     (default true) whether the batched one simulates flights ahead in a worker process.
-    Environment ``rank`` resets with the seeds of ``_seed_stream(rank, …)`` either way."""
+    Environment ``rank`` resets with the seeds of ``_seed_stream(rank, …)`` either way.
+    ``hp["train_scenario"]`` (optional) trains on another scenario than the one validated and
+    evaluated (e.g. ``nonstationary_dense``: the same flights with more interference steps)."""
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     n_envs, kind = int(hp["n_envs"]), hp.get("vec_env", "batched")
+    scenario = check_scenario(hp.get("train_scenario", scenario))
     if kind not in VEC_ENVS:
         raise AeromagError(f"vec_env must be one of {', '.join(VEC_ENVS)}; got {kind!r}")
     streams = [_seed_stream(rank, n_envs, offset=1000 * seed) for rank in range(n_envs)]

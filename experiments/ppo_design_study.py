@@ -31,7 +31,7 @@ import numpy as np
 
 import aeromag_env  # noqa: F401
 from agents import make_policy
-from agents.evaluate import VALIDATION_SEEDS, run_episode
+from agents.evaluate import TEST_SEED_START, VALIDATION_SEEDS, run_episode
 
 SEEDS = range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + 20)
 
@@ -104,17 +104,25 @@ def privileged_split(
     return float(np.sqrt(np.mean(err**2)))
 
 
-def detector() -> None:
-    """The privileged split schedule's actions, triggered by the change statistic instead of
-    the true step times (``split_q`` and ``step_statistic``, absolute actions; one batched run
-    over the 20 validation flights per threshold)."""
+def detector(seeds: Sequence[int] = SEEDS) -> None:
+    """The privileged split schedule's actions, triggered by what the innovations show instead
+    of the true step times (``split_q``, absolute actions; one batched run over ``seeds`` per
+    threshold): T_p's Q at 10^10 × Q(0) for the next decision window(s), else Q(0); R at
+    100 × R(0).
+
+    Two statistics: the two-window change statistic (``step_statistic``, held for 3 windows, the
+    environment's default T_p limit 10^8) and the norm of the mean innovation over the last
+    decision window in nT (``innovation_power``'s second observation, ``scale_limit=1e10``, held
+    for one window)."""
+    from aeromag_env.scenarios import make_episode
     from aeromag_env.vec_env import AeroMagCompensationVecEnv
 
     ranges = {"absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
               "absolute_qp_log10": (-2.0, 10.0)}  # fmt: skip
-    cfg = {"scenario": "nonstationary", "extras": True, "action_mode": "absolute",
-           "split_q": True, "step_statistic": True, **ranges}  # fmt: skip
-    n = len(SEEDS)
+    base = {"scenario": "nonstationary", "extras": True, "action_mode": "absolute",
+            "split_q": True, **ranges}  # fmt: skip
+    n = len(seeds)
+    r0 = make_episode("nonstationary", seeds[0]).filter_cfg.r_std_nt ** 2  # per axis [nT²]
 
     def action(log_q: float, log_r: float, log_qp: np.ndarray) -> np.ndarray:
         (q_lo, q_hi), (r_lo, r_hi), (p_lo, p_hi) = ranges.values()
@@ -122,12 +130,12 @@ def detector() -> None:
         a_r = np.full(n, 2 * (log_r - r_lo) / (r_hi - r_lo) - 1)
         return np.stack([a_q, a_r, 2 * (log_qp - p_lo) / (p_hi - p_lo) - 1], 1)
 
-    for threshold in (0.5, 1.0, 1.5, 2.0):  # log10 of the statistic (about 0.1 without a change)
+    def run(cfg: dict[str, Any], index: int, log_threshold: float, hold_windows: int) -> float:
         env = AeroMagCompensationVecEnv(n, cfg)
-        obs, _ = env.reset(seed=list(SEEDS))
+        obs, _ = env.reset(seed=list(seeds))
         done, rmse, hold = np.zeros(n, bool), np.full(n, np.nan), np.zeros(n, int)
         while not done.all():
-            hold = np.where(obs[:, 8] > threshold, 3, np.maximum(hold - 1, 0))  # 3 windows
+            hold = np.where(obs[:, index] > log_threshold, hold_windows, np.maximum(hold - 1, 0))
             a = action(0.0, 2.0, np.where(hold > 0, 10.0, 0.0))
             obs, _, terminated, truncated, info = env.step(a.astype(np.float32))
             ended = (terminated | truncated) & ~done
@@ -135,7 +143,15 @@ def detector() -> None:
                 rmse[ended] = info["episode_rmse_nt"][ended]
             done |= terminated | truncated
         env.close()
-        print(f"detector, log10 statistic > {threshold}: {np.mean(rmse):.3f} nT")
+        return float(np.mean(rmse))
+
+    for threshold in (0.5, 1.0, 1.5, 2.0):  # log10 of the statistic (about 0.1 without a change)
+        rmse = run({**base, "step_statistic": True}, 8, threshold, 3)
+        print(f"detector, log10 change statistic > {threshold}: {rmse:.3f} nT")
+    for nt in (15.0, 20.0, 25.0):  # obs 9: log10 |mean r|² / tr R(0)
+        rmse = run({**base, "innovation_power": True, "scale_limit": 1e10}, 9,
+                   math.log10(nt**2 / (3 * r0)), 1)  # fmt: skip
+        print(f"detector, |mean innovation| over the last window > {nt:g} nT: {rmse:.3f} nT")
 
 
 def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: bool) -> None:
@@ -175,12 +191,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     t.add_argument("--paper-obs", action="store_true")
     t.add_argument("--split-q", action="store_true", help="T_p's Q as a third action")
     sub.add_parser("headroom")
-    sub.add_parser("detector")
+    d = sub.add_parser("detector")
+    d.add_argument(
+        "--test",
+        type=int,
+        default=0,
+        metavar="N",
+        help="run on the first N test seeds instead of the 20 validation seeds",
+    )
     args = parser.parse_args(argv)
     if args.cmd == "headroom":
         headroom()
     elif args.cmd == "detector":
-        detector()
+        detector(range(TEST_SEED_START, TEST_SEED_START + args.test) if args.test else SEEDS)
     else:
         trial(args.steps, args.s_max, args.action_mode, args.paper_obs, args.split_q)
     return 0

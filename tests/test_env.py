@@ -134,6 +134,26 @@ def test_misspecified_and_nonstationary_do_what_they_say():
     assert np.sum(jumps > 10.0) >= 1  # an interference step (equipment switching on)
 
 
+def test_dense_training_variant_adds_steps_to_the_same_flight():
+    """``nonstationary_dense`` flies the same flight with the same noise regimes as
+    ``nonstationary`` and only draws more interference steps (4 to 8 instead of 1 to 2)."""
+    changes = []
+    for seed in range(6):
+        sparse = make_episode("nonstationary", seed, duration_s=300.0)
+        dense = make_episode("nonstationary_dense", seed, duration_s=300.0)
+        np.testing.assert_array_equal(dense.noise_var, sparse.noise_var)
+        np.testing.assert_array_equal(dense.t_b, sparse.t_b)
+        # the fluxgate minus the truth is the same sensor error in both
+        np.testing.assert_allclose(dense.y - dense.truth_interf, sparse.y - sparse.truth_interf,
+                                   atol=1e-9)  # fmt: skip
+        # the truths differ by steps only: piecewise constant, changing at the dense flight's
+        # steps (the sparse flight's step times are the first of them: the same draws)
+        moves = np.abs(np.diff(dense.truth_interf - sparse.truth_interf, axis=0)).max(axis=1)
+        changes.append(int(np.sum(moves > 1e-9)))
+    assert all(4 <= c <= 8 for c in changes) and max(changes) >= 7, changes
+    assert "nonstationary_dense" not in SCENARIOS  # trained on, never tabled
+
+
 def test_split_q_scales_the_permanent_block_on_its_own():
     """Equal a_q and a_qp is the unsplit environment bitwise; a_qp moves only T_p's Q."""
     kw = {"scenario": "nonstationary", "extras": True, "action_mode": "absolute"}

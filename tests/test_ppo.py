@@ -31,6 +31,21 @@ def test_numpy_export_reproduces_sb3_actions(tmp_path):
     assert one.shape == venv.action_space.shape  # (3,): the shipped design splits Q
 
 
+@pytest.mark.parametrize("kind", ["batched", "dummy"])
+def test_train_scenario_trains_on_its_own_scenario_only(kind):
+    """``train_scenario`` sets the training environments' scenario (both vectorisations); an
+    unknown one is a one-line error."""
+    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "vec_env": kind, "prefetch": False}
+    venv = make_training_env("nonstationary", {**hp, "train_scenario": "nonstationary_dense"}, 0)
+    venv.reset()
+    inner = venv.venv
+    scenarios = inner.venv.scenarios if kind == "batched" else inner.get_attr("_scenario")
+    assert list(scenarios) == ["nonstationary_dense"] * 2
+    venv.close()
+    with pytest.raises(AeromagError, match="unknown scenario 'windy'"):
+        make_training_env("nonstationary", {**hp, "train_scenario": "windy"}, 0)
+
+
 def test_loading_is_pickle_free_and_errors_are_one_line(tmp_path):
     bad = tmp_path / "bad.npz"
     np.savez(bad, obs_mean=np.array([object()], dtype=object))

@@ -12,10 +12,12 @@ knew everything could reach, i.e. the ceiling for any learned tuner in this scen
 whole Q raised (the paper's single Q action) and then with only T_p's Q raised (``split_q``),
 also with the raise delayed by 1 and 3 s (a detector that needs time) and with a constant R.
 
-``python experiments/ppo_design_study.py detector`` runs a hand-written causal detector on the
-``step_statistic`` observation: T_p's Q at 10^10 × Q(0) for 3 s once the two-window change
-statistic exceeds a threshold, Q(0) otherwise, R at 100 × R(0) — the privileged split schedule
-with the true step times replaced by what the innovations show.
+``python experiments/ppo_design_study.py detector [--test N]`` runs hand-written causal detectors:
+T_p's Q raised once a statistic of the innovations exceeds a threshold, Q(0) otherwise, R at
+100 × R(0) — the privileged split schedule with the true step times replaced by what the
+innovations show. Statistics: the ``step_statistic`` observation and the norm of the mean
+innovation over the last decision window (``innovation_power``); ``--test N`` runs on the first
+N test flights instead of the validation flights.
 """
 
 from __future__ import annotations

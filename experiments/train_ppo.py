@@ -4,7 +4,7 @@
 [--ship] [--quick] [--out results/ppo_experiment]``
 
 1. ``aeromag train`` on ``nonstationary`` (training seeds < 50 000; best policy by validation
-   RMSE on seeds 50 000–50 019), unless ``--skip-training``;
+   RMSE on the first ``eval_episodes`` validation seeds from 50 000), unless ``--skip-training``;
 2. ``--ship`` copies the best policy to ``agents/trained/ppo_nonstationary.npz``;
 3. evaluates every policy on test seeds from 100 000 on ``nonstationary`` and ``nominal``;
 4. writes ``comparison.md``, ``learning_curve.png`` and the per-scenario results.
@@ -65,11 +65,12 @@ def _learning_curve(training: Path, path: Path) -> None:
         return
     from aeromag_env.plot import _pyplot
 
-    curve = json.loads(training.read_text())["curve"]
+    summary = json.loads(training.read_text())
+    curve, flights = summary["curve"], summary["hyperparams"]["eval_episodes"]
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
     ax.plot([c["timesteps"] for c in curve], [c["validation_rmse_nt"] for c in curve], "o-")
-    ax.set(xlabel="environment steps", ylabel="validation RMSE [nT] (20 flights)",
+    ax.set(xlabel="environment steps", ylabel=f"validation RMSE [nT] ({flights} flights)",
            title="PPO on nonstationary: learning curve", yscale="log")  # fmt: skip
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -154,6 +154,8 @@ def detector(seeds: Sequence[int] = SEEDS) -> None:
         rmse = run({**base, "innovation_power": True, "scale_limit": 1e10}, 9,
                    math.log10(nt**2 / (3 * r0)), 1)  # fmt: skip
         print(f"detector, |mean innovation| over the last window > {nt:g} nT: {rmse:.3f} nT")
+    rmse = run({**base, "innovation_power": True}, 9, math.log10(20.0**2 / (3 * r0)), 1)
+    print(f"detector, |mean innovation| > 20 nT, T_p's Q at the default limit 10^8: {rmse:.3f} nT")
 
 
 def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: bool) -> None:

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env.errors import ConfigError
 from aeromag_env.fuzzy import zoomed_scale
 from aeromag_env.kalman_model import MODE
 
@@ -141,7 +142,14 @@ class TunedConstantPolicy(TargetScalePolicy):
     def __init__(self, env: Any, table: dict[str, dict[str, float]] | None = None) -> None:
         from agents.tuning import load_tuned
 
-        entry = (table or load_tuned())[env.unwrapped.scenario]
+        table = table or load_tuned()
+        scenario = env.unwrapped.scenario
+        if scenario not in table:
+            raise ConfigError(
+                f"no tuned constants for scenario {scenario!r}; tuned scenarios: "
+                f"{', '.join(sorted(table))} (python experiments/tune_constants.py)"
+            )
+        entry = table[scenario]
         super().__init__(env, math.log(10.0) * entry["log10_q"], math.log(10.0) * entry["log10_r"])
 
 

@@ -66,6 +66,9 @@ def test_oracle_and_tuned_constant_fix_the_papers_r():
     assert oracle < 0.5 * base
     assert run_episode(env, tuned, 100_000)["rmse_nt"] < 0.5 * base
 
+    with pytest.raises(ConfigError, match="no tuned constants for scenario 'nonstationary_dense'"):
+        make_policy("tuned_constant", _env("nonstationary_dense"))
+
 
 def test_evaluate_results_layout_and_seed_ranges(tmp_path):
     with pytest.raises(AeromagError, match="must be ≥ 100000"):

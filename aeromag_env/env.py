@@ -23,6 +23,7 @@ from aeromag_env.env_core import (
     OUT_ROR,
     OUT_TERMINATED,
     OUT_TRUNCATED,
+    REWARD_FORMS,
     RUN_LOG_Q,
     RUN_LOG_R,
 )
@@ -44,6 +45,10 @@ class EnvConfig:
     s_max : largest scale factor per step; action ``a`` → ``s = s_max ** a``
     extras : add log Q scale, log R scale, innovation whiteness and progress to the observation
     reward_scale_nt : error scale of the reward [nT]
+    reward_form : ``log`` (``−ln(1 + e_w/scale)``, the default), ``linear`` (``−e_w/scale``) or
+        ``squared`` (``−(e_w/scale)²``; the sum over a flight is its mean squared error, the
+        square of the RMSE the tuners are scored by, where ``log`` discounts the large errors
+        after an interference step) — a design switch beyond the paper
     divergence_penalty : reward of the step on which the filter diverges
     score_from : fraction of the flight after which ``episode_rmse_nt`` is accumulated
     scale_limit : the cumulative Q and R scales stay within [1/limit, limit] of their initial values
@@ -74,6 +79,7 @@ class EnvConfig:
     s_max: float = 2.0
     extras: bool = False
     reward_scale_nt: float = 1.0
+    reward_form: str = "log"
     divergence_penalty: float = -10.0
     score_from: float = 0.5
     scale_limit: float = 1e8
@@ -91,6 +97,7 @@ class EnvConfig:
         _check(self.decision_window >= 1, "decision_window must be ≥ 1 sample")
         _check(self.s_max > 1.0 and math.isfinite(self.s_max), "s_max must be > 1")
         _check(self.reward_scale_nt > 0, "reward_scale_nt must be > 0 [nT]")
+        _check(self.reward_form in REWARD_FORMS, f"reward_form: one of {', '.join(REWARD_FORMS)}")
         _check(0.0 <= self.score_from < 1.0, "score_from must be in [0, 1)")
         _check(self.scale_limit > 1.0, "scale_limit must be > 1")
         _check(self.action_mode in ("relative", "absolute"), "action_mode: relative or absolute")
@@ -144,10 +151,11 @@ class AeroMagCompensationEnv(gym.Env):
     ## Rewards
 
     ``r = −ln(1 + e_w / reward_scale_nt)`` with ``e_w`` the RMS over the window of the true
-    interference minus the filter's a-priori estimate (pooled over axes) [nT]. The truth is
-    known in simulation only: consistency alone can be met without accuracy (scaling Q and R
-    together moves ROR but leaves the estimate unchanged), so the reward is accuracy. On the
-    step where the filter diverges the reward is ``divergence_penalty`` (−10).
+    interference minus the filter's a-priori estimate (pooled over axes) [nT]; ``reward_form``
+    ``linear`` gives ``−e_w / reward_scale_nt`` and ``squared`` ``−(e_w / reward_scale_nt)²``.
+    The truth is known in simulation only: consistency alone can be met without accuracy
+    (scaling Q and R together moves ROR but leaves the estimate unchanged), so the reward is
+    accuracy. On the step where the filter diverges the reward is ``divergence_penalty`` (−10).
 
     ## Starting State
 

@@ -33,8 +33,10 @@ N_RUN = 5
 # environment parameters (float vector, see parameters())
 (PAR_K, PAR_LOG_S_MAX, PAR_LOG_LIMIT, PAR_ABSOLUTE, PAR_Q_LO, PAR_Q_HI, PAR_R_LO, PAR_R_HI,
  PAR_REWARD_NT, PAR_PENALTY, PAR_EXTRAS, PAR_LN10, PAR_SPLIT_Q, PAR_QP_LO,
- PAR_QP_HI, PAR_POWER, PAR_STEP_STAT) = range(17)  # fmt: skip
-N_PAR = 17
+ PAR_QP_HI, PAR_POWER, PAR_STEP_STAT, PAR_REWARD_FORM) = range(18)  # fmt: skip
+N_PAR = 18
+#: Reward forms of :class:`aeromag_env.env.EnvConfig`, coded by their index in PAR_REWARD_FORM.
+REWARD_FORMS = ("log", "linear", "squared")
 #: States of the permanent-field block T_p (the first block of the 21-state vector).
 N_PERMANENT = 3
 # outcome of one step (float vector)
@@ -60,6 +62,7 @@ def parameters(config: EnvConfig) -> np.ndarray:
     par[PAR_QP_LO], par[PAR_QP_HI] = config.absolute_qp_log10
     par[PAR_POWER] = float(config.innovation_power)
     par[PAR_STEP_STAT] = float(config.step_statistic)
+    par[PAR_REWARD_FORM] = REWARD_FORMS.index(config.reward_form)
     return par
 
 
@@ -262,6 +265,17 @@ def _observe(
 
 
 @njit(cache=True)
+def _reward(e: float, form: float) -> float:
+    """The reward of a window error ``e`` in units of ``reward_scale_nt``: ``−ln(1 + e)``
+    (form 0, log), ``−e`` (1, linear) or ``−e²`` (2, squared)."""
+    if form == 0.0:
+        return -math.log1p(e)
+    if form == 1.0:
+        return -e
+    return -e * e
+
+
+@njit(cache=True)
 def env_step(
     a: np.ndarray, run: np.ndarray, env_par: np.ndarray, score_start: int, n: int,
     truth: np.ndarray, low: np.ndarray, high: np.ndarray, obs: np.ndarray, out: np.ndarray,
@@ -296,7 +310,7 @@ def env_step(
                 acc, ints, par, est, innov, ror, qoq, q_scale, r_scale, states)  # fmt: skip
     rmse = _window_error(k0, k1, truth, est, score_start, run)
     terminated = ints[INT_DIV] > divergences
-    reward = -math.log1p(rmse / env_par[PAR_REWARD_NT])
+    reward = _reward(rmse / env_par[PAR_REWARD_NT], env_par[PAR_REWARD_FORM])
     out[OUT_REWARD] = env_par[PAR_PENALTY] if terminated else reward
     out[OUT_RMSE] = rmse
     out[OUT_ROR], out[OUT_QOQ] = ror[k1 - 1], qoq[k1 - 1]

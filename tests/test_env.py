@@ -68,6 +68,24 @@ def test_reward_is_the_documented_formula_and_episode_ends_truncated():
     assert 0 < info["episode_rmse_nt"] < 10 and info["divergences"] == 0
 
 
+FORMULAS = {"linear": lambda e: -e / 4.0, "squared": lambda e: -((e / 4.0) ** 2)}
+
+
+@pytest.mark.parametrize(("form", "formula"), FORMULAS.items())
+def test_reward_forms_are_the_documented_formulas_over_the_same_windows(form, formula):
+    runs = {}
+    for f in ("log", form):
+        env = _make(config={"scenario": "nominal", "reward_form": f, "reward_scale_nt": 4.0})
+        env.reset(seed=100_001)
+        runs[f] = [env.step(np.zeros(2, np.float32))[1::3] for _ in range(30)]
+    for (r_log, info_log), (r, info) in zip(runs["log"], runs[form], strict=True):
+        assert info["rmse_window_nt"] == info_log["rmse_window_nt"]  # the form changes no flight
+        assert r_log == pytest.approx(-math.log1p(info["rmse_window_nt"] / 4.0))
+        assert r == pytest.approx(formula(info["rmse_window_nt"]))
+    with pytest.raises(ConfigError, match="reward_form: one of log, linear, squared"):
+        _make(config={"reward_form": "cubic"})
+
+
 def test_actions_are_clipped_and_nan_rejected():
     env = _make()
     env.reset(seed=100_000)

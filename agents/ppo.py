@@ -13,6 +13,7 @@ from the latest one. torch and stable-baselines3 are imported here only (extra `
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -185,10 +186,29 @@ def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
     keys = ("n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "gae_lambda",
             "ent_coef", "clip_range")  # fmt: skip
     kwargs = {k: hp[k] for k in keys}
+    kwargs["learning_rate"] = _schedule(hp["learning_rate"])
     kwargs["policy_kwargs"] = {"net_arch": list(hp["net_arch"])}
     if "log_std_init" in hp:  # initial exploration noise of the Gaussian policy (SB3 default 0)
         kwargs["policy_kwargs"]["log_std_init"] = float(hp["log_std_init"])
     return kwargs
+
+
+def _schedule(value: Any) -> Any:
+    """A learning rate: a number, or ``"lin_<number>"`` (RL Zoo's notation) for one falling
+    linearly from that number to 0 over the ``learn`` call (SB3's ``progress_remaining``, 1 → 0)."""
+    if isinstance(value, str) and value.startswith("lin_"):
+        try:
+            start = float(value[4:])
+        except ValueError:
+            start = math.nan
+        if not start > 0:
+            raise AeromagError(f"learning_rate {value!r}: expected lin_<positive number>")
+        return lambda progress_remaining: progress_remaining * start
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+        raise AeromagError(
+            f"learning_rate must be a positive number or lin_<number>, got {value!r}"
+        )
+    return float(value)
 
 
 def _load_curve(out: Path) -> list[dict[str, float]]:

@@ -9,7 +9,7 @@ from aeromag_env.cli import main
 from aeromag_env.errors import AeromagError
 from agents import DEFAULT_PPO, make_policy, policy_env_kwargs
 from agents.numpy_policy import NumpyPPOPolicy
-from agents.ppo import export_policy, load_hyperparams, make_training_env
+from agents.ppo import export_policy, load_hyperparams, make_ppo, make_training_env
 
 
 def test_numpy_export_reproduces_sb3_actions(tmp_path):
@@ -44,6 +44,19 @@ def test_train_scenario_trains_on_its_own_scenario_only(kind):
     venv.close()
     with pytest.raises(AeromagError, match="unknown scenario 'windy'"):
         make_training_env("nonstationary", {**hp, "train_scenario": "windy"}, 0)
+
+
+def test_linear_learning_rate_schedule_reaches_sb3_and_bad_rates_are_one_line_errors():
+    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "prefetch": False}
+    venv = make_training_env("nonstationary", hp, 0)
+    model = make_ppo(venv, {**hp, "learning_rate": "lin_0.001"}, seed=0)
+    assert model.lr_schedule(1.0) == pytest.approx(1e-3)
+    assert model.lr_schedule(0.25) == pytest.approx(2.5e-4)
+    assert make_ppo(venv, hp, seed=0).lr_schedule(0.25) == pytest.approx(hp["learning_rate"])
+    for bad in ("lin_fast", "lin_-1", "cos_0.001", 0.0, True):
+        with pytest.raises(AeromagError, match="learning_rate"):
+            make_ppo(venv, {**hp, "learning_rate": bad}, seed=0)
+    venv.close()
 
 
 def test_loading_is_pickle_free_and_errors_are_one_line(tmp_path):

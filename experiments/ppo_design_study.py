@@ -18,6 +18,11 @@ T_p's Q raised once a statistic of the innovations exceeds a threshold, Q(0) oth
 innovations show. Statistics: the ``step_statistic`` observation and the norm of the mean
 innovation over the last decision window (``innovation_power``); ``--test N`` runs on the first
 N test flights instead of the validation flights.
+
+``python experiments/ppo_design_study.py shift [--policy PATH] [--episodes 40]`` runs a learned
+policy, the 20 nT mean-innovation rule and their two hybrids (the policy's T_p action with the
+rule's Q and R, and the reverse) on the evaluated scenario and on the training scenario
+``nonstationary_dense``.
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ import gymnasium as gym
 import numpy as np
 
 import aeromag_env  # noqa: F401
-from agents import make_policy
+from agents import DEFAULT_PPO, make_policy
 from agents.evaluate import TEST_SEED_START, VALIDATION_SEEDS, run_episode
 
 SEEDS = range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + 20)
@@ -106,6 +111,47 @@ def privileged_split(
     return float(np.sqrt(np.mean(err**2)))
 
 
+#: Absolute-action ranges of the detector schedules (ppo.json's since version 2).
+RANGES = {"absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
+          "absolute_qp_log10": (-2.0, 10.0)}  # fmt: skip
+#: The detector schedules' environment: split Q, absolute actions, innovation observations.
+DETECTOR_ENV = {"extras": True, "action_mode": "absolute", "split_q": True, **RANGES}
+
+
+def _absolute_action(log_q: np.ndarray, log_r: np.ndarray, log_qp: np.ndarray) -> np.ndarray:
+    """The actions (N, 3) that set the scales log10 Q, R, T_p's Q within :data:`RANGES`."""
+    (q_lo, q_hi), (r_lo, r_hi), (p_lo, p_hi) = RANGES.values()
+    a = [2 * (log_q - q_lo) / (q_hi - q_lo) - 1, 2 * (log_r - r_lo) / (r_hi - r_lo) - 1,
+         2 * (log_qp - p_lo) / (p_hi - p_lo) - 1]  # fmt: skip
+    return np.stack([np.broadcast_to(v, log_qp.shape) for v in a], 1).astype(np.float32)
+
+
+def _run_batched(cfg: dict[str, Any], seeds: Sequence[int], act: Any) -> float:
+    """Mean episode RMSE of ``act(obs (N, n_obs)) → actions`` over ``seeds``, one vector env."""
+    from aeromag_env.vec_env import AeroMagCompensationVecEnv
+
+    n = len(seeds)
+    env = AeroMagCompensationVecEnv(n, cfg)
+    obs, _ = env.reset(seed=list(seeds))
+    done, rmse = np.zeros(n, bool), np.full(n, np.nan)
+    while not done.all():
+        obs, _, terminated, truncated, info = env.step(act(obs))
+        ended = (terminated | truncated) & ~done
+        if ended.any():
+            rmse[ended] = info["episode_rmse_nt"][ended]
+        done |= terminated | truncated
+    env.close()
+    return float(np.mean(rmse))
+
+
+def _mean_innovation_rule(nt: float, r0: float) -> Any:
+    """T_p's Q at 10^10 × Q(0) for the next window when the mean innovation over the last one
+    exceeds ``nt`` (observation 9 of ``innovation_power``: log10 |mean r|² / tr R(0), tr R(0) =
+    3 ``r0``), else Q(0); R at 100 × R(0)."""
+    threshold = math.log10(nt**2 / (3 * r0))
+    return lambda obs: _absolute_action(0.0, 2.0, np.where(obs[:, 9] > threshold, 10.0, 0.0))
+
+
 def detector(seeds: Sequence[int] = SEEDS) -> None:
     """The privileged split schedule's actions, triggered by what the innovations show instead
     of the true step times (``split_q``, absolute actions; one batched run over ``seeds`` per
@@ -117,45 +163,57 @@ def detector(seeds: Sequence[int] = SEEDS) -> None:
     decision window in nT (``innovation_power``'s second observation, ``scale_limit=1e10``, held
     for one window)."""
     from aeromag_env.scenarios import make_episode
-    from aeromag_env.vec_env import AeroMagCompensationVecEnv
 
-    ranges = {"absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
-              "absolute_qp_log10": (-2.0, 10.0)}  # fmt: skip
-    base = {"scenario": "nonstationary", "extras": True, "action_mode": "absolute",
-            "split_q": True, **ranges}  # fmt: skip
-    n = len(seeds)
+    base = {"scenario": "nonstationary", **DETECTOR_ENV}
     r0 = make_episode("nonstationary", seeds[0]).filter_cfg.r_std_nt ** 2  # per axis [nT²]
 
-    def action(log_q: float, log_r: float, log_qp: np.ndarray) -> np.ndarray:
-        (q_lo, q_hi), (r_lo, r_hi), (p_lo, p_hi) = ranges.values()
-        a_q = np.full(n, 2 * (log_q - q_lo) / (q_hi - q_lo) - 1)
-        a_r = np.full(n, 2 * (log_r - r_lo) / (r_hi - r_lo) - 1)
-        return np.stack([a_q, a_r, 2 * (log_qp - p_lo) / (p_hi - p_lo) - 1], 1)
+    def held(log_threshold: float, hold_windows: int) -> Any:
+        hold = np.zeros(len(seeds), int)
 
-    def run(cfg: dict[str, Any], index: int, log_threshold: float, hold_windows: int) -> float:
-        env = AeroMagCompensationVecEnv(n, cfg)
-        obs, _ = env.reset(seed=list(seeds))
-        done, rmse, hold = np.zeros(n, bool), np.full(n, np.nan), np.zeros(n, int)
-        while not done.all():
-            hold = np.where(obs[:, index] > log_threshold, hold_windows, np.maximum(hold - 1, 0))
-            a = action(0.0, 2.0, np.where(hold > 0, 10.0, 0.0))
-            obs, _, terminated, truncated, info = env.step(a.astype(np.float32))
-            ended = (terminated | truncated) & ~done
-            if ended.any():
-                rmse[ended] = info["episode_rmse_nt"][ended]
-            done |= terminated | truncated
-        env.close()
-        return float(np.mean(rmse))
+        def act(obs: np.ndarray) -> np.ndarray:
+            nonlocal hold
+            hold = np.where(obs[:, 8] > log_threshold, hold_windows, np.maximum(hold - 1, 0))
+            return _absolute_action(0.0, 2.0, np.where(hold > 0, 10.0, 0.0))
+
+        return act
 
     for threshold in (0.5, 1.0, 1.5, 2.0):  # log10 of the statistic (about 0.1 without a change)
-        rmse = run({**base, "step_statistic": True}, 8, threshold, 3)
+        rmse = _run_batched({**base, "step_statistic": True}, seeds, held(threshold, 3))
         print(f"detector, log10 change statistic > {threshold}: {rmse:.3f} nT")
-    for nt in (15.0, 20.0, 25.0):  # obs 9: log10 |mean r|² / tr R(0)
-        rmse = run({**base, "innovation_power": True, "scale_limit": 1e10}, 9,
-                   math.log10(nt**2 / (3 * r0)), 1)  # fmt: skip
+    for nt in (15.0, 20.0, 25.0):
+        rmse = _run_batched({**base, "innovation_power": True, "scale_limit": 1e10}, seeds,
+                            _mean_innovation_rule(nt, r0))  # fmt: skip
         print(f"detector, |mean innovation| over the last window > {nt:g} nT: {rmse:.3f} nT")
-    rmse = run({**base, "innovation_power": True}, 9, math.log10(20.0**2 / (3 * r0)), 1)
+    rmse = _run_batched({**base, "innovation_power": True}, seeds, _mean_innovation_rule(20.0, r0))
     print(f"detector, |mean innovation| > 20 nT, T_p's Q at the default limit 10^8: {rmse:.3f} nT")
+
+
+def shift(policy_path: str, seeds: Sequence[int]) -> None:
+    """The learned policy against the 20 nT mean-innovation rule on the evaluated scenario
+    (``nonstationary``) and on the training scenario (``nonstationary_dense``), and the two
+    hybrids: the policy's T_p action with the rule's constant Q and R, and the rule's T_p action
+    with the policy's Q and R. Which part of the policy costs, and whether it is tuned to the
+    flights it was trained on."""
+    from aeromag_env.scenarios import make_episode
+
+    policy = make_policy(f"ppo:{policy_path}", None)
+    r0 = make_episode("nonstationary", seeds[0]).filter_cfg.r_std_nt ** 2
+    rule = _mean_innovation_rule(20.0, r0)
+
+    def learned(obs: np.ndarray) -> np.ndarray:
+        return np.asarray(policy.predict(obs, deterministic=True)[0], np.float32)
+
+    def mixed(obs: np.ndarray, tp_from_policy: bool) -> np.ndarray:
+        a, b = learned(obs), rule(obs)
+        return np.concatenate([b[:, :2], a[:, 2:]] if tp_from_policy else [a[:, :2], b[:, 2:]], 1)
+
+    for scenario in ("nonstationary", "nonstationary_dense"):
+        cfg = {**policy.env_kwargs, "scenario": scenario}
+        rows = {"20 nT rule": rule, "policy": learned,
+                "policy's T_p, rule's Q and R": lambda o: mixed(o, True),
+                "rule's T_p, policy's Q and R": lambda o: mixed(o, False)}  # fmt: skip
+        for name, act in rows.items():
+            print(f"{scenario}, {name}: {_run_batched(cfg, seeds, act):.3f} nT", flush=True)
 
 
 def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: bool) -> None:
@@ -203,8 +261,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="N",
         help="run on the first N test seeds instead of the 20 validation seeds",
     )
+    h = sub.add_parser("shift")
+    h.add_argument("--policy", default=str(DEFAULT_PPO), help="an exported policy (.npz)")
+    h.add_argument("--episodes", type=int, default=40, help="validation flights")
     args = parser.parse_args(argv)
-    if args.cmd == "headroom":
+    if args.cmd == "shift":
+        shift(args.policy, range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + args.episodes))
+    elif args.cmd == "headroom":
         headroom()
     elif args.cmd == "detector":
         detector(range(TEST_SEED_START, TEST_SEED_START + args.test) if args.test else SEEDS)

@@ -1,3 +1,5 @@
+import pytest
+
 from experiments.compare_methods import main as compare_main
 
 
@@ -15,3 +17,29 @@ def test_evaluate_all_quick(tmp_path):
     matrix = (tmp_path / "matrix.md").read_text()
     assert "| fis |" in matrix and "paper" in matrix and "nominal" in matrix
     assert (tmp_path / "paper" / "results.json").exists()
+
+
+def test_design_study_rule_sets_the_scales_it_states():
+    """The detector schedules' actions reach the filter as the scales their docstrings state:
+    Q(0), 100 × R(0), and T_p's Q at 10^10 × Q(0) only on the window after a large mean
+    innovation."""
+    import gymnasium as gym
+    import numpy as np
+
+    from experiments.ppo_design_study import DETECTOR_ENV, _mean_innovation_rule
+
+    cfg = {**DETECTOR_ENV, "scenario": "nonstationary", "innovation_power": True,
+           "scale_limit": 1e10}  # fmt: skip
+    env = gym.make("AeroMagCompensation-v0", config=cfg)
+    obs, _ = env.reset(seed=100_000)
+    rule = _mean_innovation_rule(20.0, 1.5**2)
+    fired = quiet = 0
+    for _ in range(400):
+        action = rule(obs[None])[0]
+        big = obs[9] > np.log10(20.0**2 / (3 * 1.5**2))
+        obs, _, _, _, info = env.step(action)
+        assert info["q_scale"] == pytest.approx(1.0, rel=1e-5)
+        assert info["r_scale"] == pytest.approx(100.0, rel=1e-5)
+        assert info["q_permanent_scale"] == pytest.approx(1e10 if big else 1.0, rel=1e-5)
+        fired, quiet = fired + big, quiet + (not big)
+    assert fired > 0 and quiet > 0

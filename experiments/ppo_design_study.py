@@ -118,7 +118,7 @@ RANGES = {"absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
 DETECTOR_ENV = {"extras": True, "action_mode": "absolute", "split_q": True, **RANGES}
 
 
-def _absolute_action(log_q: np.ndarray, log_r: np.ndarray, log_qp: np.ndarray) -> np.ndarray:
+def _absolute_action(log_q: float, log_r: float, log_qp: np.ndarray) -> np.ndarray:
     """The actions (N, 3) that set the scales log10 Q, R, T_p's Q within :data:`RANGES`."""
     (q_lo, q_hi), (r_lo, r_hi), (p_lo, p_hi) = RANGES.values()
     a = [2 * (log_q - q_lo) / (q_hi - q_lo) - 1, 2 * (log_r - r_lo) / (r_hi - r_lo) - 1,

@@ -75,9 +75,9 @@ class Episode:
 
 def check_scenario(name: str) -> str:
     """Return ``name`` if known; else a one-line error listing the valid ones."""
-    if name not in SCENARIOS + TRAINING_SCENARIOS:
-        valid = ", ".join(SCENARIOS + TRAINING_SCENARIOS)
-        raise ConfigError(f"unknown scenario {name!r}; valid scenarios: {valid}")
+    known = SCENARIOS + TRAINING_SCENARIOS
+    if name not in known:
+        raise ConfigError(f"unknown scenario {name!r}; valid scenarios: {', '.join(known)}")
     return name
 
 

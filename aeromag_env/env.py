@@ -67,6 +67,12 @@ class EnvConfig:
         ``tr R(0)``: the mean innovation power ``mean |r|²`` over the statistics window (the
         noise level) and the power of the mean innovation ``|mean r|²`` over the last decision
         window (a step: noise averages out of it, a step does not); neither depends on R
+    qp_gate : with ``split_q`` and ``action_mode="absolute"``, the T_p action is a switch:
+        ``a_qp > 0`` sets T_p's Q to the top of ``absolute_qp_log10``, otherwise to the bottom
+        — a design switch beyond the paper: the best hand-written step response (raise T_p's
+        Q to 10^10 for one window when the mean innovation is large, Q(0) otherwise) is all or
+        nothing, and a graded response learned on flights with many steps over-reacts on
+        flights with few
     step_statistic : with ``extras``, one more observation: log10 of a two-window change
         statistic, the mean innovation over the last decision window against that over the
         rest of the statistics window, over the latter's innovation variance (about 0 without
@@ -91,6 +97,7 @@ class EnvConfig:
     split_q: bool = False
     innovation_power: bool = False
     step_statistic: bool = False
+    qp_gate: bool = False
 
     def __post_init__(self) -> None:
         check_scenario(self.scenario)
@@ -103,6 +110,10 @@ class EnvConfig:
         _check(self.action_mode in ("relative", "absolute"), "action_mode: relative or absolute")
         _check(self.extras or not self.innovation_power, "innovation_power needs extras=True")
         _check(self.extras or not self.step_statistic, "step_statistic needs extras=True")
+        _check(
+            not self.qp_gate or (self.split_q and self.action_mode == "absolute"),
+            "qp_gate needs split_q=True and action_mode='absolute'",
+        )
         for nm in ("absolute_q_log10", "absolute_r_log10", "absolute_qp_log10"):
             lo_hi = getattr(self, nm)
             _check(len(lo_hi) == 2 and lo_hi[0] < lo_hi[1], f"{nm} must be (lo, hi), lo < hi")
@@ -130,7 +141,8 @@ class AeroMagCompensationEnv(gym.Env):
     are kept within ``[1/scale_limit, scale_limit]`` of the initial Q and R. With
     ``action_mode="absolute"`` an action sets the log scale within a fixed range instead. With
     ``split_q=True`` the space is ``(3,)``: ``[a_q, a_r, a_qp]``, where ``a_qp`` scales the Q of
-    the permanent-field states T_p and ``a_q`` that of the other 18.
+    the permanent-field states T_p and ``a_q`` that of the other 18; with ``qp_gate=True``
+    only the sign of ``a_qp`` counts (T_p's Q at the top or the bottom of its range).
 
     ## Observation Space
 

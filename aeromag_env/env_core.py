@@ -33,8 +33,8 @@ N_RUN = 5
 # environment parameters (float vector, see parameters())
 (PAR_K, PAR_LOG_S_MAX, PAR_LOG_LIMIT, PAR_ABSOLUTE, PAR_Q_LO, PAR_Q_HI, PAR_R_LO, PAR_R_HI,
  PAR_REWARD_NT, PAR_PENALTY, PAR_EXTRAS, PAR_LN10, PAR_SPLIT_Q, PAR_QP_LO,
- PAR_QP_HI, PAR_POWER, PAR_STEP_STAT, PAR_REWARD_FORM) = range(18)  # fmt: skip
-N_PAR = 18
+ PAR_QP_HI, PAR_POWER, PAR_STEP_STAT, PAR_REWARD_FORM, PAR_QP_GATE) = range(19)  # fmt: skip
+N_PAR = 19
 #: Reward forms of :class:`aeromag_env.env.EnvConfig`, coded by their index in PAR_REWARD_FORM.
 REWARD_FORMS = ("log", "linear", "squared")
 #: States of the permanent-field block T_p (the first block of the 21-state vector).
@@ -63,6 +63,7 @@ def parameters(config: EnvConfig) -> np.ndarray:
     par[PAR_POWER] = float(config.innovation_power)
     par[PAR_STEP_STAT] = float(config.step_statistic)
     par[PAR_REWARD_FORM] = REWARD_FORMS.index(config.reward_form)
+    par[PAR_QP_GATE] = float(config.qp_gate)
     return par
 
 
@@ -298,7 +299,8 @@ def env_step(
     s_q = _scale(a[0], RUN_LOG_Q, e[PAR_Q_LO], e[PAR_Q_HI], run, e)
     s_r = _scale(a[1], RUN_LOG_R, e[PAR_R_LO], e[PAR_R_HI], run, e)
     if e[PAR_SPLIT_Q] != 0.0:  # T_p's Q on its own, the coefficient blocks' by s_q
-        qd[:N_PERMANENT] *= _scale(a[2], RUN_LOG_QP, e[PAR_QP_LO], e[PAR_QP_HI], run, e)
+        a_qp = a[2] if e[PAR_QP_GATE] == 0.0 else (1.0 if a[2] > 0.0 else -1.0)
+        qd[:N_PERMANENT] *= _scale(a_qp, RUN_LOG_QP, e[PAR_QP_LO], e[PAR_QP_HI], run, e)
         qd[N_PERMANENT:] *= s_q
     else:
         qd *= s_q  # eq. 21: Q ← s_a Q, R ← s_r R

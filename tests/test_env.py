@@ -197,6 +197,24 @@ def test_split_q_scales_the_permanent_block_on_its_own():
         split.step(np.zeros(2, np.float32))
 
 
+def test_qp_gate_sets_the_permanent_q_to_either_end_of_its_range():
+    """With ``qp_gate`` the sign of a_qp alone picks T_p's Q: the range's top (10^10 here) or
+    its bottom (10^-2); a_q and a_r act as without the gate."""
+    kw = {"scenario": "nonstationary", "extras": True, "action_mode": "absolute",
+          "split_q": True, "absolute_qp_log10": (-2.0, 10.0), "scale_limit": 1e10}  # fmt: skip
+    env = _make(qp_gate=True, **kw)
+    env.reset(seed=100_000)
+    q0 = env.unwrapped.filter.qd.copy()
+    for a_qp, log_scale in [(0.01, 10.0), (-0.01, -2.0), (0.9, 10.0), (0.0, -2.0)]:
+        _, _, _, _, info = env.step(np.array([0.0, 0.5, a_qp], np.float32))
+        qd = env.unwrapped.filter.qd
+        np.testing.assert_allclose(qd[:3] / q0[:3], 10.0**log_scale, rtol=1e-9)
+        np.testing.assert_allclose(qd[3:] / q0[3:], 1.0, rtol=1e-9)
+        assert info["q_permanent_scale"] == pytest.approx(10.0**log_scale, rel=1e-9)
+    with pytest.raises(ConfigError, match="qp_gate needs split_q"):
+        _make(qp_gate=True, extras=True, action_mode="absolute")
+
+
 def test_innovation_power_observations_follow_their_definition():
     env = _make(scenario="nonstationary", extras=True, innovation_power=True)
     assert env.observation_space.shape == (9,)

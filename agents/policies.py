@@ -163,3 +163,50 @@ class OraclePolicy(TargetScalePolicy):
         k = min(env.filter.k, env.episode.n - 1)
         r0 = float(np.mean(np.diag(env.filter.r0)))
         return 0.0, math.log(env.episode.noise_var[k] / r0)
+
+
+class InnovationDetectorPolicy:
+    """A hand-written step detector (``experiments/ppo_design_study.py detector``): T_p's Q at
+    10^10 × Q(0) for the next window when the mean innovation over the last decision window
+    exceeds ``threshold_nt``, else at Q(0); the other 18 states' Q at Q(0) and R at 100 × R(0).
+
+    Needs the environment layout it reads and acts in: ``extras``, ``innovation_power``,
+    ``split_q`` and absolute actions (``config`` an :class:`aeromag_env.env.EnvConfig`); with
+    ``qp_gate`` its T_p action is ±1. ``r0_nt2`` is the filter's initial R per axis [nT²]
+    (the package default, which the ``nonstationary`` scenarios use). Not a tuner to table:
+    the demonstrator of PPO's optional pretraining (:func:`agents.ppo.behaviour_clone`).
+    """
+
+    name = "innovation_detector"
+
+    def __init__(self, config: Any, threshold_nt: float = 20.0, r0_nt2: float | None = None,
+                 log_q: float = 0.0, log_r: float = 2.0, log_qp: float = 10.0) -> None:  # fmt: skip
+        from aeromag_env.kalman_model import FilterConfig
+
+        c = config
+        if not (c.extras and c.innovation_power and c.split_q and c.action_mode == "absolute"):
+            raise ConfigError(
+                "innovation_detector needs extras, innovation_power, split_q and "
+                "action_mode='absolute'"
+            )
+        r0 = FilterConfig().r_std_nt ** 2 if r0_nt2 is None else r0_nt2
+        self.column = 9  # |mean r|² over the last window / tr R(0) (see the env's observations)
+        self.log_threshold = math.log10(threshold_nt**2 / (3.0 * r0))
+        quiet_qp = -1.0 if c.qp_gate else _to_action(0.0, c.absolute_qp_log10)
+        self.quiet = np.array(
+            [_to_action(log_q, c.absolute_q_log10), _to_action(log_r, c.absolute_r_log10), quiet_qp]
+        )
+        self.raise_qp = 1.0 if c.qp_gate else _to_action(log_qp, c.absolute_qp_log10)
+
+    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+        batch, single = _batch(obs)
+        actions = np.repeat(self.quiet[None, :], batch.shape[0], axis=0)
+        actions[batch[:, self.column] > self.log_threshold, 2] = self.raise_qp
+        return _out(actions, single), state
+
+
+def _to_action(log10_scale: float, lo_hi: tuple[float, ...]) -> float:
+    """The absolute-mode action that sets ``log10(scale)`` within the range ``(lo, hi)``."""
+    lo, hi = lo_hi
+    return 2.0 * (log10_scale - lo) / (hi - lo) - 1.0

@@ -149,6 +149,8 @@ def train_ppo(
     if quick:
         hp = {**hp, "n_envs": 2, "n_steps": 64, "batch_size": 64, "eval_every": 512,
               "prefetch": False}  # fmt: skip
+        if "pretrain" in hp:
+            hp["pretrain"] = {**hp["pretrain"], "steps": 256, "epochs": 1}
     venv = make_training_env(scenario, hp, seed)
     ckpt, stats = out / "checkpoint.zip", out / "vecnormalize.pkl"
     if ckpt.exists() and stats.exists():  # resume (pickle files this run wrote itself)
@@ -159,6 +161,10 @@ def train_ppo(
     curve = _load_curve(out)
     callback = _Callback(out, venv, scenario, hp, seed, curve, timesteps, progress)
     t0 = time.perf_counter()
+    if "pretrain" in hp and not ckpt.exists():  # a fresh run: imitate, then validate at step 0
+        behaviour_clone(model, venv, hp)
+        callback.init_callback(model)
+        callback._validate()
     model.learn(timesteps, callback=callback, reset_num_timesteps=not ckpt.exists())
     callback.checkpoint(model)
     venv.close()  # stops a prefetching worker
@@ -191,6 +197,65 @@ def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
     if "log_std_init" in hp:  # initial exploration noise of the Gaussian policy (SB3 default 0)
         kwargs["policy_kwargs"]["log_std_init"] = float(hp["log_std_init"])
     return kwargs
+
+
+def behaviour_clone(model: Any, venv: Any, hp: dict[str, Any]) -> None:
+    """Pretrain ``model``'s actor to imitate a demonstrator and its critic to the discounted
+    returns of the demonstrator's rollouts (``hp["pretrain"]``: ``steps`` environment steps
+    of the training environments, ``epochs`` passes of Adam at ``learning_rate`` over them,
+    ``threshold_nt`` of the demonstrator :class:`agents.policies.InnovationDetectorPolicy`).
+
+    Why: PPO from scratch settles on a constant random walk for T_p (a local optimum); the
+    detector's all-or-nothing response to a rare interference step is a large, coordinated
+    departure from it that Gaussian exploration does not find. The demonstrator shows it;
+    PPO then trains from there. The observation statistics and the reward scale of
+    ``VecNormalize`` are those the rollouts leave behind, as PPO's own rollouts would.
+    """
+    import torch
+
+    from aeromag_env.env import EnvConfig
+    from agents.policies import InnovationDetectorPolicy
+
+    spec = hp["pretrain"]
+    demo = InnovationDetectorPolicy(
+        EnvConfig(**hp["env_kwargs"]), threshold_nt=float(spec.get("threshold_nt", 20.0))
+    )
+    raw_obs, actions, rewards, dones = [], [], [], []
+    venv.reset()
+    obs = venv.get_original_obs()
+    for _ in range(int(spec["steps"]) // venv.num_envs):
+        action = demo.predict(obs)[0]
+        raw_obs.append(obs)
+        actions.append(action)
+        _, _, done, _ = venv.step(action)
+        rewards.append(venv.get_original_reward())
+        dones.append(done)
+        obs = venv.get_original_obs()
+    returns = _discounted(np.array(rewards), np.array(dones), float(hp["gamma"]))
+    x = torch.as_tensor(venv.normalize_obs(np.concatenate(raw_obs)), dtype=torch.float32)
+    a = torch.as_tensor(np.concatenate(actions), dtype=torch.float32)
+    g = torch.as_tensor(venv.normalize_reward(returns).reshape(-1), dtype=torch.float32)
+    policy = model.policy
+    optimiser = torch.optim.Adam(policy.parameters(), lr=float(spec.get("learning_rate", 1e-3)))
+    for _ in range(int(spec["epochs"])):
+        for idx in torch.randperm(x.shape[0]).split(int(hp["batch_size"])):
+            latent_pi, latent_vf = policy.mlp_extractor(policy.extract_features(x[idx]))
+            mean, value = policy.action_net(latent_pi), policy.value_net(latent_vf).flatten()
+            loss = ((mean - a[idx]) ** 2).mean() + 0.5 * ((value - g[idx]) ** 2).mean()
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+
+
+def _discounted(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.ndarray:
+    """Discounted returns (T, N) of rewards (T, N), restarting after ``dones`` (the tail of
+    the last, unfinished episodes is cut: γ^t makes it negligible for γ ≤ 0.9 beyond a few
+    dozen steps)."""
+    out, acc = np.zeros_like(rewards, dtype=np.float64), np.zeros(rewards.shape[1])
+    for t in range(rewards.shape[0] - 1, -1, -1):
+        acc = rewards[t] + gamma * acc * ~dones[t]
+        out[t] = acc
+    return out
 
 
 def _schedule(value: Any) -> Any:

@@ -93,3 +93,23 @@ def test_evaluate_cli(tmp_path, capsys):
     assert "valid policies" in capsys.readouterr().err
     assert main(["evaluate", "--scenario", "windy", "--out", str(tmp_path / "y")]) == 2
     assert main(["evaluate", "--seed-start", "5", "--out", str(tmp_path / "z"), "--quiet"]) == 2
+
+
+def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation():
+    from aeromag_env.env import EnvConfig
+    from agents.policies import InnovationDetectorPolicy
+
+    kw = {"extras": True, "innovation_power": True, "split_q": True, "action_mode": "absolute",
+          "absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
+          "absolute_qp_log10": (-2.0, 10.0)}  # fmt: skip
+    tr_r0 = 3 * 1.5**2  # nT², the default R(0)
+    obs = np.zeros((3, 10), np.float32)
+    obs[:, 9] = np.log10(np.array([19.0, 21.0, 60.0]) ** 2 / tr_r0)  # |mean r| 19, 21, 60 nT
+    actions, _ = InnovationDetectorPolicy(EnvConfig(**kw)).predict(obs)
+    np.testing.assert_allclose(actions[:, 0], 0.0, atol=1e-7)  # Q at 10^0 in (-4, 4)
+    np.testing.assert_allclose(actions[:, 1], 0.5, atol=1e-7)  # R at 10^2 in (-1, 3)
+    np.testing.assert_allclose(actions[:, 2], [-2 / 3, 1.0, 1.0], atol=1e-6)  # 10^0 or 10^10
+    gated, _ = InnovationDetectorPolicy(EnvConfig(**kw, qp_gate=True)).predict(obs[0])
+    assert gated[2] == -1.0
+    with pytest.raises(ConfigError, match="innovation_detector needs"):
+        InnovationDetectorPolicy(EnvConfig(extras=True))

@@ -92,3 +92,49 @@ def test_shipped_policy_runs_without_torch_imports():
     obs, _ = env.reset(seed=100_000)
     action, _ = make_policy("ppo", env).predict(obs)
     assert action.dtype == np.float32 and np.all(np.abs(action) <= 1)
+
+
+def test_discounted_returns_restart_after_an_episode_end():
+    from agents.ppo import _discounted
+
+    rewards = np.array([[1.0, 2.0], [1.0, 2.0], [1.0, 2.0]])
+    dones = np.array([[False, True], [False, False], [False, False]])
+    g = _discounted(rewards, dones, 0.5)
+    np.testing.assert_allclose(g[:, 0], [1.75, 1.5, 1.0])  # 1 + 0.5 + 0.25, …
+    np.testing.assert_allclose(g[:, 1], [2.0, 3.0, 2.0])  # the first episode ends at t = 0
+
+
+def test_behaviour_clone_makes_the_actor_imitate_the_detector():
+    """After pretraining on the demonstrator's rollouts the actor's Q and R actions are close to
+    the demonstrator's on states it never saw (fresh rollouts), where the untrained ones are not
+    (the rare T_p raises are what PPO then trains on)."""
+    import torch
+
+    from aeromag_env.env import EnvConfig
+    from agents.policies import InnovationDetectorPolicy
+    from agents.ppo import behaviour_clone
+
+    torch.manual_seed(0)
+    hp = {**load_hyperparams("nonstationary"), "n_envs": 4, "prefetch": False}
+    hp["pretrain"] = {"threshold_nt": 20.0, "steps": 4000, "epochs": 50}
+    venv = make_training_env("nonstationary", hp, seed=0)
+    model = make_ppo(venv, hp, seed=0)
+    demo = InnovationDetectorPolicy(EnvConfig(**hp["env_kwargs"]))
+
+    def gap() -> float:
+        obs = venv.get_original_obs()
+        errors = []
+        for _ in range(100):
+            target = demo.predict(obs)[0]
+            mean, _ = model.predict(venv.normalize_obs(obs), deterministic=True)
+            errors.append(np.abs(mean[:, :2] - target[:, :2]).mean())
+            venv.step(target)
+            obs = venv.get_original_obs()
+        return float(np.mean(errors))
+
+    venv.reset()
+    before = gap()
+    behaviour_clone(model, venv, hp)
+    after = gap()
+    assert before > 0.2 and after < 0.05, (before, after)  # mean |error| of Q, R [action units]
+    venv.close()

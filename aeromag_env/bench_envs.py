@@ -11,13 +11,14 @@
 * ``ppo_batched_steps_per_s``, ``ppo_dummyvec_steps_per_s`` — stable-baselines3 PPO
   ``learn`` throughput (environment steps per second, resets and updates included) with the
   training environments of ``aeromag train`` (``agents/hyperparams/ppo.json``, scenario
-  ``nonstationary``: its 8 envs, n_steps, batch size, epochs, network): batched with flights
-  prefetched in a worker process (the default), SB3's ``DummyVecEnv``, and
-  ``ppo_batched_no_prefetch_steps_per_s`` (batched stepping alone); torch on one thread; the
-  variants alternate within each repeat; runs long enough for five episodes per environment,
-  so that the first reset weighs as little as in a real training run. With them the share of
-  each run's time spent in the environments (``ppo_*_env_time_share``): the rest — policy
-  inference, rollout buffer, gradient updates — is the same for all. ``ppo64_*``: the same
+  ``nonstationary``: its 8 envs, n_steps, batch size, epochs, network; torch set up as in
+  training, :func:`agents.ppo.training_torch`): batched with flights prefetched in a worker
+  process (the default), SB3's ``DummyVecEnv``, and ``ppo_batched_no_prefetch_steps_per_s``
+  (batched stepping alone); the variants alternate within each repeat; runs long enough for
+  five episodes per environment, so that the first reset weighs as little as in a real
+  training run. With them the share of each run's time spent in the environments
+  (``ppo_*_env_time_share``): the rest — policy inference, rollout buffer, gradient updates —
+  is the same for all. ``ppo64_*``: the same
   with 64 environments (two episodes each).
 """
 
@@ -97,28 +98,26 @@ def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
     ``ppo.json``'s hyperparameters (``n_envs`` overridden if given), alternating within each
     repeat; and the share of each run's time spent inside the environments' ``step_wait``
     (stepping, and the resets done there). Figures are named ``{prefix}_{variant}_…``."""
-    import torch
+    from agents.ppo import load_hyperparams, make_ppo, make_training_env, training_torch
 
-    from agents.ppo import load_hyperparams, make_ppo, make_training_env
-
-    torch.set_num_threads(1)
     hp = load_hyperparams("nonstationary")
     hp = {**hp, "n_envs": n_envs or int(hp["n_envs"])}
     rates: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
     shares: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
-    for _ in range(repeats):
-        for name, overrides in PPO_VARIANTS.items():
-            venv = make_training_env("nonstationary", {**hp, **overrides}, seed=0)
-            inner, in_env = venv.venv, [0.0]
-            inner.step_wait = _timed(inner.step_wait, in_env)
-            model = make_ppo(venv, hp, seed=0)
-            time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
-            t0 = time.perf_counter()
-            model.learn(timesteps)
-            seconds = time.perf_counter() - t0
-            rates[name].append(timesteps / seconds)
-            shares[name].append(in_env[0] / seconds)
-            venv.close()
+    with training_torch():
+        for _ in range(repeats):
+            for name, overrides in PPO_VARIANTS.items():
+                venv = make_training_env("nonstationary", {**hp, **overrides}, seed=0)
+                inner, in_env = venv.venv, [0.0]
+                inner.step_wait = _timed(inner.step_wait, in_env)
+                model = make_ppo(venv, hp, seed=0)
+                time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
+                t0 = time.perf_counter()
+                model.learn(timesteps)
+                seconds = time.perf_counter() - t0
+                rates[name].append(timesteps / seconds)
+                shares[name].append(in_env[0] / seconds)
+                venv.close()
     figures: dict[str, Any] = {f"{prefix}_n_envs": hp["n_envs"], f"{prefix}_timesteps": timesteps}
     for name in PPO_VARIANTS:
         figures[f"{prefix}_{name}_steps_per_s"] = statistics.median(rates[name])

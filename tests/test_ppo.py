@@ -138,3 +138,37 @@ def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     after = gap()
     assert before > 0.2 and after < 0.05, (before, after)  # mean |error| of Q, R [action units]
     venv.close()
+
+
+def test_training_torch_skips_distribution_checks_changes_no_result_and_restores():
+    """Training's torch setup turns off torch.distributions' argument checks (speed) without
+    changing what PPO learns (bitwise, on one thread as in training: the thread count itself
+    changes float round-off), and restores the process's own settings on exit."""
+    import torch
+    from torch.distributions import Distribution, Normal
+
+    from agents.ppo import training_torch
+
+    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "n_steps": 64, "batch_size": 64,
+          "vec_env": "batched", "prefetch": False}  # fmt: skip
+
+    def trained() -> list[np.ndarray]:
+        model = make_ppo(make_training_env("nonstationary", hp, seed=3), hp, seed=3)
+        model.learn(256)
+        return [p.detach().numpy().copy() for p in model.policy.parameters()]
+
+    threads, checks = torch.get_num_threads(), Distribution._validate_args
+    torch.set_num_threads(1)
+    try:
+        checked = trained()
+    finally:
+        torch.set_num_threads(threads)
+    with training_torch():
+        assert torch.get_num_threads() == 1
+        Normal(torch.zeros(1), -torch.ones(1))  # a negative scale: no check, no error
+        unchecked = trained()
+    for a, b in zip(checked, unchecked, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert (torch.get_num_threads(), Distribution._validate_args) == (threads, checks)
+    with pytest.raises(ValueError):  # checks on again (torch's default, outside python -O)
+        Normal(torch.zeros(1), -torch.ones(1))

@@ -84,11 +84,13 @@ def bench_env(repeats: int) -> dict[str, float]:
     }
 
 
-#: PPO variants: name → hyperparameter overrides (the rest as ``aeromag train``).
-PPO_VARIANTS: dict[str, dict[str, Any]] = {
+#: PPO variants: name → hyperparameter overrides (the rest as ``aeromag train``); ``free``: the
+#: zero-cost stand-in environment (:func:`free_vec_env`), PPO's own cost alone.
+PPO_VARIANTS: dict[str, dict[str, Any] | None] = {
     "dummyvec": {"vec_env": "dummy"},
     "batched": {"vec_env": "batched", "prefetch": True},
     "batched_no_prefetch": {"vec_env": "batched", "prefetch": False},
+    "free": None,
 }
 
 
@@ -96,21 +98,27 @@ def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
               prefix: str = "ppo") -> dict[str, Any]:  # fmt: skip
     """PPO ``learn(timesteps)`` steps per second for each of :data:`PPO_VARIANTS`, with
     ``ppo.json``'s hyperparameters (``n_envs`` overridden if given), alternating within each
-    repeat; and the share of each run's time spent inside the environments' ``step_wait``
-    (stepping, and the resets done there). Figures are named ``{prefix}_{variant}_…``."""
-    from agents.ppo import load_hyperparams, make_ppo, make_training_env, training_torch
+    repeat; the share of each run's time spent inside the environments' ``step_wait``
+    (stepping, and the resets done there); and the range over the repeats of the batched
+    variant's ratio to ``DummyVecEnv`` in the same repeat. Figures are named
+    ``{prefix}_{variant}_…``."""
+    from agents import ppo
 
-    hp = load_hyperparams("nonstationary")
+    hp = ppo.load_hyperparams("nonstationary")
     hp = {**hp, "n_envs": n_envs or int(hp["n_envs"])}
+    free = _free_env_like(ppo.make_training_env("nonstationary", {**hp, "prefetch": False}, seed=0))
     rates: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
     shares: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
-    with training_torch():
+    with ppo.training_torch():
         for _ in range(repeats):
             for name, overrides in PPO_VARIANTS.items():
-                venv = make_training_env("nonstationary", {**hp, **overrides}, seed=0)
+                if overrides is None:
+                    venv = ppo.normalized(free(), hp)
+                else:
+                    venv = ppo.make_training_env("nonstationary", {**hp, **overrides}, seed=0)
                 inner, in_env = venv.venv, [0.0]
                 inner.step_wait = _timed(inner.step_wait, in_env)
-                model = make_ppo(venv, hp, seed=0)
+                model = ppo.make_ppo(venv, hp, seed=0)
                 time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
                 t0 = time.perf_counter()
                 model.learn(timesteps)
@@ -122,7 +130,70 @@ def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
     for name in PPO_VARIANTS:
         figures[f"{prefix}_{name}_steps_per_s"] = statistics.median(rates[name])
         figures[f"{prefix}_{name}_env_time_share"] = statistics.median(shares[name])
+    paired = [b / d for b, d in zip(rates["batched"], rates["dummyvec"], strict=True)]
+    figures[f"{prefix}_batched_ratio_min"] = min(paired)
+    figures[f"{prefix}_batched_ratio_max"] = max(paired)
     return figures
+
+
+def _free_env_like(venv: Any) -> Callable[[], Any]:
+    """A factory of :func:`free_vec_env` with the spaces, number of environments and episode
+    length of the training environments ``venv`` (batched, under ``VecNormalize``; closed)."""
+    venv.reset()
+    n_envs, steps = venv.num_envs, int(venv.venv.venv.episode_lengths.max())
+    spaces = (venv.observation_space, venv.action_space)
+    venv.close()
+    return lambda: free_vec_env(n_envs, *spaces, steps)
+
+
+def free_vec_env(n_envs: int, observation_space: Any, action_space: Any,
+                 episode_steps: int) -> Any:  # fmt: skip
+    """An SB3 ``VecEnv`` that costs nothing: a fixed observation, zero reward, every episode
+    ``episode_steps`` long and ended as a time limit (with the info entries SB3 reads). PPO
+    trained on it measures its own cost per step: the ceiling of any environment's speed-up."""
+    from stable_baselines3.common.vec_env import VecEnv
+
+    obs = np.clip(np.random.default_rng(0).standard_normal((n_envs, *observation_space.shape)),
+                  observation_space.low, observation_space.high).astype(np.float32)  # fmt: skip
+
+    class FreeVecEnv(VecEnv):
+        def __init__(self) -> None:
+            super().__init__(n_envs, observation_space, action_space)
+            self.steps = 0
+
+        def reset(self) -> np.ndarray:
+            self.steps = 0
+            return obs.copy()
+
+        def step_async(self, actions: np.ndarray) -> None:
+            pass
+
+        def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+            self.steps += 1
+            end = self.steps % episode_steps == 0
+            infos: list[dict] = [{"TimeLimit.truncated": end} for _ in range(n_envs)]
+            if end:
+                for i, info in enumerate(infos):
+                    info["terminal_observation"] = obs[i].copy()
+            return obs.copy(), np.zeros(n_envs, np.float32), np.full(n_envs, end), infos
+
+        def close(self) -> None:
+            pass
+
+        def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
+            return [None] * len(list(self._get_indices(indices)))
+
+        def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
+            pass
+
+        def env_method(self, method_name: str, *args: Any, indices: Any = None,
+                       **kwargs: Any) -> list[Any]:  # fmt: skip
+            return [None] * len(list(self._get_indices(indices)))
+
+        def env_is_wrapped(self, wrapper_class: Any, indices: Any = None) -> list[bool]:
+            return [False] * len(list(self._get_indices(indices)))
+
+    return FreeVecEnv()
 
 
 def _timed(fn: Callable[[], Any], total: list[float]) -> Callable[[], Any]:

@@ -74,7 +74,7 @@ def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
     Environment ``rank`` resets with the seeds of ``_seed_stream(rank, …)`` either way.
     ``hp["train_scenario"]`` (optional) trains on another scenario than the one validated and
     evaluated (e.g. ``nonstationary_dense``: the same flights with more interference steps)."""
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+    from stable_baselines3.common.vec_env import DummyVecEnv
 
     n_envs, kind = int(hp["n_envs"]), hp.get("vec_env", "batched")
     scenario = check_scenario(hp.get("train_scenario", scenario))
@@ -97,6 +97,13 @@ def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
             return make
 
         venv = DummyVecEnv([factory(i) for i in range(n_envs)])
+    return normalized(venv, hp)
+
+
+def normalized(venv: Any, hp: dict[str, Any]) -> Any:
+    """``venv`` under the observation (and, by ``hp``, reward) normalisation of training."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
     return VecNormalize(venv, norm_obs=True, norm_reward=bool(hp["normalize_reward"]),
                         gamma=float(hp["gamma"]), clip_obs=10.0)  # fmt: skip
 
@@ -220,7 +227,10 @@ def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
             "ent_coef", "clip_range")  # fmt: skip
     kwargs = {k: hp[k] for k in keys}
     kwargs["learning_rate"] = _schedule(hp["learning_rate"])
-    kwargs["policy_kwargs"] = {"net_arch": list(hp["net_arch"])}
+    # SB3's Adam (eps 1e-5) stepping all parameters in one foreach call: the same numbers
+    # (tested bitwise), a third less optimizer time per minibatch on the CPU
+    kwargs["policy_kwargs"] = {"net_arch": list(hp["net_arch"]),
+                               "optimizer_kwargs": {"eps": 1e-5, "foreach": True}}  # fmt: skip
     if "log_std_init" in hp:  # initial exploration noise of the Gaussian policy (SB3 default 0)
         kwargs["policy_kwargs"]["log_std_init"] = float(hp["log_std_init"])
     return kwargs

@@ -1,6 +1,7 @@
 """Benchmark: PPO training throughput with the batched environments (with and without flight
 prefetching) against SB3's DummyVecEnv, same hyperparameters (``agents/hyperparams/ppo.json``:
-8 envs, and again with 64; same code as ``aeromag bench``).
+8 envs, and again with 64; same code as ``aeromag bench``), and against a zero-cost environment
+(PPO alone: the ceiling of any environment's speed-up).
 
 Run: ``.venv/bin/python benchmarks/bench_ppo.py [--quick]``
 """

@@ -29,6 +29,8 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
                                  ("dummyvec", 5e3))
            for what, value in (("steps_per_s", rate), ("env_time_share", 0.4))},
         "ppo_n_envs": 8, "ppo64_n_envs": 64,
+        "ppo64_free_steps_per_s": 1e4, "ppo64_free_env_time_share": 0.0,
+        "ppo64_batched_ratio_min": 1.1, "ppo64_batched_ratio_max": 1.3,
         "discover_s_per_flight_hour": None,
         "compensate_10h_peak_mb": 600.0, "compensate_baseline_mb": 40.0,
     }  # fmt: skip
@@ -39,6 +41,30 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
         "1.20× DummyVecEnv (env: 40% of the time)", "≥ 1.5× DummyVecEnv", False)  # fmt: skip
     assert rows["PPO learn, DummyVecEnv, 64 envs"][2:] == (
         "1.00× DummyVecEnv (env: 40% of the time)", "", None)  # fmt: skip
+    assert rows["PPO learn, batched + prefetch, 64 envs"][2] == (
+        "1.20× DummyVecEnv (repeats 1.10–1.30; env: 40% of the time)")  # fmt: skip
+    assert rows["PPO learn, zero-cost env, 64 envs"][2] == (
+        "2.00× DummyVecEnv (PPO alone: the most any env allows)")  # fmt: skip
+    assert "PPO learn, zero-cost env, 8 envs" not in rows  # older bench.json: not measured
     assert rows["discover 1 flight-hour"][1:3] == ("n/a", "n/a")
     assert rows["compensate 10-hour flight, peak RSS"][4] is True
     assert np.isfinite(peak_rss_mb()) and peak_rss_mb() > 0
+
+
+def test_zero_cost_env_ends_episodes_as_sb3_expects():
+    from gymnasium import spaces
+
+    from aeromag_env.bench_envs import free_vec_env
+
+    obs_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
+    env = free_vec_env(2, obs_space, spaces.Box(-1.0, 1.0, (3,), np.float32), episode_steps=3)
+    first = env.reset()
+    assert first.shape == (2, 4) and obs_space.contains(first[0])
+    ends = []
+    for _ in range(6):
+        env.step_async(np.zeros((2, 3), np.float32))
+        _, _, dones, infos = env.step_wait()
+        ends.append(bool(dones.all()))
+        truncated = infos[0]["TimeLimit.truncated"]
+        assert dones.all() == ("terminal_observation" in infos[1]) == truncated
+    assert ends == [False, False, True, False, False, True]

@@ -140,34 +140,39 @@ def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     venv.close()
 
 
-def test_training_torch_skips_distribution_checks_changes_no_result_and_restores():
-    """Training's torch setup turns off torch.distributions' argument checks (speed) without
-    changing what PPO learns (bitwise, on one thread as in training: the thread count itself
-    changes float round-off), and restores the process's own settings on exit."""
+def test_training_setup_changes_no_result_and_restores_torch():
+    """Training's speed-ups — torch.distributions' argument checks off, one thread, Adam's
+    foreach step — leave what PPO learns bitwise as SB3's defaults on one thread (the thread
+    count itself changes float round-off), and the process's torch settings are restored."""
     import torch
+    from stable_baselines3 import PPO
     from torch.distributions import Distribution, Normal
 
-    from agents.ppo import training_torch
+    from agents.ppo import _ppo_kwargs, training_torch
 
     hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "n_steps": 64, "batch_size": 64,
           "vec_env": "batched", "prefetch": False}  # fmt: skip
+    venv = lambda: make_training_env("nonstationary", hp, seed=3)  # noqa: E731
 
-    def trained() -> list[np.ndarray]:
-        model = make_ppo(make_training_env("nonstationary", hp, seed=3), hp, seed=3)
+    def learned(model: PPO) -> list[np.ndarray]:
         model.learn(256)
         return [p.detach().numpy().copy() for p in model.policy.parameters()]
 
+    kwargs = _ppo_kwargs(hp)
+    del kwargs["policy_kwargs"]["optimizer_kwargs"]  # SB3's own Adam
     threads, checks = torch.get_num_threads(), Distribution._validate_args
     torch.set_num_threads(1)
     try:
-        checked = trained()
+        reference = learned(PPO("MlpPolicy", venv(), seed=3, device="cpu", **kwargs))
     finally:
         torch.set_num_threads(threads)
     with training_torch():
         assert torch.get_num_threads() == 1
         Normal(torch.zeros(1), -torch.ones(1))  # a negative scale: no check, no error
-        unchecked = trained()
-    for a, b in zip(checked, unchecked, strict=True):
+        model = make_ppo(venv(), hp, seed=3)
+        assert model.policy.optimizer.defaults["foreach"]
+        ours = learned(model)
+    for a, b in zip(reference, ours, strict=True):
         np.testing.assert_array_equal(a, b)
     assert (torch.get_num_threads(), Distribution._validate_args) == (threads, checks)
     with pytest.raises(ValueError):  # checks on again (torch's default, outside python -O)

@@ -14,12 +14,16 @@
   ``nonstationary``: its 8 envs, n_steps, batch size, epochs, network; torch set up as in
   training, :func:`agents.ppo.training_torch`): batched with flights prefetched in a worker
   process (the default), SB3's ``DummyVecEnv``, and ``ppo_batched_no_prefetch_steps_per_s``
-  (batched stepping alone); the variants alternate within each repeat; runs long enough for
-  five episodes per environment, so that the first reset weighs as little as in a real
-  training run. With them the share of each run's time spent in the environments
-  (``ppo_*_env_time_share``): the rest — policy inference, rollout buffer, gradient updates —
-  is the same for all. ``ppo64_*``: the same
-  with 64 environments (two episodes each).
+  (batched stepping alone); the variants alternate within each repeat. Steady-state
+  throughput: one untimed rollout first (the first reset of every environment, torch's first
+  calls), then ``learn`` goes on, timed, for five episodes per environment (with 8; two with
+  64), the resets at episode ends included. A training run of 1.5M steps has 20–160 episodes
+  per environment, so its first reset (``env_reset_s`` per environment) weighs little. With
+  them the share of each run's time spent in the environments (``ppo_*_env_time_share``): the
+  rest — policy inference, rollout buffer, gradient updates — is the same for all;
+  ``ppo_free_*``: PPO on :func:`free_vec_env`, that rest alone; ``ppo_batched_ratio_min`` /
+  ``_max``: the range over the repeats of the batched variant's ratio to ``DummyVecEnv`` in
+  the same repeat. ``ppo64_*``: the same with 64 environments.
 """
 
 from __future__ import annotations
@@ -120,8 +124,10 @@ def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
                 inner.step_wait = _timed(inner.step_wait, in_env)
                 model = ppo.make_ppo(venv, hp, seed=0)
                 time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
+                model.learn(hp["n_steps"] * hp["n_envs"])  # the first reset, torch warmed up
+                in_env[0] = 0.0
                 t0 = time.perf_counter()
-                model.learn(timesteps)
+                model.learn(timesteps, reset_num_timesteps=False)  # no reset: goes on
                 seconds = time.perf_counter() - t0
                 rates[name].append(timesteps / seconds)
                 shares[name].append(in_env[0] / seconds)

@@ -11,6 +11,8 @@ all on the same samples of the same flight.
   and update (its own Joseph form; the tests check it gives our states).
 
 Building the filter states is outside the timing; only the pass over the samples is timed.
+The four alternate within each repeat, so that a slow minute of the host (these machines
+drift) falls on all of them alike rather than on whichever ran then.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import importlib.util
 import statistics
 import time
 from collections.abc import Callable
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -34,16 +36,18 @@ BATCH = 64
 T = TypeVar("T")
 
 
-def median_rate(setup: Callable[[], T], run: Callable[[T], object], count: float,
-                repeats: int) -> float:  # fmt: skip
-    """Median of ``count / seconds`` of ``run(setup())`` over ``repeats`` runs (setup untimed)."""
-    rates = []
+def median_rates(cases: dict[str, tuple[Callable[[], T], Callable[[T], object], float]],
+                 repeats: int) -> dict[str, float]:  # fmt: skip
+    """For each named case ``(setup, run, count)``: the median of ``count / seconds`` of
+    ``run(setup())`` over ``repeats`` runs (setup untimed), the cases alternating."""
+    rates: dict[str, list[float]] = {name: [] for name in cases}
     for _ in range(repeats):
-        arg = setup()
-        t0 = time.perf_counter()
-        run(arg)
-        rates.append(count / (time.perf_counter() - t0))
-    return statistics.median(rates)
+        for name, (setup, run, count) in cases.items():
+            arg = setup()
+            t0 = time.perf_counter()
+            run(arg)
+            rates[name].append(count / (time.perf_counter() - t0))
+    return {name: statistics.median(r) for name, r in rates.items()}
 
 
 def run_filterpy(cfg: FilterConfig, y: np.ndarray, t_b: np.ndarray, tdot_b: np.ndarray) -> None:
@@ -70,23 +74,20 @@ def bench_filters(y: np.ndarray, t_b: np.ndarray, tdot_b: np.ndarray,
     flight = (cfg, y, t_b, tdot_b)
     FilterState(*flight).advance(n)  # warm: load the compiled loops
     BatchFilterState([FilterState(*flight)] * 2).advance(n)
-    figures: dict[str, float | None] = {
-        "filter_compiled_samples_per_s": median_rate(
-            lambda: FilterState(*flight, store_states=False), lambda s: s.advance(n), n, repeats
+    cases: dict[str, tuple[Callable[[], Any], Callable[[Any], object], float]] = {
+        "filter_compiled_samples_per_s": (
+            lambda: FilterState(*flight, store_states=False),
+            lambda s: s.advance(n),
+            n,
         ),
-        "filter_batched_samples_per_s": median_rate(
+        "filter_batched_samples_per_s": (
             lambda: BatchFilterState([FilterState(*flight, store_states=False)] * BATCH),
             lambda b: b.advance(n),
             BATCH * n,
-            repeats,
         ),
-        "filter_numpy_samples_per_s": median_rate(
-            lambda: None, lambda _: run_reference(*flight), n, repeats
-        ),
-        "filterpy_samples_per_s": None,
+        "filter_numpy_samples_per_s": (lambda: None, lambda _: run_reference(*flight), n),
     }
     if importlib.util.find_spec("filterpy") is not None:
-        figures["filterpy_samples_per_s"] = median_rate(
-            lambda: None, lambda _: run_filterpy(*flight), n, repeats
-        )
-    return figures
+        cases["filterpy_samples_per_s"] = (lambda: None, lambda _: run_filterpy(*flight), n)
+    figures: dict[str, float | None] = {"filterpy_samples_per_s": None}
+    return figures | median_rates(cases, repeats)

@@ -1,6 +1,9 @@
 """The benchmark plumbing (never speed: that is for ``aeromag bench``)."""
 
+import json
+
 import numpy as np
+import pytest
 
 from aeromag_env.bench import _rows, peak_rss_mb
 from aeromag_env.bench_filters import bench_filters
@@ -68,3 +71,38 @@ def test_zero_cost_env_ends_episodes_as_sb3_expects():
         truncated = infos[0]["TimeLimit.truncated"]
         assert dones.all() == ("terminal_observation" in infos[1]) == truncated
     assert ends == [False, False, True, False, False, True]
+
+
+def test_bench_table_joins_runs_and_counts_met_targets(tmp_path):
+    from experiments.bench_table import join_cells, load_runs, table
+
+    assert join_cells(["1.2× filterpy", "1.35× filterpy"]) == "1.2× / 1.35× filterpy"
+    assert join_cells(["1,000 /s", "1,000 /s"]) == "1,000 /s"
+    assert (
+        join_cells(["1.2× a (env 5%)", "1.3× a (env 6%)"]) == "1.2× a (env 5%)<br>1.3× a (env 6%)"
+    )
+    figures = {
+        "simulate_s_per_flight_hour": 0.05, "simulate_direct_igrf_s_per_flight_hour": 1.0,
+        "filter_compiled_samples_per_s": 1.6e6, "filter_batched_samples_per_s": 3e6,
+        "filter_numpy_samples_per_s": 8e3, "filterpy_samples_per_s": 5e4,
+        "env_single_steps_per_s": 5e4, "env_numpy_reference_steps_per_s": 800.0,
+        "env_batched_steps_per_s": 2e5, "env_reset_s": 0.03,
+        **{f"{prefix}_{variant}_{what}": value
+           for prefix in ("ppo", "ppo64")
+           for variant, rate in (("batched", 6e3), ("batched_no_prefetch", 5.5e3),
+                                 ("dummyvec", 5e3))
+           for what, value in (("steps_per_s", rate), ("env_time_share", 0.4))},
+        "ppo_n_envs": 8, "ppo64_n_envs": 64, "discover_s_per_flight_hour": 5.0,
+        "compensate_10h_peak_mb": 600.0, "compensate_baseline_mb": 40.0,
+    }  # fmt: skip
+    slow = {**figures, "env_single_steps_per_s": 1.5e4}
+    paths = []
+    for i, f in enumerate((figures, slow)):
+        paths.append(tmp_path / f"{i}.json")
+        paths[-1].write_text(json.dumps({"figures": f}))
+    rows = {line.split(" | ")[0]: line for line in table(load_runs(paths)).splitlines()}
+    assert rows["| env steps, 1 env, K = 10"].endswith("≥ 20 000 /s: met in 1 of 2 |")
+    assert "50,000 / 15,000 /s" in rows["| env steps, 1 env, K = 10"]
+    (tmp_path / "bad.json").write_text("{}")
+    with pytest.raises(SystemExit, match=r"not an aeromag bench\.json"):
+        load_runs([tmp_path / "bad.json"])

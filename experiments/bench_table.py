@@ -1,0 +1,85 @@
+"""The README's Performance table from several ``aeromag bench`` runs, side by side.
+
+Each ``bench.json`` holds one run's medians and the ratios measured in that run; this script
+puts the runs next to each other (``a / b / c``) and counts in how many runs each target was
+met. It measures nothing itself.
+
+Run: ``python experiments/bench_table.py results/bench_1/bench.json results/bench_2/bench.json …``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from aeromag_env.bench import _rows
+
+#: A cell's leading number (with its thousands separators, decimals and a trailing ×).
+_NUMBER = re.compile(r"^(=\s)?([0-9][0-9,]*(?:\.[0-9]+)?×?)(.*)$")
+
+
+def load_runs(paths: Sequence[Path]) -> list[dict[str, Any]]:
+    """The runs' ``bench.json`` contents; a one-line error for a missing or foreign file."""
+    runs = []
+    for path in paths:
+        try:
+            run = json.loads(Path(path).read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            raise SystemExit(f"cannot read {path}: {e}") from None
+        if not isinstance(run, dict) or "figures" not in run:
+            raise SystemExit(f"{path} is not an aeromag bench.json (no 'figures')")
+        runs.append(run)
+    return runs
+
+
+def join_cells(cells: Sequence[str]) -> str:
+    """``["1.2× x", "1.3× x"]`` → ``"1.2× / 1.3× x"`` when the runs differ only in the leading
+    number; otherwise every run's cell in full, separated by ``<br>``."""
+    if len(set(cells)) == 1:
+        return cells[0]
+    parts = [_NUMBER.match(c) for c in cells]
+    if all(parts) and len({(p.group(1), p.group(3)) for p in parts if p}) == 1:
+        first = parts[0]
+        assert first is not None
+        numbers = " / ".join(p.group(2) for p in parts if p)
+        return f"{first.group(1) or ''}{numbers}{first.group(3)}"
+    return "<br>".join(cells)
+
+
+def table(runs: Sequence[dict[str, Any]]) -> str:
+    """A Markdown table: benchmark, the runs' medians, their ratios, target (met in k of n)."""
+    per_run = [{r[0]: r for r in _rows(run["figures"])} for run in runs]
+    names = [name for name in per_run[0] if all(name in rows for rows in per_run)]
+    lines = ["| benchmark | median, " + " / ".join(f"run {i + 1}" for i in range(len(runs)))
+             + " | ratio to the reference, same run | target |", "|---|---|---|---|"]  # fmt: skip
+    for name in names:
+        rows = [rows[name] for rows in per_run]
+        target, met = rows[0][3], [r[4] for r in rows]
+        verdict = "" if met[0] is None else f"{target}: met in {sum(met)} of {len(met)}"
+        lines.append(f"| {name} | {join_cells([r[1] for r in rows])} | "
+                     f"{join_cells([r[2] for r in rows])} | {verdict} |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("bench_json", nargs="+", type=Path, help="bench.json files, in order")
+    args = parser.parse_args(argv)
+    runs = load_runs(args.bench_json)
+    print(table(runs))
+    for i, run in enumerate(runs, 1):
+        load, machine = run.get("load_average_1min", {}), run.get("machine", {})
+        print(f"\nrun {i}: {machine.get('processor')}, {machine.get('cpus')} cores, Python "
+              f"{machine.get('python')}, numpy {machine.get('numpy')}, numba "
+              f"{machine.get('numba')}; load average {load.get('before')} before, "
+              f"{load.get('after')} after; {run.get('repeats')} repeats "
+              f"({run.get('ppo_repeats')} for PPO)")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -18,8 +18,8 @@ from typing import Any
 
 from aeromag_env.bench import _rows
 
-#: A cell's leading number (with its thousands separators, decimals and a trailing ×).
-_NUMBER = re.compile(r"^(=\s)?([0-9][0-9,]*(?:\.[0-9]+)?×?)(.*)$")
+#: A number in a cell (thousands separators, decimals), or a range of two ("1.11–1.33").
+_NUMBER = re.compile(r"[0-9][0-9,]*(?:\.[0-9]+)?(?:–[0-9][0-9,]*(?:\.[0-9]+)?)?")
 
 
 def load_runs(paths: Sequence[Path]) -> list[dict[str, Any]]:
@@ -37,17 +37,16 @@ def load_runs(paths: Sequence[Path]) -> list[dict[str, Any]]:
 
 
 def join_cells(cells: Sequence[str]) -> str:
-    """``["1.2× x", "1.3× x"]`` → ``"1.2× / 1.3× x"`` when the runs differ only in the leading
-    number; otherwise every run's cell in full, separated by ``<br>``."""
-    if len(set(cells)) == 1:
-        return cells[0]
-    parts = [_NUMBER.match(c) for c in cells]
-    if all(parts) and len({(p.group(1), p.group(3)) for p in parts if p}) == 1:
-        first = parts[0]
-        assert first is not None
-        numbers = " / ".join(p.group(2) for p in parts if p)
-        return f"{first.group(1) or ''}{numbers}{first.group(3)}"
-    return "<br>".join(cells)
+    """The runs' cells as one: where they share their words and differ only in numbers, each
+    number slot lists the runs' values (``"1.2× x", "1.3× x"`` → ``"1.2 / 1.3× x"``; a slot
+    equal in all runs once); otherwise every run's cell in full, separated by ``<br>``."""
+    templates = {_NUMBER.sub("#", c) for c in cells}
+    if len(templates) != 1:
+        return "<br>".join(cells)
+    slots = zip(*(_NUMBER.findall(c) for c in cells), strict=True)
+    values = [v[0] if len(set(v)) == 1 else " / ".join(v) for v in slots]
+    pieces = templates.pop().split("#")
+    return pieces[0] + "".join(v + p for v, p in zip(values, pieces[1:], strict=True))
 
 
 def table(runs: Sequence[dict[str, Any]]) -> str:
@@ -75,10 +74,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         load, machine = run.get("load_average_1min", {}), run.get("machine", {})
         print(f"\nrun {i}: {machine.get('processor')}, {machine.get('cpus')} cores, Python "
               f"{machine.get('python')}, numpy {machine.get('numpy')}, numba "
-              f"{machine.get('numba')}; load average {load.get('before')} before, "
-              f"{load.get('after')} after; {run.get('repeats')} repeats "
+              f"{machine.get('numba')}; load average {_two(load.get('before'))} before, "
+              f"{_two(load.get('after'))} after; {run.get('repeats')} repeats "
               f"({run.get('ppo_repeats')} for PPO)")  # fmt: skip
     return 0
+
+
+def _two(value: float | None) -> str:
+    return "?" if value is None else f"{value:.2f}"
 
 
 if __name__ == "__main__":

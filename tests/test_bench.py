@@ -76,11 +76,12 @@ def test_zero_cost_env_ends_episodes_as_sb3_expects():
 def test_bench_table_joins_runs_and_counts_met_targets(tmp_path):
     from experiments.bench_table import join_cells, load_runs, table
 
-    assert join_cells(["1.2× filterpy", "1.35× filterpy"]) == "1.2× / 1.35× filterpy"
+    assert join_cells(["1.2× filterpy", "1.35× filterpy"]) == "1.2 / 1.35× filterpy"
     assert join_cells(["1,000 /s", "1,000 /s"]) == "1,000 /s"
-    assert (
-        join_cells(["1.2× a (env 5%)", "1.3× a (env 6%)"]) == "1.2× a (env 5%)<br>1.3× a (env 6%)"
-    )
+    ranges = ["1.2× a (repeats 1.1–1.3; env 5%)", "1.3× a (repeats 1.2–1.4; env 5%)"]
+    assert join_cells(ranges) == "1.2 / 1.3× a (repeats 1.1–1.3 / 1.2–1.4; env 5%)"
+    cells = ["1.2× a", "1.3× b"]
+    assert join_cells(cells) == "<br>".join(cells)  # they differ in words
     figures = {
         "simulate_s_per_flight_hour": 0.05, "simulate_direct_igrf_s_per_flight_hour": 1.0,
         "filter_compiled_samples_per_s": 1.6e6, "filter_batched_samples_per_s": 3e6,
@@ -102,7 +103,7 @@ def test_bench_table_joins_runs_and_counts_met_targets(tmp_path):
         paths[-1].write_text(json.dumps({"figures": f}))
     rows = {line.split(" | ")[0]: line for line in table(load_runs(paths)).splitlines()}
     assert rows["| env steps, 1 env, K = 10"].endswith("≥ 20 000 /s: met in 1 of 2 |")
-    assert "50,000 / 15,000 /s" in rows["| env steps, 1 env, K = 10"]
+    assert "| 50,000 / 15,000 /s |" in rows["| env steps, 1 env, K = 10"]
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(SystemExit, match=r"not an aeromag bench\.json"):
         load_runs([tmp_path / "bad.json"])

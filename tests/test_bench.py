@@ -19,23 +19,28 @@ def test_filter_figures_are_positive_rates(nominal_box):
     assert all(v is not None and v > 0 for v in figures.values())
 
 
+#: A bench.json's figures, made up: the table's arithmetic, not speed.
+FIGURES = {
+    "simulate_s_per_flight_hour": 0.05, "simulate_direct_igrf_s_per_flight_hour": 1.0,
+    "filter_compiled_samples_per_s": 1.6e6, "filter_batched_samples_per_s": 3e6,
+    "filter_numpy_samples_per_s": 8e3, "filterpy_samples_per_s": 5e4,
+    "env_single_steps_per_s": 5e4, "env_numpy_reference_steps_per_s": 800.0,
+    "env_batched_steps_per_s": 2e5, "env_reset_s": 0.03,
+    **{f"{prefix}_{variant}_{what}": value
+       for prefix in ("ppo", "ppo64")
+       for variant, rate in (("batched", 6e3), ("batched_no_prefetch", 5.5e3),
+                             ("dummyvec", 5e3))
+       for what, value in (("steps_per_s", rate), ("env_time_share", 0.4))},
+    "ppo_n_envs": 8, "ppo64_n_envs": 64, "discover_s_per_flight_hour": 5.0,
+    "compensate_10h_peak_mb": 600.0, "compensate_baseline_mb": 40.0,
+}  # fmt: skip
+
+
 def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
     figures = {
-        "simulate_s_per_flight_hour": 0.05, "simulate_direct_igrf_s_per_flight_hour": 1.0,
-        "filter_compiled_samples_per_s": 1.6e6, "filter_batched_samples_per_s": 3e6,
-        "filter_numpy_samples_per_s": 8e3, "filterpy_samples_per_s": None,
-        "env_single_steps_per_s": 5e4, "env_numpy_reference_steps_per_s": 800.0,
-        "env_batched_steps_per_s": 2e5, "env_reset_s": 0.03,
-        **{f"{prefix}_{variant}_{what}": value
-           for prefix in ("ppo", "ppo64")
-           for variant, rate in (("batched", 6e3), ("batched_no_prefetch", 5.5e3),
-                                 ("dummyvec", 5e3))
-           for what, value in (("steps_per_s", rate), ("env_time_share", 0.4))},
-        "ppo_n_envs": 8, "ppo64_n_envs": 64,
+        **FIGURES, "filterpy_samples_per_s": None, "discover_s_per_flight_hour": None,
         "ppo64_free_steps_per_s": 1e4, "ppo64_free_env_time_share": 0.0,
         "ppo64_batched_ratio_min": 1.1, "ppo64_batched_ratio_max": 1.3,
-        "discover_s_per_flight_hour": None,
-        "compensate_10h_peak_mb": 600.0, "compensate_baseline_mb": 40.0,
     }  # fmt: skip
     rows = {r[0]: r for r in _rows(figures)}
     assert rows["filter, compiled, 1 flight"][2:] == ("n/a", "≥ 30× filterpy", None)
@@ -82,23 +87,9 @@ def test_bench_table_joins_runs_and_counts_met_targets(tmp_path):
     assert join_cells(ranges) == "1.2 / 1.3× a (repeats 1.1–1.3 / 1.2–1.4; env 5%)"
     cells = ["1.2× a", "1.3× b"]
     assert join_cells(cells) == "<br>".join(cells)  # they differ in words
-    figures = {
-        "simulate_s_per_flight_hour": 0.05, "simulate_direct_igrf_s_per_flight_hour": 1.0,
-        "filter_compiled_samples_per_s": 1.6e6, "filter_batched_samples_per_s": 3e6,
-        "filter_numpy_samples_per_s": 8e3, "filterpy_samples_per_s": 5e4,
-        "env_single_steps_per_s": 5e4, "env_numpy_reference_steps_per_s": 800.0,
-        "env_batched_steps_per_s": 2e5, "env_reset_s": 0.03,
-        **{f"{prefix}_{variant}_{what}": value
-           for prefix in ("ppo", "ppo64")
-           for variant, rate in (("batched", 6e3), ("batched_no_prefetch", 5.5e3),
-                                 ("dummyvec", 5e3))
-           for what, value in (("steps_per_s", rate), ("env_time_share", 0.4))},
-        "ppo_n_envs": 8, "ppo64_n_envs": 64, "discover_s_per_flight_hour": 5.0,
-        "compensate_10h_peak_mb": 600.0, "compensate_baseline_mb": 40.0,
-    }  # fmt: skip
-    slow = {**figures, "env_single_steps_per_s": 1.5e4}
+    slow = {**FIGURES, "env_single_steps_per_s": 1.5e4}
     paths = []
-    for i, f in enumerate((figures, slow)):
+    for i, f in enumerate((FIGURES, slow)):
         paths.append(tmp_path / f"{i}.json")
         paths[-1].write_text(json.dumps({"figures": f}))
     rows = {line.split(" | ")[0]: line for line in table(load_runs(paths)).splitlines()}

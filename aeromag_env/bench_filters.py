@@ -21,7 +21,7 @@ import importlib.util
 import statistics
 import time
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -33,10 +33,8 @@ from aeromag_env.kalman_reference import run_reference
 #: Flights advanced together for ``filter_batched_samples_per_s``.
 BATCH = 64
 
-T = TypeVar("T")
 
-
-def median_rates(cases: dict[str, tuple[Callable[[], T], Callable[[T], object], float]],
+def median_rates(cases: dict[str, tuple[Callable[[], Any], Callable[[Any], object], float]],
                  repeats: int) -> dict[str, float]:  # fmt: skip
     """For each named case ``(setup, run, count)``: the median of ``count / seconds`` of
     ``run(setup())`` over ``repeats`` runs (setup untimed), the cases alternating."""

@@ -11,6 +11,6 @@ __version__ = "0.1.0"
 
 _register(
     id="AeroMagCompensation-v0",
-    entry_point="aeromag_env.env:AeroMagCompensationEnv",
-    vector_entry_point="aeromag_env.vec_env:AeroMagCompensationVecEnv",
+    entry_point="aeromag_env.environment.env:AeroMagCompensationEnv",
+    vector_entry_point="aeromag_env.environment.vec_env:AeroMagCompensationVecEnv",
 )

@@ -1,8 +1,8 @@
 """Spread a compiled kernel over the cores: contiguous chunks of N flights, one Python thread each.
 
-The batched kernels (:func:`aeromag_env.kalman_batch.advance_batch`,
-:func:`aeromag_env.env_core.env_step_batch`) are serial numba loops over a range of flights
-compiled with ``nogil=True``; :func:`run_chunks` calls them on disjoint chunks from a small
+The batched kernels (:func:`aeromag_env.compensation.kalman_batch.advance_batch`,
+:func:`aeromag_env.environment.kernels.env_step_batch`) are serial numba loops over a range of
+flights compiled with ``nogil=True``; :func:`run_chunks` calls them on disjoint chunks from a small
 thread pool, so they run in parallel. Why not numba's ``parallel=True`` / ``prange``: compiling
 those kernels took 10–12 s each on a cold cache (the loop body is recompiled for the parallel
 target), and the default OpenMP layer spin-waits between steps — with another process busy on

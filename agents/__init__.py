@@ -11,8 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.errors import ConfigError
-from aeromag_env.kalman_model import FilterConfig
 
 POLICIES = ("constant", "fis", "sage_husa", "ding", "tuned_constant", "oracle", "ppo")
 #: The shipped PPO policy (trained on ``nonstationary``; see experiments/train_ppo.py).

@@ -5,7 +5,8 @@ evaluation loop serves every policy, learned or not. Actions are ``[a_q, a_r]`` 
 environment maps them to scale factors ``s = s_max ** a`` on Q and R.
 
 * ``constant`` — no adaptation (the filter keeps its initial Q and R).
-* ``fis`` — the paper's fuzzy rules (§3.4, :mod:`aeromag_env.fuzzy`, the code the ``fakf`` filter
+* ``fis`` — the paper's fuzzy rules (§3.4, :mod:`aeromag_env.compensation.fuzzy`, the code the
+``fakf`` filter
   uses) on the observed ROR and QOQ, once per statistics window (every M / K steps), as ``fakf``.
 * ``sage_husa``, ``ding`` — the classical adaptive filters: they switch the environment's filter
   to its built-in adaptation (the same compiled code as ``aeromag compensate --method``) and
@@ -22,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env.compensation.fuzzy import zoomed_scale
+from aeromag_env.compensation.model import MODE
 from aeromag_env.errors import ConfigError
-from aeromag_env.fuzzy import zoomed_scale
-from aeromag_env.kalman_model import MODE
 
 State = Any
 
@@ -171,17 +172,18 @@ class InnovationDetectorPolicy:
     exceeds ``threshold_nt``, else at Q(0); the other 18 states' Q at Q(0) and R at 100 × R(0).
 
     Needs the environment layout it reads and acts in: ``extras``, ``innovation_power``,
-    ``split_q`` and absolute actions (``config`` an :class:`aeromag_env.env.EnvConfig`); with
-    ``qp_gate`` its T_p action is ±1. ``r0_nt2`` is the filter's initial R per axis [nT²]
-    (the package default, which the ``nonstationary`` scenarios use). Not a tuner to table:
-    the demonstrator of PPO's optional pretraining (:func:`agents.ppo.behaviour_clone`).
+    ``split_q`` and absolute actions (``config`` an
+    :class:`aeromag_env.environment.env.EnvConfig`); with ``qp_gate`` its T_p action is ±1.
+    ``r0_nt2`` is the filter's initial R per axis [nT²] (the package default, which the
+    ``nonstationary`` scenarios use). Not a tuner to table: the demonstrator of PPO's optional
+    pretraining (:func:`agents.ppo.behaviour_clone`).
     """
 
     name = "innovation_detector"
 
     def __init__(self, config: Any, threshold_nt: float = 20.0, r0_nt2: float | None = None,
                  log_q: float = 0.0, log_r: float = 2.0, log_qp: float = 10.0) -> None:  # fmt: skip
-        from aeromag_env.kalman_model import FilterConfig
+        from aeromag_env.compensation.model import FilterConfig
 
         c = config
         if not (c.extras and c.innovation_power and c.split_q and c.action_mode == "absolute"):

@@ -5,7 +5,7 @@ scenario, with the environment keyword arguments the policy is trained with), ap
 environment's own configuration. Training resets every environment with seeds from the training
 range only (``[0, 50 000)``); validation uses ``[50 000, 100 000)``; tests use ``≥ 100 000``.
 The training environments are stepped together by the batched environment
-(:mod:`aeromag_env.sb3_vec_env`), or by SB3's ``DummyVecEnv`` with ``"vec_env": "dummy"``.
+(:mod:`aeromag_env.environment.sb3`), or by SB3's ``DummyVecEnv`` with ``"vec_env": "dummy"``.
 Checkpoints (model + observation normalisation) are written periodically and training resumes
 from the latest one. torch and stable-baselines3 are imported here only (extra ``rl``).
 """
@@ -25,8 +25,8 @@ import numpy as np
 
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.atomic import write_text
+from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError
-from aeromag_env.scenarios import check_scenario
 from agents.evaluate import TRAIN_SEEDS, VALIDATION_SEEDS, run_episode
 from agents.numpy_policy import NumpyPPOPolicy
 
@@ -82,7 +82,7 @@ def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
         raise AeromagError(f"vec_env must be one of {', '.join(VEC_ENVS)}; got {kind!r}")
     streams = [_seed_stream(rank, n_envs, offset=1000 * seed) for rank in range(n_envs)]
     if kind == "batched":
-        from aeromag_env.sb3_vec_env import AeroMagSB3VecEnv
+        from aeromag_env.environment.sb3 import AeroMagSB3VecEnv
 
         venv: Any = AeroMagSB3VecEnv(n_envs, scenario=scenario, reset_seeds=streams,
                                      prefetch=bool(hp.get("prefetch", True)),
@@ -250,7 +250,7 @@ def behaviour_clone(model: Any, venv: Any, hp: dict[str, Any]) -> None:
     """
     import torch
 
-    from aeromag_env.env import EnvConfig
+    from aeromag_env.environment.env import EnvConfig
     from agents.policies import InnovationDetectorPolicy
 
     spec = hp["pretrain"]

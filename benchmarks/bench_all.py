@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from aeromag_env.bench import run_benchmarks
+from aeromag_env.cli.bench import run_benchmarks
 
 if __name__ == "__main__":
     args = sys.argv[1:]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import sys
 
-from aeromag_env.bench_envs import bench_ppo
+from aeromag_env.cli.bench_envs import bench_ppo
 
 if __name__ == "__main__":
     quick = "--quick" in sys.argv[1:]

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from aeromag_env.bench import _rows
+from aeromag_env.cli.bench import _rows
 
 #: A number in a cell (thousands separators, decimals), or a range of two ("1.11–1.33").
 _NUMBER = re.compile(r"[0-9][0-9,]*(?:\.[0-9]+)?(?:–[0-9][0-9,]*(?:\.[0-9]+)?)?")

@@ -17,17 +17,17 @@ from pathlib import Path
 import numpy as np
 
 from aeromag_env.atomic import write_text
-from aeromag_env.compensate import (
+from aeromag_env.compensation.compensate import (
     FILTER_METHODS,
     METHODS,
     compensate_scalar,
     compensate_vector,
     score,
 )
-from aeromag_env.config import preset, with_overrides
-from aeromag_env.kalman_model import FilterConfig
-from aeromag_env.simulate import simulate_flight
-from aeromag_env.tolles_lawson import TollesLawson
+from aeromag_env.compensation.model import FilterConfig
+from aeromag_env.compensation.tolles_lawson import TollesLawson
+from aeromag_env.simulation.config import preset, with_overrides
+from aeromag_env.simulation.simulate import simulate_flight
 
 METRICS = ("compensation_rmse_nt", "improvement_ratio", "fom_nt", "residual_std_nt", "divergences")
 

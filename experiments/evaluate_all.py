@@ -13,8 +13,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from aeromag_env.atomic import write_text
-from aeromag_env.evaluate_run import evaluation_table, run_evaluate
-from aeromag_env.scenarios import SCENARIOS
+from aeromag_env.cli.evaluate import evaluation_table, run_evaluate
+from aeromag_env.environment.scenarios import SCENARIOS
 from agents import available_policies
 
 

@@ -1,6 +1,6 @@
 """Hidden-effect suite for ``aeromag discover``: identification, false alarms, gap shrink.
 
-Simulates every case of :func:`aeromag_env.discovery_suite.suite_cases` (null flights, coloured-
+Simulates every case of :func:`aeromag_env.discovery.suite.suite_cases` (null flights, coloured-
 noise nulls, each identifiable effect at SNR 0.5/1/2/4, absorbed effects, pairs; decoy channels in
 every flight), runs the discrepancy workflow on each and writes to ``--out``
 (default ``docs/discovery``): ``results.json`` (every case), ``summary.json`` and ``summary.md``
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.atomic import write_text
-from aeromag_env.discovery_suite import SINGLE, SNRS, Case, run_case, suite_cases
+from aeromag_env.discovery.suite import SINGLE, SNRS, Case, run_case, suite_cases
 
 #: Case kinds without an injected effect: an ``--effects`` subset keeps them.
 NULL_KINDS = ("null", "coloured_null")

@@ -93,7 +93,7 @@ def privileged_split(
     """RMSE (second half) of the filter with T_p's Q at 10^10 × Q(0) for 3 s after each true
     step (``delay_s`` late) and the other 18 states' Q at Q(0); R the true noise variance, or
     ``10^r_log10`` × R(0)."""
-    from aeromag_env.kalman import FilterState
+    from aeromag_env.compensation.kalman import FilterState
 
     ep = episode
     f = FilterState(ep.filter_cfg, ep.y, ep.t_b, ep.tdot_b, store_states=False)
@@ -128,7 +128,7 @@ def _absolute_action(log_q: float, log_r: float, log_qp: np.ndarray) -> np.ndarr
 
 def _run_batched(cfg: dict[str, Any], seeds: Sequence[int], act: Any) -> float:
     """Mean episode RMSE of ``act(obs (N, n_obs)) → actions`` over ``seeds``, one vector env."""
-    from aeromag_env.vec_env import AeroMagCompensationVecEnv
+    from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 
     n = len(seeds)
     env = AeroMagCompensationVecEnv(n, cfg)
@@ -162,7 +162,7 @@ def detector(seeds: Sequence[int] = SEEDS) -> None:
     environment's default T_p limit 10^8) and the norm of the mean innovation over the last
     decision window in nT (``innovation_power``'s second observation, ``scale_limit=1e10``, held
     for one window)."""
-    from aeromag_env.scenarios import make_episode
+    from aeromag_env.environment.scenarios import make_episode
 
     base = {"scenario": "nonstationary", **DETECTOR_ENV}
     r0 = make_episode("nonstationary", seeds[0]).filter_cfg.r_std_nt ** 2  # per axis [nT²]
@@ -194,7 +194,7 @@ def shift(policy_path: str, seeds: Sequence[int]) -> None:
     hybrids: the policy's T_p action with the rule's constant Q and R, and the rule's T_p action
     with the policy's Q and R. Which part of the policy costs, and whether it is tuned to the
     flights it was trained on."""
-    from aeromag_env.scenarios import make_episode
+    from aeromag_env.environment.scenarios import make_episode
 
     policy = make_policy(f"ppo:{policy_path}", None)
     r0 = make_episode("nonstationary", seeds[0]).filter_cfg.r_std_nt ** 2

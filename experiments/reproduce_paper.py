@@ -10,8 +10,8 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from aeromag_env.cli import main as aeromag
-from aeromag_env.paper import seed_sweep
+from aeromag_env.cli.main import main as aeromag
+from aeromag_env.compensation.paper import seed_sweep
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from aeromag_env.atomic import write_text
-from aeromag_env.evaluate_run import evaluation_table, run_evaluate
+from aeromag_env.cli.evaluate import evaluation_table, run_evaluate
 from agents import DEFAULT_PPO, POLICIES
 
 
@@ -63,11 +63,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _learning_curve(training: Path, path: Path) -> None:
     if not training.exists():
         return
-    from aeromag_env.plot import _pyplot
+    from aeromag_env.flight.plot import pyplot
 
     summary = json.loads(training.read_text())
     curve, flights = summary["curve"], summary["hyperparams"]["eval_episodes"]
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
     ax.plot([c["timesteps"] for c in curve], [c["validation_rmse_nt"] for c in curve], "o-")
     ax.set(xlabel="environment steps", ylabel=f"validation RMSE [nT] ({flights} flights)",

@@ -14,7 +14,7 @@ import time
 from collections.abc import Sequence
 
 from aeromag_env.atomic import write_text
-from aeromag_env.scenarios import SCENARIOS
+from aeromag_env.environment.scenarios import SCENARIOS
 from agents.tuning import TABLE, tune_constant
 
 

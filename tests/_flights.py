@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import functools
 
-from aeromag_env.config import SimulationConfig, preset, with_overrides
-from aeromag_env.flight import Flight
-from aeromag_env.simulate import simulate_flight
+from aeromag_env.flight.data import Flight
+from aeromag_env.simulation.config import SimulationConfig, preset, with_overrides
+from aeromag_env.simulation.simulate import simulate_flight
 
 
 @functools.cache

@@ -12,9 +12,9 @@ import json
 
 import numpy as np
 
-from aeromag_env.earth import igrf_ned
-from aeromag_env.flight import ATTITUDE_NAMES, Flight
-from aeromag_env.frames import dcm_from_euler, nav_to_body
+from aeromag_env.flight.data import ATTITUDE_NAMES, Flight
+from aeromag_env.geo.earth import igrf_ned
+from aeromag_env.geo.frames import dcm_from_euler, nav_to_body
 
 DATE = "2020-06-01"
 FS_HZ = 10.0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from aeromag_env.flight import Flight
+from aeromag_env.flight.data import Flight
 from tests._flights import simulated
 
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import aeromag_env  # noqa: F401
-from aeromag_env.cli import main
+from aeromag_env.cli.main import main
+from aeromag_env.compensation.kalman import run_filter
 from aeromag_env.errors import AeromagError, ConfigError
-from aeromag_env.kalman import run_filter
 from agents import POLICIES, make_policy
 from agents.evaluate import evaluate, run_episode
 from agents.policies import TunedConstantPolicy
@@ -96,7 +96,7 @@ def test_evaluate_cli(tmp_path, capsys):
 
 
 def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation():
-    from aeromag_env.env import EnvConfig
+    from aeromag_env.environment.env import EnvConfig
     from agents.policies import InnovationDetectorPolicy
 
     kw = {"extras": True, "innovation_power": True, "split_q": True, "action_mode": "absolute",

@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from aeromag_env.bench import _rows, peak_rss_mb
-from aeromag_env.bench_filters import bench_filters
-from aeromag_env.compensate import earth_model
+from aeromag_env.cli.bench import _rows, peak_rss_mb
+from aeromag_env.cli.bench_filters import bench_filters
+from aeromag_env.compensation.compensate import earth_model
 
 
 def test_filter_figures_are_positive_rates(nominal_box):
@@ -62,7 +62,7 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
 def test_zero_cost_env_ends_episodes_as_sb3_expects():
     from gymnasium import spaces
 
-    from aeromag_env.bench_envs import free_vec_env
+    from aeromag_env.cli.bench_envs import free_vec_env
 
     obs_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
     env = free_vec_env(2, obs_space, spaces.Box(-1.0, 1.0, (3,), np.float32), episode_steps=3)

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aeromag_env.cli import main
-from aeromag_env.flightfile import read_flight
+from aeromag_env.cli.main import main
+from aeromag_env.flight.files import read_flight
 
 
 def _sha(path: Path) -> str:

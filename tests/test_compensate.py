@@ -4,11 +4,11 @@ import json
 import numpy as np
 import pytest
 
-from aeromag_env.cli import main
-from aeromag_env.compensate import METHODS
-from aeromag_env.flight import Flight
-from aeromag_env.flightfile import read_flight, write_flight
-from aeromag_env.validation import FlightFileWarning
+from aeromag_env.cli.main import main
+from aeromag_env.compensation.compensate import METHODS
+from aeromag_env.flight.data import Flight
+from aeromag_env.flight.files import read_flight, write_flight
+from aeromag_env.flight.validation import FlightFileWarning
 from tests._flights import simulated
 
 REPORT_METRICS = {

@@ -2,17 +2,9 @@ import json
 
 import pytest
 
-from aeromag_env.config import (
-    PRESETS,
-    SimulationConfig,
-    from_dict,
-    from_json,
-    preset,
-    to_dict,
-    to_json,
-    with_overrides,
-)
+from aeromag_env.configs import from_dict, from_json, to_dict, to_json
 from aeromag_env.errors import ConfigError
+from aeromag_env.simulation.config import PRESETS, SimulationConfig, preset, with_overrides
 
 
 @pytest.mark.parametrize("name", list(PRESETS))

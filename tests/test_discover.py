@@ -9,9 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aeromag_env.cli import main
-from aeromag_env.config import EffectConfig, SimulationConfig, from_json, to_json
-from aeromag_env.discover import (
+from aeromag_env.cli.main import main
+from aeromag_env.configs import from_json, to_json
+from aeromag_env.discovery.suite import Case, base_config, build_case, run_case
+from aeromag_env.discovery.workflow import (
     ABSORBABLE_SHARE,
     MIN_DELTA_BIC,
     NoiseModel,
@@ -26,13 +27,13 @@ from aeromag_env.discover import (
     ljung_box,
     whiten,
 )
-from aeromag_env.discovery_suite import Case, base_config, build_case, run_case
-from aeromag_env.effects import ABSORBED, EFFECTS, IDENTIFIABLE, simulate_effects
 from aeromag_env.errors import AeromagError, ConfigError
-from aeromag_env.flight import Flight
-from aeromag_env.flightfile import read_flight, write_flight
+from aeromag_env.flight.data import Flight
+from aeromag_env.flight.files import read_flight, write_flight
 from aeromag_env.noise import fogm
-from aeromag_env.simulate import simulate_flight
+from aeromag_env.simulation.config import EffectConfig, SimulationConfig
+from aeromag_env.simulation.effects import ABSORBED, EFFECTS, IDENTIFIABLE, simulate_effects
+from aeromag_env.simulation.simulate import simulate_flight
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.signal import butter
 
-from aeromag_env.dsp import bandpass, bandpass_finite, highpass, lowpass, min_length
+from aeromag_env.compensation.dsp import bandpass, bandpass_finite, highpass, lowpass, min_length
 from aeromag_env.errors import AeromagError
 
 FS = 10.0  # [Hz], the SGL / simulator rate

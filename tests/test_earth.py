@@ -4,7 +4,7 @@ import numpy as np
 import ppigrf
 import pytest
 
-from aeromag_env.earth import external_variation_ned, igrf_ned, igrf_ned_along_track, parse_date
+from aeromag_env.geo.earth import external_variation_ned, igrf_ned, igrf_ned_along_track, parse_date
 from tests._flights import simulated
 
 

@@ -9,10 +9,10 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import aeromag_env  # noqa: F401  (registers the environment)
-from aeromag_env.config import to_dict
-from aeromag_env.env import EnvConfig
+from aeromag_env.configs import to_dict
+from aeromag_env.environment.env import EnvConfig
+from aeromag_env.environment.scenarios import REGIME_STD_NT, SCENARIOS, make_episode
 from aeromag_env.errors import ConfigError
-from aeromag_env.scenarios import REGIME_STD_NT, SCENARIOS, make_episode
 
 
 def _make(**kw):
@@ -237,8 +237,8 @@ def test_innovation_power_observations_follow_their_definition():
 def test_step_statistic_follows_its_definition_and_flags_a_step():
     """The two-window change statistic equals its formula on the filter's innovations, sits
     near 1 + K/(M − K) on white noise at any level, and a 5-sigma step lifts it by decades."""
-    from aeromag_env.env_core import _step_statistic
-    from aeromag_env.kalman_core import INT_COUNT, INT_POS, INT_WINDOW
+    from aeromag_env.compensation.kernels import INT_COUNT, INT_POS, INT_WINDOW
+    from aeromag_env.environment.kernels import _step_statistic
 
     env = _make(scenario="nonstationary", extras=True, step_statistic=True, split_q=True)
     assert env.observation_space.shape == (9,)

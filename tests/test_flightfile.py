@@ -16,11 +16,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from aeromag_env import flightfile
 from aeromag_env.errors import FlightFileError
-from aeromag_env.flight import Flight
-from aeromag_env.flightfile import load_flight, read_flight, write_flight
-from aeromag_env.validation import FlightFileWarning
+from aeromag_env.flight import files as flightfile
+from aeromag_env.flight.data import Flight
+from aeromag_env.flight.files import load_flight, read_flight, write_flight
+from aeromag_env.flight.validation import FlightFileWarning
 from tests._synthetic_flights import only, turning_flight, with_fields
 
 

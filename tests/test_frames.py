@@ -3,7 +3,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from aeromag_env.frames import (
+from aeromag_env.geo.frames import (
     body_to_nav,
     dcm_from_euler,
     earth_radii_m,

@@ -1,5 +1,5 @@
-"""Tests for aeromag_env.fuzzy: the FIS of paper §3.4 against scikit-fuzzy, a numpy reference and
-the paper's three rules. All quantities are dimensionless ratios/factors [-]."""
+"""Tests for aeromag_env.compensation.fuzzy: the FIS of paper §3.4 against scikit-fuzzy, a numpy
+reference and the paper's three rules. All quantities are dimensionless ratios/factors [-]."""
 
 from __future__ import annotations
 
@@ -12,8 +12,7 @@ import skfuzzy as fuzz
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aeromag_env.errors import ConfigError
-from aeromag_env.fuzzy import (
+from aeromag_env.compensation.fuzzy import (
     EPSILON_R,
     ETA_Q,
     S_MAX,
@@ -24,6 +23,7 @@ from aeromag_env.fuzzy import (
     fis_scale_reference,
     zoomed_scale,
 )
+from aeromag_env.errors import ConfigError
 
 TOLS = [EPSILON_R, ETA_Q]
 

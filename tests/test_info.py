@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aeromag_env.flightfile import write_flight
-from aeromag_env.info import describe, group_fields, main_info
+from aeromag_env.flight.files import write_flight
+from aeromag_env.flight.info import describe, group_fields, main_info
 from tests._synthetic_flights import in_radians, turning_flight, with_fields
 
 

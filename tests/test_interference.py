@@ -1,7 +1,7 @@
 import numpy as np
 
-from aeromag_env.config import InterferenceConfig
-from aeromag_env.interference import (
+from aeromag_env.simulation.config import InterferenceConfig
+from aeromag_env.simulation.interference import (
     N_STATES,
     STATE_SLICES,
     VectorCoefficients,

@@ -5,20 +5,20 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-from aeromag_env.batch import fit_vector_lsq
-from aeromag_env.compensate import earth_model
-from aeromag_env.config import preset
-from aeromag_env.errors import ConfigError
-from aeromag_env.kalman import FilterState, run_filter
-from aeromag_env.kalman_model import (
+from aeromag_env.compensation.compensate import earth_model
+from aeromag_env.compensation.kalman import FilterState, run_filter
+from aeromag_env.compensation.kalman_reference import run_reference
+from aeromag_env.compensation.least_squares import fit_vector_lsq
+from aeromag_env.compensation.model import (
     METHODS,
     FilterConfig,
     interference_from_states,
     measurement_rows,
     paper_filter_config,
 )
-from aeromag_env.kalman_reference import run_reference
-from aeromag_env.simulate import simulate_flight
+from aeromag_env.errors import ConfigError
+from aeromag_env.simulation.config import preset
+from aeromag_env.simulation.simulate import simulate_flight
 from tests._flights import simulated
 
 

@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from aeromag_env.compensate import earth_model
-from aeromag_env.kalman import FilterState, run_filter
-from aeromag_env.kalman_batch import BatchFilterState
-from aeromag_env.kalman_model import METHODS, FilterConfig, paper_filter_config
+from aeromag_env.compensation.compensate import earth_model
+from aeromag_env.compensation.kalman import FilterState, run_filter
+from aeromag_env.compensation.kalman_batch import BatchFilterState
+from aeromag_env.compensation.model import METHODS, FilterConfig, paper_filter_config
 from tests._flights import simulated
 
 #: Batched and single-flight filters run the same compiled per-flight loop, so they agree

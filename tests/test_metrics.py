@@ -1,8 +1,7 @@
 import numpy as np
 import pytest
 
-from aeromag_env.errors import AeromagError
-from aeromag_env.metrics import (
+from aeromag_env.compensation.metrics import (
     compensation_rmse,
     compensation_rmse_per_axis,
     figure_of_merit,
@@ -11,7 +10,8 @@ from aeromag_env.metrics import (
     ratio_statistics,
     residual_std,
 )
-from aeromag_env.tolles_lawson import TollesLawson
+from aeromag_env.compensation.tolles_lawson import TollesLawson
+from aeromag_env.errors import AeromagError
 
 FS = 10.0  # [Hz]
 

@@ -2,8 +2,8 @@ import json
 
 import numpy as np
 
-from aeromag_env.kalman_model import STATE_SCALE
-from aeromag_env.paper import convergence_time_s
+from aeromag_env.compensation.model import STATE_SCALE
+from aeromag_env.compensation.paper import convergence_time_s
 from experiments.reproduce_paper import main as reproduce_main
 
 

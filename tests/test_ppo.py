@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import aeromag_env  # noqa: F401
-from aeromag_env.cli import main
+from aeromag_env.cli.main import main
 from aeromag_env.errors import AeromagError
 from agents import DEFAULT_PPO, make_policy, policy_env_kwargs
 from agents.numpy_policy import NumpyPPOPolicy
@@ -110,7 +110,7 @@ def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     (the rare T_p raises are what PPO then trains on)."""
     import torch
 
-    from aeromag_env.env import EnvConfig
+    from aeromag_env.environment.env import EnvConfig
     from agents.policies import InnovationDetectorPolicy
     from agents.ppo import behaviour_clone
 

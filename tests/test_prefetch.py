@@ -1,7 +1,7 @@
 import numpy as np
 
-from aeromag_env.prefetch import FlightKey, FlightPrefetcher, simulate
-from aeromag_env.vec_env import AeroMagCompensationVecEnv
+from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
+from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 
 
 def _same(a, b):

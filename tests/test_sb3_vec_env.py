@@ -4,8 +4,8 @@ import pytest
 import torch
 
 import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.environment.sb3 import AeroMagSB3VecEnv
 from aeromag_env.errors import AeromagError
-from aeromag_env.sb3_vec_env import AeroMagSB3VecEnv
 from agents.ppo import load_hyperparams, make_training_env
 
 ENV_KWARGS = {"extras": True, "action_mode": "absolute", "duration_s": 25.0}  # 25-step flights

@@ -3,9 +3,9 @@ import json
 import numpy as np
 import pytest
 
-from aeromag_env.earth import igrf_ned
-from aeromag_env.frames import dcm_from_euler, nav_to_body, time_derivative
-from aeromag_env.simulate import clear_caches, simulate_flight
+from aeromag_env.geo.earth import igrf_ned
+from aeromag_env.geo.frames import dcm_from_euler, nav_to_body, time_derivative
+from aeromag_env.simulation.simulate import clear_caches, simulate_flight
 from tests._flights import config_for, simulated
 
 
@@ -85,8 +85,8 @@ def test_default_interference_is_cabin_like_across_draws():
     """DESIGN.md: cabin interference of 100–1000 nT RMS. Over 400 coefficient draws on one
     calibration box, at least 95 % fall in that range (expected ≈ 97 %: T_p dominates and
     |T_p|²/200² is χ² with 3 degrees of freedom)."""
-    from aeromag_env.config import InterferenceConfig
-    from aeromag_env.interference import draw_coefficients, vector_interference
+    from aeromag_env.simulation.config import InterferenceConfig
+    from aeromag_env.simulation.interference import draw_coefficients, vector_interference
 
     f = simulated("noise_free", 0)
     t_b = f.vector("truth_earth")
@@ -158,7 +158,8 @@ def test_noise_change_keeps_trajectory_and_coefficients():
 
 
 def test_config_recorded_and_recreates_flight():
-    from aeromag_env.config import SimulationConfig, from_json
+    from aeromag_env.configs import from_json
+    from aeromag_env.simulation.config import SimulationConfig
 
     f = simulated("nominal", 8)
     again = simulate_flight(from_json(SimulationConfig, f.attrs["config"]), int(f.attrs["seed"]))

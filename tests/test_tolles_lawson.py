@@ -4,17 +4,17 @@ import numpy as np
 import pytest
 from scipy.signal import butter, sosfreqz
 
-from aeromag_env.dsp import bandpass
-from aeromag_env.errors import AeromagError
-from aeromag_env.frames import dcm_from_euler, nav_to_body
-from aeromag_env.interference import VectorCoefficients, vector_interference
-from aeromag_env.metrics import improvement_ratio
-from aeromag_env.tolles_lawson import (
+from aeromag_env.compensation.dsp import bandpass
+from aeromag_env.compensation.metrics import improvement_ratio
+from aeromag_env.compensation.tolles_lawson import (
     N_TERMS,
     TollesLawson,
     coefficients_from_vector,
     design_matrix,
 )
+from aeromag_env.errors import AeromagError
+from aeromag_env.geo.frames import dcm_from_euler, nav_to_body
+from aeromag_env.simulation.interference import VectorCoefficients, vector_interference
 from tests._flights import simulated
 
 

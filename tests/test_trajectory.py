@@ -1,9 +1,13 @@
 import numpy as np
 import pytest
 
-from aeromag_env.config import CalibrationConfig, TrajectoryConfig
 from aeromag_env.errors import ConfigError
-from aeromag_env.trajectory import CALIBRATION_LINE, FIRST_SURVEY_LINE, generate_trajectory
+from aeromag_env.simulation.config import CalibrationConfig, TrajectoryConfig
+from aeromag_env.simulation.trajectory import (
+    CALIBRATION_LINE,
+    FIRST_SURVEY_LINE,
+    generate_trajectory,
+)
 
 
 def _fit_amplitude(t: np.ndarray, x: np.ndarray, period: float) -> float:

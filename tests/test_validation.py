@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from aeromag_env.errors import FlightFileError
-from aeromag_env.flight import Flight
-from aeromag_env.flightfile import load_flight, read_flight, write_flight
-from aeromag_env.validation import (
+from aeromag_env.flight.data import Flight
+from aeromag_env.flight.files import load_flight, read_flight, write_flight
+from aeromag_env.flight.validation import (
     format_nonfinite,
     needed_fields,
     nonfinite_report,

@@ -5,7 +5,7 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode
 
 import aeromag_env  # noqa: F401  (registers the environment)
-from aeromag_env.vec_env import AeroMagCompensationVecEnv
+from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 
 
 def _assert_identical(a, b, path="result"):

@@ -1,0 +1,215 @@
+"""Environment and training speed for ``aeromag bench``.
+
+* ``env_single_steps_per_s`` — ``AeroMagCompensation-v0`` steps per second, one env, K = 10,
+  zero actions, one ``nominal`` episode (steps only: the flight is simulated in ``reset``),
+  against ``env_numpy_reference_steps_per_s``: the plain-numpy reference filter's samples per
+  second divided by K (an env stepping that filter).
+* ``env_batched_steps_per_s`` — environment steps per second of the vector environment with
+  :data:`VEC_ENVS` environments, the same protocol (seeds 100 000 + i, steps only).
+* ``env_reset_s`` — seconds per reset of one env (simulating a ``nominal`` flight): the part
+  of training that batching does not speed up.
+* ``ppo_batched_steps_per_s``, ``ppo_dummyvec_steps_per_s`` — stable-baselines3 PPO
+  ``learn`` throughput (environment steps per second, resets and updates included) with the
+  training environments of ``aeromag train`` (``agents/hyperparams/ppo.json``, scenario
+  ``nonstationary``: its 8 envs, n_steps, batch size, epochs, network; torch set up as in
+  training, :func:`agents.ppo.training_torch`): batched with flights prefetched in a worker
+  process (the default), SB3's ``DummyVecEnv``, and ``ppo_batched_no_prefetch_steps_per_s``
+  (batched stepping alone); the variants alternate within each repeat. Steady-state
+  throughput: one untimed rollout first (the first reset of every environment, torch's first
+  calls), then ``learn`` goes on, timed, for five episodes per environment (with 8; two with
+  64), the resets at episode ends included. A training run of 1.5M steps has 20–160 episodes
+  per environment, so its first reset (``env_reset_s`` per environment) weighs little. With
+  them the share of each run's time spent in the environments (``ppo_*_env_time_share``): the
+  rest — policy inference, rollout buffer, gradient updates — is the same for all;
+  ``ppo_free_*``: PPO on :func:`free_vec_env`, that rest alone; ``ppo_batched_ratio_min`` /
+  ``_max``: the range over the repeats of the batched variant's ratio to ``DummyVecEnv`` in
+  the same repeat. ``ppo64_*``: the same with 64 environments.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.compensation.kalman_reference import run_reference
+from aeromag_env.compensation.model import FilterConfig
+
+#: Environments of the batched-environment figure.
+VEC_ENVS = 64
+#: First evaluation seed (the same flights as the single-env figure).
+SEED = 100_000
+
+
+def _episode_rate(env: Any, num_envs: int) -> float:
+    """Env steps per second over one episode of every environment (steps only, no reset)."""
+    env.reset(seed=SEED)
+    action = np.zeros((num_envs, 2) if num_envs > 1 else 2, np.float32)
+    done = np.zeros(num_envs, bool)
+    t0, steps = time.perf_counter(), 0
+    while not done.all():
+        _, _, terminated, truncated, _ = env.step(action)
+        done |= np.asarray(terminated | truncated)
+        steps += num_envs
+    return steps / (time.perf_counter() - t0)
+
+
+def bench_env(repeats: int) -> dict[str, float]:
+    """One env and the vector env, K = 10, ``nominal``; the numpy-filter env as reference."""
+    single = gym.make("AeroMagCompensation-v0", scenario="nominal")
+    batched = gym.make_vec("AeroMagCompensation-v0", num_envs=VEC_ENVS, scenario="nominal",
+                           vectorization_mode="vector_entry_point")  # fmt: skip
+    _episode_rate(single, 1)  # warm: numba cache load, first-step checks
+    _episode_rate(batched, VEC_ENVS)
+    single_rates, batched_rates, resets = [], [], []
+    for _ in range(repeats):
+        single_rates.append(_episode_rate(single, 1))
+        batched_rates.append(_episode_rate(batched, VEC_ENVS))
+        t0 = time.perf_counter()
+        single.reset(seed=SEED)
+        resets.append(time.perf_counter() - t0)
+    ep = single.unwrapped.episode  # type: ignore[attr-defined]
+    n = 1000
+    t_ref = []
+    for _ in range(min(repeats, 3)):
+        t0 = time.perf_counter()
+        run_reference(FilterConfig(), ep.y[:n], ep.t_b[:n], ep.tdot_b[:n])
+        t_ref.append(time.perf_counter() - t0)
+    return {
+        "env_single_steps_per_s": statistics.median(single_rates),
+        "env_numpy_reference_steps_per_s": n / statistics.median(t_ref) / 10,
+        "env_batched_steps_per_s": statistics.median(batched_rates),
+        "env_reset_s": statistics.median(resets),
+    }
+
+
+#: PPO variants: name → hyperparameter overrides (the rest as ``aeromag train``); ``free``: the
+#: zero-cost stand-in environment (:func:`free_vec_env`), PPO's own cost alone.
+PPO_VARIANTS: dict[str, dict[str, Any] | None] = {
+    "dummyvec": {"vec_env": "dummy"},
+    "batched": {"vec_env": "batched", "prefetch": True},
+    "batched_no_prefetch": {"vec_env": "batched", "prefetch": False},
+    "free": None,
+}
+
+
+def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
+              prefix: str = "ppo") -> dict[str, Any]:  # fmt: skip
+    """PPO ``learn(timesteps)`` steps per second for each of :data:`PPO_VARIANTS`, with
+    ``ppo.json``'s hyperparameters (``n_envs`` overridden if given), alternating within each
+    repeat; the share of each run's time spent inside the environments' ``step_wait``
+    (stepping, and the resets done there); and the range over the repeats of the batched
+    variant's ratio to ``DummyVecEnv`` in the same repeat. Figures are named
+    ``{prefix}_{variant}_…``."""
+    from agents import ppo
+
+    hp = ppo.load_hyperparams("nonstationary")
+    hp = {**hp, "n_envs": n_envs or int(hp["n_envs"])}
+    free = _free_env_like(ppo.make_training_env("nonstationary", {**hp, "prefetch": False}, seed=0))
+    rates: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
+    shares: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
+    with ppo.training_torch():
+        for _ in range(repeats):
+            for name, overrides in PPO_VARIANTS.items():
+                if overrides is None:
+                    venv = ppo.normalized(free(), hp)
+                else:
+                    venv = ppo.make_training_env("nonstationary", {**hp, **overrides}, seed=0)
+                inner, in_env = venv.venv, [0.0]
+                inner.step_wait = _timed(inner.step_wait, in_env)
+                model = ppo.make_ppo(venv, hp, seed=0)
+                time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
+                model.learn(hp["n_steps"] * hp["n_envs"])  # the first reset, torch warmed up
+                in_env[0] = 0.0
+                t0 = time.perf_counter()
+                model.learn(timesteps, reset_num_timesteps=False)  # no reset: goes on
+                seconds = time.perf_counter() - t0
+                rates[name].append(timesteps / seconds)
+                shares[name].append(in_env[0] / seconds)
+                venv.close()
+    figures: dict[str, Any] = {f"{prefix}_n_envs": hp["n_envs"], f"{prefix}_timesteps": timesteps}
+    for name in PPO_VARIANTS:
+        figures[f"{prefix}_{name}_steps_per_s"] = statistics.median(rates[name])
+        figures[f"{prefix}_{name}_env_time_share"] = statistics.median(shares[name])
+    paired = [b / d for b, d in zip(rates["batched"], rates["dummyvec"], strict=True)]
+    figures[f"{prefix}_batched_ratio_min"] = min(paired)
+    figures[f"{prefix}_batched_ratio_max"] = max(paired)
+    return figures
+
+
+def _free_env_like(venv: Any) -> Callable[[], Any]:
+    """A factory of :func:`free_vec_env` with the spaces, number of environments and episode
+    length of the training environments ``venv`` (batched, under ``VecNormalize``; closed)."""
+    venv.reset()
+    n_envs, steps = venv.num_envs, int(venv.venv.venv.episode_lengths.max())
+    spaces = (venv.observation_space, venv.action_space)
+    venv.close()
+    return lambda: free_vec_env(n_envs, *spaces, steps)
+
+
+def free_vec_env(n_envs: int, observation_space: Any, action_space: Any,
+                 episode_steps: int) -> Any:  # fmt: skip
+    """An SB3 ``VecEnv`` that costs nothing: a fixed observation, zero reward, every episode
+    ``episode_steps`` long and ended as a time limit (with the info entries SB3 reads). PPO
+    trained on it measures its own cost per step: the ceiling of any environment's speed-up."""
+    from stable_baselines3.common.vec_env import VecEnv
+
+    obs = np.clip(np.random.default_rng(0).standard_normal((n_envs, *observation_space.shape)),
+                  observation_space.low, observation_space.high).astype(np.float32)  # fmt: skip
+
+    class FreeVecEnv(VecEnv):
+        def __init__(self) -> None:
+            super().__init__(n_envs, observation_space, action_space)
+            self.steps = 0
+
+        def reset(self) -> np.ndarray:
+            self.steps = 0
+            return obs.copy()
+
+        def step_async(self, actions: np.ndarray) -> None:
+            pass
+
+        def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+            self.steps += 1
+            end = self.steps % episode_steps == 0
+            infos: list[dict] = [{"TimeLimit.truncated": end} for _ in range(n_envs)]
+            if end:
+                for i, info in enumerate(infos):
+                    info["terminal_observation"] = obs[i].copy()
+            return obs.copy(), np.zeros(n_envs, np.float32), np.full(n_envs, end), infos
+
+        def close(self) -> None:
+            pass
+
+        def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
+            return [None] * len(list(self._get_indices(indices)))
+
+        def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
+            pass
+
+        def env_method(self, method_name: str, *args: Any, indices: Any = None,
+                       **kwargs: Any) -> list[Any]:  # fmt: skip
+            return [None] * len(list(self._get_indices(indices)))
+
+        def env_is_wrapped(self, wrapper_class: Any, indices: Any = None) -> list[bool]:
+            return [False] * len(list(self._get_indices(indices)))
+
+    return FreeVecEnv()
+
+
+def _timed(fn: Callable[[], Any], total: list[float]) -> Callable[[], Any]:
+    """``fn`` that adds its wall time to ``total[0]``."""
+
+    def wrapper() -> Any:
+        t0 = time.perf_counter()
+        try:
+            return fn()
+        finally:
+            total[0] += time.perf_counter() - t0
+
+    return wrapper

@@ -1,0 +1,64 @@
+"""``aeromag evaluate``: every tuning policy on the same flights, with paired intervals.
+
+The policies live in the ``agents`` package, imported here lazily (``aeromag_env`` never
+imports ``agents`` at module level).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from aeromag_env.atomic import write_text
+from aeromag_env.environment.scenarios import check_scenario
+from aeromag_env.errors import AeromagError
+
+
+def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: int, out: Path,
+                 quiet: bool = False) -> dict[str, Any]:  # fmt: skip
+    """Evaluate, write ``results.json`` and ``evaluation.png``, print a table; return results."""
+    from tqdm import tqdm
+
+    from agents import POLICIES
+    from agents.evaluate import evaluate
+
+    check_scenario(scenario)
+    unknown = [p for p in policies if p not in POLICIES and not p.startswith("ppo:")]
+    if unknown or not policies:
+        raise AeromagError(f"unknown policy {unknown[0] if unknown else ''!r}; valid policies: "
+                           f"{', '.join(POLICIES)}")  # fmt: skip
+    if episodes < 1:
+        raise AeromagError(f"--episodes must be ≥ 1, got {episodes}")
+    seeds = list(range(seed_start, seed_start + episodes))
+    with tqdm(total=episodes * len(policies), desc=scenario, unit="episode",
+              disable=quiet or None, leave=False) as bar:  # fmt: skip
+        results = evaluate(scenario, policies, seeds, progress=bar.update)
+    write_text(out / "results.json", json.dumps(results, indent=2))
+    from aeromag_env.cli.plots import plot_evaluation
+
+    plot_evaluation(results, out / "evaluation.png")
+    print(evaluation_table(results))
+    print(f"wrote {out}/results.json, evaluation.png")
+    return results
+
+
+def evaluation_table(results: dict[str, Any]) -> str:
+    """Markdown: mean RMSE [95 % CI], paired difference vs fis [95 % CI], divergences."""
+    lines = [
+        f"{results['scenario']}: {len(results['seeds'])} flights (seeds {results['seeds'][0]}–"
+        f"{results['seeds'][-1]})",
+        "",
+        "| policy | RMSE [nT] (95 % CI) | − fis [nT] (paired 95 % CI) | median abs log10 ROR "
+        "| divergences |",
+        "|---|---|---|---|---|",
+    ]
+    for name, r in results["policies"].items():
+        lo, hi = r["rmse_nt_ci95"]
+        diff = ""
+        if "diff_vs_fis_nt_mean" in r and name != "fis":
+            dlo, dhi = r["diff_vs_fis_ci95"]
+            diff = f"{r['diff_vs_fis_nt_mean']:+.3g} [{dlo:+.3g}, {dhi:+.3g}]"
+        lines.append(f"| {name} | {r['rmse_nt_mean']:.3g} [{lo:.3g}, {hi:.3g}] | {diff} | "
+                     f"{r['log_ror_abs_median']:.2g} | {r['divergences']} |")  # fmt: skip
+    return "\n".join(lines) + "\n"

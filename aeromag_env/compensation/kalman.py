@@ -1,0 +1,214 @@
+"""Recursive compensators (KF, fuzzy adaptive KF, RLS, Sage–Husa, Ding) as a stateful filter.
+
+:class:`FilterState` holds everything the compiled loop
+(:func:`aeromag_env.compensation.kernels.advance`) updates, so a caller can advance a flight window
+by window and rescale Q and R in between (the environment does); :func:`run_filter` runs a whole
+flight.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aeromag_env.compensation.kernels import (
+    INT_DIV,
+    INT_INTERVAL,
+    INT_K,
+    INT_SKIP,
+    INT_WINDOW,
+    N_ACC,
+    N_INT,
+    N_PAR,
+    PAR_EPS,
+    PAR_ETA,
+    PAR_FORGET,
+    PAR_HI,
+    PAR_LO,
+    PAR_SH_B,
+    PAR_SH_INNOV,
+    PAR_SH_Q,
+    PAR_ZOOM_Q,
+    PAR_ZOOM_R,
+    advance,
+)
+from aeromag_env.compensation.model import MODE, STATE_SCALE, FilterConfig
+from aeromag_env.simulation.interference import N_STATES
+
+#: The arrays of a filter, in the order :func:`aeromag_env.compensation.kernels.advance` takes them
+# after : ``(mode, k0, k1)``; the first axis of ``TIME_ARRAYS`` is the sample, of ``WINDOW_ARRAYS``
+# the : innovation window.
+CORE_ARRAYS = ("y", "t", "td", "valid", "d", "z", "p", "qd", "rm", "z_good", "p0", "q0", "r0",
+               "rbuf", "sbuf", "acc", "ints", "par",
+               "est", "innov", "ror", "qoq", "q_scale", "r_scale", "states")  # fmt: skip
+TIME_ARRAYS = ("y", "t", "td", "valid", "est", "innov", "ror", "qoq", "q_scale", "r_scale",
+               "states")  # fmt: skip
+WINDOW_ARRAYS = ("rbuf", "sbuf")
+
+
+@dataclass
+class FilterResult:
+    """Outputs of a filter run over n samples.
+
+    Attributes
+    ----------
+    interference : (n, 3) a-priori interference estimate ``H(k) x(k|k−1)`` [nT] (causal)
+    innovations : (n, 3) ``r_k`` [nT] (NaN where the sample was skipped)
+    ror, qoq : (n,) windowed consistency ratios (eq. 22; NaN until the window has data)
+    q_scale, r_scale : (n,) tr Q / tr Q(0), tr R / tr R(0)
+    states : (n, 21) posterior states [physical units] (empty when not stored)
+    final_state : (21,) ``x`` after the last sample
+    final_covariance : (21, 21) ``P`` after the last sample [physical units]
+    final_r : (3, 3) ``R`` after the last sample [nT²] (adapted by fakf and sage-husa)
+    final_q : (21,) diagonal of ``Q`` after the last sample [physical units²]
+    divergences : restarts after a non-finite or non-positive-definite covariance
+    skipped : samples with non-finite input (predict only)
+    """
+
+    interference: np.ndarray
+    innovations: np.ndarray
+    ror: np.ndarray
+    qoq: np.ndarray
+    q_scale: np.ndarray
+    r_scale: np.ndarray
+    states: np.ndarray
+    final_state: np.ndarray
+    final_covariance: np.ndarray
+    final_r: np.ndarray
+    final_q: np.ndarray
+    divergences: int
+    skipped: int
+
+
+class FilterState:
+    """State of one recursive compensator over one flight, in normalised coordinates.
+
+    Parameters
+    ----------
+    cfg : FilterConfig
+    y : (n, 3) measurement ``T_m − T`` [nT]
+    t_b, tdot_b : (n, 3) model Earth field in body axes [nT] and its rate [nT/s]
+    store_states : keep the (n, 21) posterior state history
+    """
+
+    def __init__(
+        self,
+        cfg: FilterConfig,
+        y: np.ndarray,
+        t_b: np.ndarray,
+        tdot_b: np.ndarray,
+        store_states: bool = True,
+    ) -> None:
+        n = y.shape[0]
+        self.cfg = cfg
+        self.mode = MODE[cfg.method]
+        self.d = STATE_SCALE.copy()
+        self.valid = np.all(np.isfinite(y) & np.isfinite(t_b) & np.isfinite(tdot_b), axis=1)
+        # non-finite inputs become 0 in the arrays the loop reads; those samples only predict
+        self.y = np.where(np.isfinite(y), y, 0.0)
+        self.t = np.ascontiguousarray(np.where(np.isfinite(t_b), t_b, 0.0))
+        self.td = np.ascontiguousarray(np.where(np.isfinite(tdot_b), tdot_b, 0.0))
+        self.z = cfg.initial_state() / self.d
+        self.p0 = cfg.initial_covariance() / np.outer(self.d, self.d)
+        self.p = self.p0.copy()
+        self.q0 = cfg.process_noise() / self.d**2
+        self.qd = self.q0.copy()
+        self.r0 = cfg.measurement_noise()
+        self.rm = self.r0.copy()
+        self.z_good = self.z.copy()
+        self.rbuf = np.zeros((cfg.window, 3))
+        self.sbuf = np.zeros(cfg.window)
+        self.acc = np.zeros(N_ACC)
+        self.ints = np.zeros(N_INT, dtype=np.int64)
+        self.ints[INT_WINDOW], self.ints[INT_INTERVAL] = cfg.window, cfg.adapt_interval
+        self.par = _parameters(cfg)
+        self.est = np.full((n, 3), np.nan)
+        self.innov = np.full((n, 3), np.nan)
+        self.ror, self.qoq = np.full(n, np.nan), np.full(n, np.nan)
+        self.q_scale, self.r_scale = np.full(n, np.nan), np.full(n, np.nan)
+        self.states = np.full((n if store_states else 0, N_STATES), np.nan)
+
+    @property
+    def n(self) -> int:
+        """Number of samples of the flight."""
+        return int(self.y.shape[0])
+
+    @property
+    def k(self) -> int:
+        """Samples processed so far (the next sample to process)."""
+        return int(self.ints[INT_K])
+
+    @property
+    def divergences(self) -> int:
+        """Restarts after a divergence so far."""
+        return int(self.ints[INT_DIV])
+
+    def advance(self, k1: int) -> None:
+        """Run the filter from the current sample up to (not including) ``k1``."""
+        k1 = min(int(k1), self.n)
+        if k1 <= self.k:
+            return
+        advance(self.mode, self.k, k1, *self.arrays())
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """Inputs, state and outputs in the order of :data:`CORE_ARRAYS` (views, not copies)."""
+        return tuple(getattr(self, name) for name in CORE_ARRAYS)
+
+    def scale_noise(self, s_q: float, s_r: float) -> None:
+        """Multiply Q and R by ``s_q`` and ``s_r`` (paper eq. 21 with an external tuner)."""
+        self.qd *= s_q
+        self.rm *= s_r
+
+    def result(self) -> FilterResult:
+        """Outputs so far, in physical units."""
+        return FilterResult(
+            interference=self.est,
+            innovations=self.innov,
+            ror=self.ror,
+            qoq=self.qoq,
+            q_scale=self.q_scale,
+            r_scale=self.r_scale,
+            states=self.states,
+            final_state=self.z * self.d,
+            final_covariance=self.p * np.outer(self.d, self.d),
+            final_r=self.rm.copy(),
+            final_q=self.qd * self.d**2,
+            divergences=int(self.ints[INT_DIV]),
+            skipped=int(self.ints[INT_SKIP]),
+        )
+
+
+def _parameters(cfg: FilterConfig) -> np.ndarray:
+    par = np.zeros(N_PAR)
+    par[PAR_EPS], par[PAR_ETA] = cfg.epsilon, cfg.eta
+    par[PAR_ZOOM_R], par[PAR_ZOOM_Q] = cfg.zoom_r, cfg.zoom_q
+    par[PAR_FORGET], par[PAR_SH_B] = cfg.forgetting, cfg.sage_husa_b
+    par[PAR_LO], par[PAR_HI] = cfg.scale_bounds
+    par[PAR_SH_Q] = float(cfg.sage_husa_q)
+    par[PAR_SH_INNOV] = float(cfg.sage_husa_form == "innovation")
+    return par
+
+
+def run_filter(
+    cfg: FilterConfig, y: np.ndarray, t_b: np.ndarray, tdot_b: np.ndarray, store_states: bool = True
+) -> FilterResult:
+    """Run a recursive compensator over a whole flight.
+
+    Parameters
+    ----------
+    cfg : FilterConfig
+    y : ndarray, shape (n, 3)
+        ``T_m − T``: vector magnetometer minus the model Earth field in body axes [nT].
+    t_b, tdot_b : ndarray, shape (n, 3)
+        Model Earth field in body axes [nT] and its time derivative [nT/s].
+    store_states : bool
+        Keep the posterior state history (n, 21).
+
+    Returns
+    -------
+    FilterResult
+    """
+    state = FilterState(cfg, y, t_b, tdot_b, store_states)
+    state.advance(state.n)
+    return state.result()

@@ -1,0 +1,263 @@
+"""Tolles–Lawson (TL) terms for a scalar magnetometer, MagNav.jl conventions.
+
+Design matrix columns, from the vector field ``B`` (n, 3) [nT] measured by a fluxgate and its
+direction cosines ``B̂ = B / |B|``:
+
+* permanent (3): ``B̂_i``
+* induced (6): ``B̂_i B_j / Bt`` for ij = xx, xy, xz, yy, yz, zz
+* eddy (9): ``B̂_i ΔB_j / Bt`` for all (i, j), row-major, with ``ΔB_j`` the per-sample central
+  difference (``(B[k+1] - B[k-1]) / 2``; **not** divided by the sample interval, so eddy
+  coefficients depend on the sample rate, as in MagNav.jl)
+
+with ``Bt = 50 000 nT``. The scalar interference is ``design @ coefficients`` [nT].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aeromag_env.compensation.dsp import bandpass, is_all_pass
+from aeromag_env.errors import AeromagError, ConfigError
+from aeromag_env.simulation.interference import VectorCoefficients
+from aeromag_env.units import BT_SCALE_NT
+
+INDUCED_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+TERMS = {"permanent": 3, "induced": 6, "eddy": 9}
+N_TERMS = sum(TERMS.values())
+
+
+def design_matrix(b: np.ndarray, bt_scale_nt: float = BT_SCALE_NT) -> np.ndarray:
+    """The 18-column TL design matrix (permanent, induced, eddy).
+
+    Parameters
+    ----------
+    b : ndarray, shape (n, 3)
+        Vector field in body axes [nT] (a fluxgate, or the true field).
+    bt_scale_nt : float
+        Scale of the induced and eddy terms [nT].
+
+    Returns
+    -------
+    ndarray, shape (n, 18)
+    """
+    b = np.asarray(b, dtype=float)
+    mag = np.linalg.norm(b, axis=1, keepdims=True)
+    cos = b / mag
+    induced = np.column_stack([cos[:, i] * b[:, j] for i, j in INDUCED_PAIRS]) / bt_scale_nt
+    db = np.gradient(b, axis=0)  # per-sample central difference
+    eddy = (cos[:, :, None] * db[:, None, :]).reshape(-1, 9) / bt_scale_nt
+    return np.hstack([cos, induced, eddy])
+
+
+def coefficients_from_vector(
+    coef: VectorCoefficients, dt_s: float, bt_scale_nt: float = BT_SCALE_NT
+) -> np.ndarray:
+    """TL coefficients (18) equivalent to a vector installation ``T_p + A T + B Ṫ``.
+
+    The TL model is the projection ``T̂ · ΔT``; matching it term by term gives
+    permanent ``T_p``; induced ``Bt A_ii`` on the diagonal and ``Bt (A_ij + A_ji)`` off it (only
+    the symmetric part of ``A`` is visible to a total-field sensor); eddy ``Bt B_ij / dt``
+    (the design uses per-sample differences ``ΔB = Ḃ dt``).
+    """
+    a = coef.induced
+    induced = [a[i, i] if i == j else a[i, j] + a[j, i] for i, j in INDUCED_PAIRS]
+    return np.concatenate(
+        [
+            coef.permanent_nt,
+            bt_scale_nt * np.asarray(induced),
+            bt_scale_nt * coef.eddy_s.ravel() / dt_s,
+        ]
+    )
+
+
+class TollesLawson:
+    """Batch Tolles–Lawson fit of a scalar magnetometer (the industry baseline; MagNav.jl style).
+
+    An estimator with scikit-learn conventions: hyperparameters in the (keyword-only) constructor,
+    :meth:`fit` returns ``self``, fitted attributes end in ``_``.
+
+    Parameters
+    ----------
+    bandpass_hz : (float, float) or None
+        Pass band ``(low, high)`` [Hz] applied, zero-phase, to every non-constant design column and
+        to the target before the solve; MagNav's conventions for a low edge ≤ 0 (low-pass) and a
+        high edge ≥ fs/2 (high-pass) hold (:func:`aeromag_env.compensation.dsp.bandpass`). None: no
+        filtering.
+    trim : int
+        Samples dropped from each end after filtering (filter edge transients); unused when
+        nothing is filtered (as in MagNav).
+    ridge : float
+        Ridge parameter λ ≥ 0 [-], added to the diagonal of ``AᵀA``; the design columns are
+        O(1) (direction cosines, ``|B|/Bt``), so λ is on that scale (MagNav uses 0.025).
+    bias : bool
+        Append a constant column (MagNav's ``:bias``), making 19 coefficients.
+    bt_scale_nt : float
+        Scale of the induced and eddy terms [nT].
+
+    Attributes
+    ----------
+    coef_ : ndarray, shape (18,) or (19,)
+        Coefficients [nT] in :func:`design_matrix` column order (then the bias).
+    residual_std_nt_ : float
+        Standard deviation of the fit residual, in the (filtered, trimmed) fit domain [nT].
+    n_samples_ : int
+        Samples used in the solve (after trimming or dropping non-finite ones).
+    condition_number_ : float
+        2-norm condition number of the (filtered) design, without the ridge term.
+    remove_mean_ : bool
+        True when the fit filter removed the mean (a high-pass edge): the constant part of the
+        interference is then unknowable, and :meth:`predict` returns a zero-mean correction.
+
+    Notes
+    -----
+    Conventions of MagNav.jl ``create_TL_A`` / ``create_TL_coef``:
+
+    * 18 terms: permanent (3), induced (6), eddy (9), induced and eddy scaled by
+      ``|B| / 50 000 nT``; eddy terms use per-sample central differences, not divided by dt,
+      so the eddy coefficients depend on the sample rate;
+    * a 4-pole Butterworth 0.1–0.9 Hz band-pass run forward and backward (``filtfilt``) on the
+      design columns (constant ones skipped) and on the target, then ``trim = 20`` samples cut
+      from each end;
+    * ridge solve ``c = (AᵀA + λI)⁻¹ Aᵀ y``; MagNav's ``create_TL_coef`` defaults to λ = 0, its
+      compensation structs and notebooks use λ = 0.025. Here the solve is an ordinary least
+      squares on ``[A; √λ I] c ≈ [y; 0]`` (no explicit inverse);
+    * the coefficients are applied to the *unfiltered* design; MagNav's notebooks remove the
+      mean of the correction, ``mag_c = mag_uc − detrend(A c, mean_only=true)``
+      (:attr:`remove_mean_`).
+
+    Non-finite samples: with a filter they raise :class:`AeromagError` (filters cannot skip
+    them; cut the flight into finite parts first); without one, the rows with any non-finite
+    value (in the design, which spreads a flux gap to its neighbours through the central
+    difference, or in the target) are dropped.
+    """
+
+    coef_: np.ndarray
+    residual_std_nt_: float
+    n_samples_: int
+    condition_number_: float
+    remove_mean_: bool
+
+    def __init__(
+        self,
+        *,
+        bandpass_hz: tuple[float, float] | None = (0.1, 0.9),
+        trim: int = 20,
+        ridge: float = 0.0,
+        bias: bool = False,
+        bt_scale_nt: float = BT_SCALE_NT,
+    ) -> None:
+        if bandpass_hz is not None and len(bandpass_hz) != 2:
+            raise ConfigError(f"TollesLawson.bandpass_hz needs (low, high) [Hz], got {bandpass_hz}")
+        if isinstance(trim, bool) or not isinstance(trim, (int, np.integer)) or trim < 0:
+            raise ConfigError(f"TollesLawson.trim must be an integer ≥ 0 samples, got {trim!r}")
+        if not (np.isfinite(ridge) and ridge >= 0):
+            raise ConfigError(f"TollesLawson.ridge must be ≥ 0, got {ridge}")
+        if not (np.isfinite(bt_scale_nt) and bt_scale_nt > 0):
+            raise ConfigError(f"TollesLawson.bt_scale_nt must be > 0 nT, got {bt_scale_nt}")
+        self.bandpass_hz = bandpass_hz
+        self.trim = int(trim)
+        self.ridge = float(ridge)
+        self.bias = bool(bias)
+        self.bt_scale_nt = float(bt_scale_nt)
+
+    def fit(
+        self,
+        flux: np.ndarray,
+        scalar: np.ndarray,
+        fs_hz: float,
+        earth_total: np.ndarray | None = None,
+    ) -> TollesLawson:
+        """Fit the coefficients.
+
+        Parameters
+        ----------
+        flux : ndarray, shape (n, 3)
+            Vector magnetometer in body axes [nT].
+        scalar : ndarray, shape (n,)
+            Scalar magnetometer [nT].
+        fs_hz : float
+            Sample rate [Hz].
+        earth_total : ndarray, shape (n,), optional
+            Known ambient total field [nT] (e.g. IGRF + diurnal, or the simulator's truth);
+            the target is ``scalar − earth_total`` when given, else ``scalar``.
+
+        Returns
+        -------
+        self
+        """
+        a, y = self._design_and_target(flux, scalar, earth_total)
+        a, y = self._prepare(a, y, fs_hz)
+        if a.shape[0] <= a.shape[1]:
+            raise AeromagError(
+                f"Tolles–Lawson fit needs more than {a.shape[1]} samples, got {a.shape[0]}"
+            )
+        self.coef_ = _ridge_solve(a, y, self.ridge)
+        self.residual_std_nt_ = float(np.std(y - a @ self.coef_))
+        self.n_samples_ = int(a.shape[0])
+        self.condition_number_ = float(np.linalg.cond(a))
+        low = self.bandpass_hz[0] if self.bandpass_hz is not None else 0.0
+        self.remove_mean_ = bool(0 < low < fs_hz / 2)
+        return self
+
+    def predict(self, flux: np.ndarray) -> np.ndarray:
+        """Scalar interference [nT], shape (n,): unfiltered design × ``coef_``.
+
+        With :attr:`remove_mean_` the mean over the finite samples is removed.
+        """
+        if not hasattr(self, "coef_"):
+            raise AeromagError("TollesLawson is not fitted; call fit() first")
+        interf = self._design(flux) @ self.coef_
+        finite = np.isfinite(interf)
+        if self.remove_mean_ and np.any(finite):
+            interf = interf - np.mean(interf[finite])
+        return interf
+
+    def compensate(self, flux: np.ndarray, scalar: np.ndarray) -> np.ndarray:
+        """Compensated scalar ``scalar − predict(flux)`` [nT], shape (n,)."""
+        scalar = np.asarray(scalar, dtype=float)
+        return scalar - self.predict(flux)
+
+    def _design(self, flux: np.ndarray) -> np.ndarray:
+        flux = np.asarray(flux, dtype=float)
+        if flux.ndim != 2 or flux.shape[1] != 3:
+            raise AeromagError(f"flux must have shape (n, 3) [nT], got {flux.shape}")
+        a = design_matrix(flux, self.bt_scale_nt)
+        return np.hstack([a, np.ones((a.shape[0], 1))]) if self.bias else a
+
+    def _design_and_target(
+        self, flux: np.ndarray, scalar: np.ndarray, earth_total: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        a = self._design(flux)
+        y = np.asarray(scalar, dtype=float)
+        if earth_total is not None:
+            y = y - np.asarray(earth_total, dtype=float)
+        if y.shape != (a.shape[0],):
+            raise AeromagError(
+                f"scalar (and earth_total) must have shape ({a.shape[0]},) like flux, got {y.shape}"
+            )
+        return a, y
+
+    def _prepare(self, a: np.ndarray, y: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+        """Filter and trim (with a band), or drop non-finite rows (without one)."""
+        ok = np.all(np.isfinite(a), axis=1) & np.isfinite(y)
+        band = self.bandpass_hz
+        if band is None or is_all_pass(fs_hz, *band):  # MagNav neither filters nor trims then
+            return a[ok], y[ok]
+        if not np.all(ok):
+            raise AeromagError(
+                f"a band-passed Tolles–Lawson fit cannot skip the {np.count_nonzero(~ok)} "
+                "non-finite sample(s); cut the flight into finite parts or set bandpass_hz=None"
+            )
+        low, high = band
+        keep = slice(self.trim, a.shape[0] - self.trim)
+        return bandpass(a, fs_hz, low, high)[keep], bandpass(y, fs_hz, low, high)[keep]
+
+
+def _ridge_solve(a: np.ndarray, y: np.ndarray, ridge: float) -> np.ndarray:
+    """``argmin |A c − y|² + λ |c|²`` by least squares on ``[A; √λ I] c ≈ [y; 0]``."""
+    if ridge > 0:
+        m = a.shape[1]
+        a = np.vstack([a, np.sqrt(ridge) * np.eye(m)])
+        y = np.concatenate([y, np.zeros(m)])
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    return coef

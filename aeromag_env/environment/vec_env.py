@@ -1,0 +1,361 @@
+"""Gymnasium vector environment of ``AeroMagCompensation-v0``: N flights, one compiled step."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+from gymnasium.error import ResetNeeded
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from aeromag_env.compensation.kalman import FilterState
+from aeromag_env.compensation.kalman_batch import BatchFilterState
+from aeromag_env.compensation.kernels import INT_DIV, INT_K
+from aeromag_env.environment import kernels
+from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig
+from aeromag_env.environment.kernels import (
+    OUT_EPISODE_RMSE,
+    OUT_Q_SCALE,
+    OUT_QOQ,
+    OUT_QP_SCALE,
+    OUT_R_SCALE,
+    OUT_REWARD,
+    OUT_RMSE,
+    OUT_ROR,
+    OUT_TERMINATED,
+    OUT_TRUNCATED,
+)
+from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
+from aeromag_env.environment.scenarios import check_scenario
+
+#: Per-step info entries (as the single environment's ``info``) and their rows of the outcome.
+STEP_INFO = (("rmse_window_nt", OUT_RMSE), ("ror", OUT_ROR), ("qoq", OUT_QOQ),
+             ("q_scale", OUT_Q_SCALE), ("r_scale", OUT_R_SCALE),
+             ("q_permanent_scale", OUT_QP_SCALE))  # fmt: skip
+_STEP_KEYS = tuple(key for key, _ in STEP_INFO)
+_STEP_COLS = np.array([col for _, col in STEP_INFO])
+
+
+class AeroMagCompensationVecEnv(VectorEnv):
+    """N independent ``AeroMagCompensation-v0`` environments advanced in one compiled call.
+
+    ## Description
+
+    Environment i is :class:`~aeromag_env.environment.env.AeroMagCompensationEnv` (same
+    configuration, spaces, reward and episode end): given the same reset seed and the same actions
+    it returns bitwise the same observations, rewards, terminations, truncations and infos as
+    ``gym.make_vec(..., vectorization_mode="sync")`` over single environments (tested). The step
+    of all N environments — action mapping, filter over K samples, reward, observation — is one
+    compiled call (:func:`aeromag_env.environment.kernels.env_step_batch`) spread over the cores;
+    only resets (simulating a new flight) run in Python, one environment at a time (or ahead, in a
+    worker process: Prefetching below).
+
+    ## Spaces
+
+    ``single_action_space`` and ``single_observation_space`` are the single environment's;
+    ``action_space`` and ``observation_space`` batch them: actions (N, 2), or (N, 3) with
+    ``split_q``; observations (N, 2), or (N, 7) with ``extras`` (N, 8 with ``split_q`` too),
+    float32. Actions are clipped to [-1, 1]; a wrong shape or a non-finite value raises
+    ``ValueError`` naming the environment.
+
+    ## Autoreset
+
+    ``autoreset_mode`` (``metadata["autoreset_mode"]``) as in Gymnasium 1.x:
+
+    * ``NEXT_STEP`` (default): the step after environment i ended resets it (a new flight from
+      its generator) and ignores its action; that step returns the first observation of the
+      new flight, reward 0, not terminated nor truncated, and the reset's info.
+    * ``SAME_STEP``: the ending step resets at once; ``info["final_obs"]`` and
+      ``info["final_info"]`` hold the last observation and info of the ended episode.
+    * ``DISABLED``: the caller resets ended environments with
+      ``reset(options={"reset_mask": mask})``; stepping an ended environment is an error.
+
+    Flights of different scenarios have different lengths (``episode_lengths``); each
+    environment ends its own episode.
+
+    ## Prefetching
+
+    With ``prefetch=True`` a worker process simulates each environment's next flight while the
+    current one runs (:mod:`aeromag_env.environment.prefetch`), so resets mostly cost no simulation
+    time. With autoreset the next flight is known (the environment's generator); with ``DISABLED``
+    the caller names it with :meth:`prefetch_next`. The flights are the same either way.
+
+    ## Seeding
+
+    ``reset(seed=s)`` seeds environment i with ``s + i`` (a list gives one seed per
+    environment), like Gymnasium's vectorizers; each environment then draws its flights from its
+    own generator, as the single environment does. ``options={"scenario": name}`` switches the
+    scenario of the environments being reset.
+
+    ## Arguments
+
+    ``gym.make_vec("AeroMagCompensation-v0", num_envs=N,
+    vectorization_mode="vector_entry_point", config=..., autoreset_mode=..., **overrides)``
+    with the single environment's ``config`` and keyword shortcuts, and ``prefetch``.
+    No rendering. :meth:`close` stops the prefetching worker.
+    """
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        config: EnvConfig | dict | None = None,
+        render_mode: str | None = None,
+        autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+        prefetch: bool = False,
+        **overrides: Any,
+    ) -> None:
+        if not (isinstance(num_envs, int | np.integer) and num_envs >= 1):
+            raise ValueError(f"num_envs must be an integer ≥ 1, got {num_envs!r}")
+        if render_mode is not None:
+            raise ValueError("the vector environment does not render; render a single env")
+        template = AeroMagCompensationEnv(config, **overrides)
+        self.config = template.config
+        self.num_envs = int(num_envs)
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.metadata = {"render_modes": [], "autoreset_mode": self.autoreset_mode}
+        self.single_action_space = template.action_space
+        self.single_observation_space = template.observation_space
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._low = self.single_observation_space.low  # type: ignore[attr-defined]
+        self._high = self.single_observation_space.high  # type: ignore[attr-defined]
+        self._par = kernels.parameters(self.config)
+        n = self.num_envs
+        self._rngs: list[np.random.Generator | None] = [None] * n
+        self.scenarios = [self.config.scenario] * n
+        self.flight_seeds = np.zeros(n, np.int64)
+        self._filters: BatchFilterState | None = None
+        self._truth = np.zeros((n, 0, 3))
+        self._run = np.zeros((n, kernels.N_RUN))
+        self._score_start = np.zeros(n, np.int64)
+        self._obs = np.zeros((n, self._low.size), np.float32)
+        self._out = np.zeros((n, kernels.N_OUT))
+        self._ended = np.zeros(n, bool)
+        self._prefetcher = FlightPrefetcher() if prefetch else None
+
+    @property
+    def episode_lengths(self) -> np.ndarray:
+        """(N,) samples of each environment's current flight."""
+        return self._need_filters().n.copy()
+
+    @property
+    def filters(self) -> BatchFilterState:
+        """The stacked filter states (read them; stepping goes through :meth:`step`)."""
+        return self._need_filters()
+
+    def reset(
+        self, *, seed: int | list[int | None] | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=int(seed) if isinstance(seed, int | np.integer) else None)
+        seeds = _per_env_seeds(seed, self.num_envs)
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        if mask is None:
+            mask = np.ones(self.num_envs, bool)
+        elif self._filters is None:
+            raise ResetNeeded("reset all environments (no reset_mask) before a partial reset")
+        else:
+            mask = _checked_mask(mask, self.num_envs)
+        if "scenario" in options:
+            check_scenario(options["scenario"])
+        indices = np.flatnonzero(mask)
+        flights = [self._new_flight(int(i), seeds[i], options) for i in indices]
+        if self._filters is None:
+            self._filters = BatchFilterState([state for state, _ in flights])
+        for i, (state, truth) in zip(indices, flights, strict=True):
+            self._load(int(i), state, truth)
+        infos: dict[str, Any] = {}
+        _put(infos, "flight_seed", self.flight_seeds, mask)
+        return self._obs.copy(), infos
+
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        infos: dict[str, Any] = {}
+        active = self._restart_ended(infos)
+        rewards, terminated, truncated = self._advance(actions, active)
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and self._ended.any():
+            obs = self._same_step_reset(infos, active)
+        else:
+            obs = self._obs.copy()
+            self._step_infos(infos, active, self._ended)
+        return obs, rewards, terminated, truncated, infos
+
+    def step_rows(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
+        """:meth:`step` with every environment's info as its own dict (the single env's info),
+        for adapters that want one dict per environment (stable-baselines3): building them
+        straight from the outcome rows skips the batched layout. Autoreset must be disabled."""
+        if self.autoreset_mode != AutoresetMode.DISABLED:
+            raise ValueError("step_rows needs autoreset_mode=AutoresetMode.DISABLED")
+        active = self._restart_ended({})
+        rewards, terminated, truncated = self._advance(actions, active)
+        filters = self._need_filters()
+        rows = [
+            dict(zip(_STEP_KEYS, values, strict=True))
+            for values in self._out[:, _STEP_COLS].tolist()
+        ]
+        samples, seeds = filters.ints[:, INT_K].tolist(), self.flight_seeds.tolist()
+        for row, sample, seed in zip(rows, samples, seeds, strict=True):
+            row["sample"], row["flight_seed"] = sample, seed
+        for i in np.flatnonzero(self._ended).tolist():
+            rows[i] = self._info(i)  # with the episode's totals
+        return self._obs.copy(), rewards, terminated, truncated, rows
+
+    def _advance(
+        self, actions: np.ndarray, active: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Step the ``active`` environments (the others' outcome rows zeroed): rewards,
+        terminated, truncated; sets ``_ended``."""
+        filters = self._need_filters()
+        a = kernels.check_actions(actions, self.num_envs, kernels.action_size(self.config))
+        self._out[~active] = 0.0
+        kernels.env_step_batch(active, a, self._run, self._par, self._score_start, filters.n,
+                                self._truth, self._low, self._high, self._obs, self._out,
+                                filters.mode, *filters.arrays())  # fmt: skip
+        out = self._out
+        terminated, truncated = out[:, OUT_TERMINATED] > 0, out[:, OUT_TRUNCATED] > 0
+        self._ended = terminated | truncated
+        return out[:, OUT_REWARD].copy(), terminated, truncated
+
+    def _restart_ended(self, infos: dict[str, Any]) -> np.ndarray:
+        """Environments that ended on the previous step: ``NEXT_STEP`` restarts them now, which
+        is their whole step; ``DISABLED`` refuses. Returns the environments to step."""
+        if not self._ended.any():
+            return np.ones(self.num_envs, bool)
+        if self.autoreset_mode != AutoresetMode.NEXT_STEP:
+            raise ResetNeeded(
+                f"environments {np.flatnonzero(self._ended).tolist()} ended; reset them with "
+                "reset(options={'reset_mask': mask})"
+            )
+        restart = self._ended.copy()
+        for i in np.flatnonzero(restart):
+            self._load(int(i), *self._new_flight(int(i), None, {}))
+        _put(infos, "flight_seed", self.flight_seeds, restart)
+        return ~restart
+
+    def _need_filters(self) -> BatchFilterState:
+        if self._filters is None:
+            raise ResetNeeded("call reset() before step()")
+        return self._filters
+
+    def prefetch_next(self, i: int, seed: int | None = None) -> None:
+        """Environment i's next reset will be seeded with ``seed`` (None: it draws from its own
+        generator): have that flight simulated now (no-op without ``prefetch``)."""
+        if self._prefetcher is None:
+            return
+        rng = seeding.np_random(seed)[0] if seed is not None else copy.deepcopy(self._rngs[i])
+        if rng is None:  # never reset: its first flight is not known yet
+            return
+        key = FlightKey(self.scenarios[i], int(rng.integers(2**31)), self.config.duration_s)
+        self._prefetcher.expect(i, key)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._prefetcher is not None:
+            self._prefetcher.close()
+
+    def _new_flight(
+        self, i: int, seed: int | None, options: dict
+    ) -> tuple[FilterState, np.ndarray]:
+        """Environment i's next flight, drawn as the single env's reset draws it: its fresh
+        filter and true interference (n, 3) [nT]."""
+        if seed is not None or self._rngs[i] is None:
+            self._rngs[i] = seeding.np_random(seed)[0]
+        if "scenario" in options:
+            self.scenarios[i] = options["scenario"]
+        rng = self._rngs[i]
+        assert rng is not None
+        self.flight_seeds[i] = int(rng.integers(2**31))
+        key = FlightKey(self.scenarios[i], int(self.flight_seeds[i]), self.config.duration_s)
+        flight = simulate(key) if self._prefetcher is None else self._prefetcher.take(i, key)
+        if self.autoreset_mode != AutoresetMode.DISABLED:
+            self.prefetch_next(i)  # the autoreset after this flight draws from the generator
+        state = FilterState(flight.filter_cfg, flight.y, flight.t_b, flight.tdot_b,
+                            store_states=False)  # fmt: skip
+        return state, flight.truth_interf
+
+    def _load(self, i: int, state: FilterState, truth: np.ndarray) -> None:
+        filters = self._need_filters()
+        filters.load(i, state)
+        capacity = filters.y.shape[1]
+        if self._truth.shape[1] < capacity:  # a longer flight than any so far
+            grown = np.full((self.num_envs, capacity, 3), np.nan)
+            grown[:, : self._truth.shape[1]] = self._truth
+            self._truth = grown
+        self._truth[i, : state.n] = truth
+        self._truth[i, state.n :] = np.nan
+        self._run[i] = 0.0
+        self._score_start[i] = int(self.config.score_from * state.n)
+        self._obs[i] = 0.0
+        self._ended[i] = False
+
+    def _step_infos(self, infos: dict[str, Any], stepped: np.ndarray, ended: np.ndarray) -> None:
+        """The single env's step infos of the ``stepped`` environments, batched."""
+        filters = self._need_filters()
+        for key, col in STEP_INFO:
+            _put(infos, key, self._out[:, col], stepped)
+        _put(infos, "sample", filters.ints[:, INT_K], stepped)
+        _put(infos, "flight_seed", self.flight_seeds, stepped)
+        _put(infos, "episode_rmse_nt", self._out[:, OUT_EPISODE_RMSE], stepped & ended)
+        _put(infos, "divergences", filters.ints[:, INT_DIV], stepped & ended)
+
+    def _info(self, i: int) -> dict[str, Any]:
+        """The single env's info of environment i at the end of its episode."""
+        filters, out = self._need_filters(), self._out[i]
+        info: dict[str, Any] = {key: float(out[col]) for key, col in STEP_INFO}
+        info["sample"] = int(filters.ints[i, INT_K])
+        info["flight_seed"] = int(self.flight_seeds[i])
+        info["episode_rmse_nt"] = float(out[OUT_EPISODE_RMSE])
+        info["divergences"] = int(filters.ints[i, INT_DIV])
+        return info
+
+    def _same_step_reset(self, infos: dict[str, Any], stepped: np.ndarray) -> np.ndarray:
+        """Reset the ended environments at once; their last observation and info go to
+        ``final_obs`` and ``final_info`` (Gymnasium's ``SAME_STEP`` layout)."""
+        ended = self._ended.copy()
+        self._step_infos(infos, stepped & ~ended, np.zeros_like(ended))
+        for i in np.flatnonzero(ended):
+            final = {"final_obs": self._obs[i].copy(), "final_info": self._info(int(i))}
+            infos.update(self._add_info(infos, final, int(i)))
+            self._load(int(i), *self._new_flight(int(i), None, {}))
+        _put(infos, "flight_seed", self.flight_seeds, ended)
+        return self._obs.copy()
+
+
+def _put(infos: dict[str, Any], key: str, values: np.ndarray, mask: np.ndarray) -> None:
+    """Set ``infos[key][mask]`` and its mask ``infos["_" + key]`` (Gymnasium's vector info
+    layout: zeros where an environment has no entry)."""
+    count = np.count_nonzero(mask)
+    if count == 0:
+        return
+    if key not in infos:
+        if count == mask.size:  # the usual case: every environment has the entry
+            infos[key], infos[f"_{key}"] = values.copy(), mask.copy()
+            return
+        infos[key] = np.zeros(mask.size, values.dtype)
+        infos[f"_{key}"] = np.zeros(mask.size, bool)
+    infos[key][mask] = values[mask]
+    infos[f"_{key}"] |= mask
+
+
+def _per_env_seeds(seed: int | list[int | None] | None, n: int) -> list[int | None]:
+    if seed is None:
+        return [None] * n
+    if isinstance(seed, int | np.integer):
+        return [int(seed) + i for i in range(n)]
+    seeds = list(seed)
+    if len(seeds) != n:
+        raise ValueError(f"reset needs one seed per environment ({n}), got {len(seeds)}")
+    return seeds
+
+
+def _checked_mask(mask: object, n: int) -> np.ndarray:
+    if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,)):
+        raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({n},)")
+    if not mask.any():
+        raise ValueError("options['reset_mask'] must select at least one environment")
+    return mask

@@ -1,0 +1,228 @@
+"""``aeromag info FILE``: what a flight file holds, and whether the tools can use it.
+
+:func:`describe` reads the file with the same reader and checks as every other tool
+(:func:`aeromag_env.flight.files.load_flight` with ``needs=("tt",)``), so a file it calls usable
+loads everywhere that its channels suffice.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from aeromag_env.errors import FlightFileError
+from aeromag_env.flight.data import ALTITUDE_NAMES, ATTITUDE_NAMES, AUX_PREFIXES, Flight
+from aeromag_env.flight.files import file_format, load_flight
+from aeromag_env.flight.validation import (
+    PathLike,
+    format_nonfinite,
+    nonfinite_report,
+    truncated_list,
+    validate,
+)
+
+#: Field groups in display order.
+GROUPS = ("navigation", "attitude", "fluxgates", "scalars", "auxiliary", "truth", "other")
+
+_NAVIGATION = {"tt", "lat", "lon", *ALTITUDE_NAMES, "year", "doy", "utm_x", "utm_y", "baro"}
+_NAVIGATION_PREFIXES = ("ins_lat", "ins_lon", "ins_v", "ins_acc", "ins_w", "gps_")
+_FLUX_RE = re.compile(r"^flux_[a-z]_")
+_SCALAR_RE = re.compile(r"^mag_\d+_")
+_MAX_LINES_LISTED = 50
+
+
+@dataclass
+class InfoReport:
+    """Summary of one flight file.
+
+    Attributes
+    ----------
+    lines : list of str
+        Human-readable report, one entry per printed line.
+    problems : list of str
+        Warnings found, or the one-line error when the file is unusable.
+    usable : bool
+        The file loads (``read_flight(path, needs=("tt",))`` succeeds).
+    summary : dict
+        The same content as plain JSON-serialisable data (path, format, samples, duration_s,
+        sample_rate_hz, date, attributes, fields by group, maneuver_windows, flight_line_count,
+        flight_lines, nonfinite).
+    """
+
+    lines: list[str]
+    problems: list[str]
+    usable: bool
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"usable", "problems", **summary}`` for ``json.dumps``."""
+        return {"usable": self.usable, "problems": list(self.problems), **self.summary}
+
+
+def describe(path: PathLike) -> InfoReport:
+    """Summarise a flight file (HDF5 or CSV); never raises for a bad file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+
+    Returns
+    -------
+    InfoReport
+        ``usable=False`` with the one-line error as the only problem when the file cannot be
+        read or fails the basic checks (structure, ``tt``); ``usable=False`` with the summary
+        when a channel present is in implausible units (µT, radians…), since every consumer of
+        that channel would refuse it.
+    """
+    kind = file_format(path)
+    head = {"path": str(path), "format": kind.upper() if kind else "unknown"}
+    title = f"file: {head['path']} ({head['format']})"
+    try:
+        flight, problems = load_flight(path, needs=("tt",))
+    except FlightFileError as exc:
+        return InfoReport([title, f"error: {exc}"], [str(exc)], False, head)
+    usable = True
+    try:  # a unit problem is fatal only for channels a consumer needs: here, all present
+        validate(flight, path, present_needs(flight))
+    except FlightFileError as exc:
+        problems, usable = [f"unusable: {exc}", *problems], False
+    summary = {**head, **summarise(flight)}
+    return InfoReport([title, *_format_lines(summary, problems)], problems, usable, summary)
+
+
+def present_needs(flight: Flight) -> list[str]:
+    """``needs`` tokens for every fluxgate, scalar, position, attitude and date present."""
+    needs = [*flight.fluxgates(), *flight.scalars()]
+    if all(nm in flight for nm in ATTITUDE_NAMES):
+        needs.append("attitude")
+    if "lat" in flight and "lon" in flight and flight.altitude_name():
+        needs.append("position")
+    if "date" in flight.attrs or ("year" in flight and "doy" in flight):
+        needs.append("date")
+    return needs
+
+
+def summarise(flight: Flight) -> dict[str, Any]:
+    """Plain-data summary of a validated flight (see :class:`InfoReport`)."""
+    rate = flight.sample_rate_hz
+    return {
+        "samples": flight.n,
+        "duration_s": flight.duration_s,
+        "sample_rate_hz": rate if np.isfinite(rate) else None,
+        "date": _date_text(flight),
+        "attributes": list(flight.attrs),
+        "fields": group_fields(flight.names),
+        "maneuver_windows": [
+            {"id": mid, "t_start_s": t0, "t_end_s": t1} for mid, t0, t1 in flight.maneuver_windows()
+        ],
+        "flight_line_count": _count_lines(flight),
+        "flight_lines": _flight_lines(flight),
+        "nonfinite": nonfinite_report(flight),
+    }
+
+
+def group_fields(names: list[str]) -> dict[str, list[str]]:
+    """Field names by group (:data:`GROUPS`), in file order within each group."""
+    groups: dict[str, list[str]] = {group: [] for group in GROUPS}
+    for name in names:
+        groups[_group_of(name)].append(name)
+    return groups
+
+
+def _group_of(name: str) -> str:
+    """The display group of one field name."""
+    if name.startswith("truth_"):
+        return "truth"
+    if name.startswith(AUX_PREFIXES):
+        return "auxiliary"
+    if name in ATTITUDE_NAMES:
+        return "attitude"
+    if _FLUX_RE.match(name):
+        return "fluxgates"
+    if _SCALAR_RE.match(name):
+        return "scalars"
+    if name in _NAVIGATION or name.startswith(_NAVIGATION_PREFIXES):
+        return "navigation"
+    return "other"
+
+
+def _date_text(flight: Flight) -> str | None:
+    """ISO date (with the time if not midnight) of the flight, None if unknown."""
+    try:
+        date = flight.date()
+    except (KeyError, ValueError, OverflowError):
+        return None
+    return date.date().isoformat() if date.time() == date.min.time() else date.isoformat()
+
+
+def _count_lines(flight: Flight) -> int:
+    """Number of distinct finite values of the ``line`` field (0 without one)."""
+    if "line" not in flight:
+        return 0
+    return int(np.unique(flight["line"][np.isfinite(flight["line"])]).size)
+
+
+def _flight_lines(flight: Flight) -> list[dict[str, Any]]:
+    """The first 50 line ids in order of appearance, with their time spans and sample counts."""
+    if "line" not in flight:
+        return []
+    line = flight["line"]
+    ids, first = np.unique(line[np.isfinite(line)], return_index=True)
+    out = []
+    for value in ids[np.argsort(first)][:_MAX_LINES_LISTED]:
+        k = np.flatnonzero(line == value)
+        out.append(
+            {
+                "id": int(value) if float(value).is_integer() else float(value),
+                "t_start_s": float(flight.tt[k[0]]),
+                "t_end_s": float(flight.tt[k[-1]]),
+                "samples": int(k.size),
+            }
+        )
+    return out
+
+
+def _format_lines(summary: dict[str, Any], problems: list[str]) -> list[str]:
+    """The printed report of a usable file (after the title line)."""
+    rate = summary["sample_rate_hz"]
+    lines = [
+        f"samples: {summary['samples']}",
+        f"duration: {summary['duration_s']:.6g} s",
+        f"sample rate: {rate:.6g} Hz" if rate is not None else "sample rate: –",
+        f"date: {summary['date'] or 'unknown (no date attribute, no year/doy fields)'}",
+        f"attributes: {truncated_list(summary['attributes']) or 'none'}",
+        f"fields ({sum(map(len, summary['fields'].values()))}):",
+    ]
+    lines += [
+        f"  {group} ({len(names)}): {truncated_list(names, 40)}"
+        for group, names in summary["fields"].items()
+        if names
+    ]
+    windows = summary["maneuver_windows"]
+    lines.append(f"maneuver windows: {len(windows)}")
+    lines += [f"  {w['id']}: {w['t_start_s']:.6g}–{w['t_end_s']:.6g} s" for w in windows]
+    flight_lines = summary["flight_lines"]
+    lines.append(f"flight lines: {summary['flight_line_count']}")
+    lines += [
+        f"  {fl['id']}: {fl['t_start_s']:.6g}–{fl['t_end_s']:.6g} s ({fl['samples']} samples)"
+        for fl in flight_lines
+    ]
+    nonfinite = summary["nonfinite"]
+    lines.append(f"non-finite samples: {f'{len(nonfinite)} field(s)' if nonfinite else 'none'}")
+    lines += [f"  {format_nonfinite(name, entry)}" for name, entry in nonfinite.items()]
+    lines.append(f"problems: {len(problems) or 'none'}")
+    return lines + [f"  - {problem}" for problem in problems]
+
+
+def main_info(path: str, as_json: bool) -> int:
+    """Print the report of ``path`` to stdout (JSON if ``as_json``); 0 if usable, else 2."""
+    report = describe(path)
+    if as_json:
+        print(json.dumps(report.to_dict(), indent=2, ensure_ascii=False, allow_nan=False))
+    else:
+        print("\n".join(report.lines))
+    return 0 if report.usable else 2

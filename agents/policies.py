@@ -26,6 +26,7 @@ import numpy as np
 from aeromag_env.compensation.fuzzy import zoomed_scale
 from aeromag_env.compensation.model import MODE
 from aeromag_env.errors import ConfigError
+from agents.tuned_table import load_tuned
 
 State = Any
 
@@ -141,8 +142,6 @@ class TunedConstantPolicy(TargetScalePolicy):
     name = "tuned_constant"
 
     def __init__(self, env: Any, table: dict[str, dict[str, float]] | None = None) -> None:
-        from agents.tuning import load_tuned
-
         table = table or load_tuned()
         scenario = env.unwrapped.scenario
         if scenario not in table:

@@ -1,14 +1,13 @@
 """The ``tuned_constant`` baseline: the best constant Q and R scales, found offline on training
-seeds by a grid search (log10 steps), stored in ``agents/tuned_constants.json``.
+seeds by a grid search (log10 steps), stored in ``agents/tuned_constants.json`` (read by
+:mod:`agents.tuned_table`).
 
 Rebuild with ``python experiments/tune_constants.py`` (the file records the grid and seeds).
 """
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -19,7 +18,6 @@ from aeromag_env.errors import AeromagError
 from agents.evaluate import TRAIN_SEEDS, run_episode
 from agents.policies import TargetScalePolicy
 
-TABLE = Path(__file__).with_name("tuned_constants.json")
 #: Wide enough for the paper's R(0), 2e5× too small, and Q(0), far too large.
 LOG10_Q_GRID = tuple(float(v) for v in np.arange(-10.0, 6.01, 1.0))
 LOG10_R_GRID = tuple(float(v) for v in np.arange(-2.0, 6.01, 1.0))
@@ -46,11 +44,3 @@ def tune_constant(scenario: str, seeds: Sequence[int], log10_q: Sequence[float] 
         "grid_log10_q": list(log10_q),
         "grid_log10_r": list(log10_r),
     }
-
-
-def load_tuned(path: Path = TABLE) -> dict[str, dict[str, Any]]:
-    """The stored table: scenario → ``{"log10_q", "log10_r", ...}``."""
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as e:
-        raise AeromagError(f"cannot read the tuned-constant table {path}: {e}") from None

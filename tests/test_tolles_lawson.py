@@ -6,15 +6,15 @@ from scipy.signal import butter, sosfreqz
 
 from aeromag_env.compensation.dsp import bandpass
 from aeromag_env.compensation.metrics import improvement_ratio
-from aeromag_env.compensation.tolles_lawson import (
-    N_TERMS,
-    TollesLawson,
-    coefficients_from_vector,
-    design_matrix,
-)
+from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.errors import AeromagError
 from aeromag_env.geo.frames import dcm_from_euler, nav_to_body
 from aeromag_env.simulation.interference import VectorCoefficients, vector_interference
+from aeromag_env.simulation.tolles_lawson_terms import (
+    N_TERMS,
+    coefficients_from_vector,
+    design_matrix,
+)
 from tests._flights import simulated
 
 

@@ -12,7 +12,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from aeromag_env.compensation.tolles_lawson import coefficients_from_vector
 from aeromag_env.configs import to_json
 from aeromag_env.errors import ConfigError
 from aeromag_env.flight.data import Flight, vector_names
@@ -29,6 +28,7 @@ from aeromag_env.simulation.interference import (
     vector_interference,
 )
 from aeromag_env.simulation.sensors import sensor_noise
+from aeromag_env.simulation.tolles_lawson_terms import coefficients_from_vector
 from aeromag_env.simulation.trajectory import MANEUVER_KINDS, Trajectory, generate_trajectory
 
 #: Simulation stages, in order, as reported to a progress callback.

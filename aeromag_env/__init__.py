@@ -1,16 +1,117 @@
-"""Aircraft aeromagnetic compensation: simulator, compensators, tuning environment.
+"""Aircraft aeromagnetic compensation: flight files, simulator, compensators, tuning environment.
+
+The public API, one name per job (each resolved on first use, so ``import aeromag_env`` stays
+light; see the README, "How the code is laid out")::
+
+    import aeromag_env as am
+
+    flight = am.read_flight("flight.h5", needs=("tt", "flux_a_x"))  # read a flight file
+    am.write_flight(flight, "copy.h5")                              # write one (atomically)
+    flight = am.simulate_flight(am.preset("nominal"), rng=7)        # simulate one
+    comp = am.compensate_vector(flight, "fakf")                     # the paper's filter
+    metrics = am.score(flight, comp)                                # RMSE, IR, FOM…
+    found = am.discover(flight).report["missing_effects"]           # what the model misses
+    env = gymnasium.make(am.ENV_ID, scenario="nonstationary")       # the tuning environment
 
 Importing the package registers the Gymnasium environment ``AeroMagCompensation-v0`` and its
 batched vector form (``gym.make_vec(..., vectorization_mode="vector_entry_point")``); the
 environment modules themselves are imported only by ``gym.make`` / ``gym.make_vec``.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from gymnasium.envs.registration import register as _register
 
 __version__ = "0.1.0"
 
+#: The Gymnasium id of the tuning environment.
+ENV_ID = "AeroMagCompensation-v0"
+
 _register(
-    id="AeroMagCompensation-v0",
+    id=ENV_ID,
     entry_point="aeromag_env.environment.env:AeroMagCompensationEnv",
     vector_entry_point="aeromag_env.environment.vec_env:AeroMagCompensationVecEnv",
 )
+
+#: Public name → the module that defines it (imported on first access, PEP 562); these and
+#: ENV_ID, __version__ are ``__all__`` (tests/test_layout.py).
+_PUBLIC = {
+    "Flight": "aeromag_env.flight.data",
+    "read_flight": "aeromag_env.flight.files",
+    "write_flight": "aeromag_env.flight.files",
+    "SimulationConfig": "aeromag_env.simulation.config",
+    "preset": "aeromag_env.simulation.config",
+    "simulate_flight": "aeromag_env.simulation.simulate",
+    "FilterConfig": "aeromag_env.compensation.model",
+    "Compensation": "aeromag_env.compensation.compensate",
+    "compensate_vector": "aeromag_env.compensation.compensate",
+    "compensate_scalar": "aeromag_env.compensation.compensate",
+    "score": "aeromag_env.compensation.compensate",
+    "TollesLawson": "aeromag_env.compensation.tolles_lawson",
+    "EnvConfig": "aeromag_env.environment.env",
+    "AeroMagCompensationEnv": "aeromag_env.environment.env",
+    "AeroMagCompensationVecEnv": "aeromag_env.environment.vec_env",
+    "SCENARIOS": "aeromag_env.environment.scenarios",
+    "discover": "aeromag_env.discovery.workflow",
+    "Discovery": "aeromag_env.discovery.workflow",
+    "AeromagError": "aeromag_env.errors",
+}
+
+__all__ = [
+    "ENV_ID",
+    "SCENARIOS",
+    "AeroMagCompensationEnv",
+    "AeroMagCompensationVecEnv",
+    "AeromagError",
+    "Compensation",
+    "Discovery",
+    "EnvConfig",
+    "FilterConfig",
+    "Flight",
+    "SimulationConfig",
+    "TollesLawson",
+    "__version__",
+    "compensate_scalar",
+    "compensate_vector",
+    "discover",
+    "preset",
+    "read_flight",
+    "score",
+    "simulate_flight",
+    "write_flight",
+]
+
+if TYPE_CHECKING:  # what the lazy names are, for type checkers and IDEs
+    from aeromag_env.compensation.compensate import (
+        Compensation,
+        compensate_scalar,
+        compensate_vector,
+        score,
+    )
+    from aeromag_env.compensation.model import FilterConfig
+    from aeromag_env.compensation.tolles_lawson import TollesLawson
+    from aeromag_env.discovery.workflow import Discovery, discover
+    from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig
+    from aeromag_env.environment.scenarios import SCENARIOS
+    from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
+    from aeromag_env.errors import AeromagError
+    from aeromag_env.flight.data import Flight
+    from aeromag_env.flight.files import read_flight, write_flight
+    from aeromag_env.simulation.config import SimulationConfig, preset
+    from aeromag_env.simulation.simulate import simulate_flight
+
+
+def __getattr__(name: str) -> Any:
+    module = _PUBLIC.get(name)
+    if module is None:
+        raise AttributeError(f"module 'aeromag_env' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # resolved once
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -43,3 +43,14 @@ def test_design_study_rule_sets_the_scales_it_states():
         assert info["q_permanent_scale"] == pytest.approx(1e10 if big else 1.0, rel=1e-5)
         fired, quiet = fired + big, quiet + (not big)
     assert fired > 0 and quiet > 0
+
+
+def test_import_time_quick(capsys):
+    from experiments.import_time import STATEMENTS
+    from experiments.import_time import main as import_time
+
+    assert import_time(["--quick"]) == 0
+    out = capsys.readouterr().out
+    rows = [line for line in out.splitlines() if line.endswith(" ms")]
+    assert [r[:45].strip() for r in rows] == list(STATEMENTS)
+    assert all(float(r.split()[-2]) > 0 for r in rows)

@@ -1,6 +1,10 @@
-"""Tuning policies for the compensator's noise covariances (FIS baseline, classical adaptive,
-tuned constant, oracle; PPO later), all with the stable-baselines3 ``predict`` shape. Imports
-``aeromag_env``, never the reverse.
+"""Tuning policies for the compensator's noise covariances, all with the stable-baselines3
+``predict`` shape: ``constant``, ``fis`` (the paper's rules), classical adaptive (``sage_husa``,
+``ding``), ``tuned_constant``, ``oracle`` and ``ppo`` (the shipped numpy export of a trained
+stable-baselines3 policy). :mod:`.policies` holds the hand-written ones, :mod:`.numpy_policy` the
+exported PPO, :mod:`.ppo` its training, :mod:`.tuning` and :mod:`.tuned_table` the tuned
+constants, :mod:`.evaluate` the one evaluation path. Imports ``aeromag_env`` (its environment
+and below); only ``aeromag_env.cli`` imports ``agents``, never the rest of ``aeromag_env``.
 
 Note: the import name ``agents`` is also used by unrelated PyPI packages; do not install those
 into the same environment.

@@ -15,7 +15,8 @@ from collections.abc import Sequence
 
 from aeromag_env.atomic import write_text
 from aeromag_env.environment.scenarios import SCENARIOS
-from agents.tuning import TABLE, tune_constant
+from agents.tuned_table import TABLE
+from agents.tuning import tune_constant
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -26,8 +26,8 @@ from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.configs import to_dict
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.data import Flight, vector_names
-from aeromag_env.geo.earth import igrf_ned_along_track
-from aeromag_env.geo.frames import dcm_from_euler, nav_to_body, time_derivative
+from aeromag_env.flight.earth_model import earth_model, earth_model_ned
+from aeromag_env.flight.mounting import Mount
 from aeromag_env.simulation.interference import VectorCoefficients
 
 FILTER_METHODS = ("kf", "fakf", "rls", "sage-husa", "ding")
@@ -62,38 +62,23 @@ class Compensation:
     nonfinite: int = 0
 
 
-def earth_model_ned(flight: Flight) -> np.ndarray:
-    """Model Earth field in NED (n, 3) [nT]: IGRF-14 plus ``diurnal`` along the main field.
-
-    NaN where the position is not finite. Raises KeyError without position or date.
-    """
-    lat, lon, alt = flight.position_rad()
-    ok = np.isfinite(flight.tt) & np.isfinite(lat) & np.isfinite(lon) & np.isfinite(alt)
-    t_n = np.full((flight.n, 3), np.nan)
-    t_n[ok] = igrf_ned_along_track(flight.tt[ok], lat[ok], lon[ok], alt[ok], flight.date())
-    if "diurnal" in flight:  # a base station sees the external field along the main field
-        t_n += (t_n / np.linalg.norm(t_n, axis=1, keepdims=True)) * flight["diurnal"][:, None]
-    return t_n
-
-
-def earth_model(flight: Flight, scheme: str = "backward") -> tuple[np.ndarray, np.ndarray]:
-    """Model Earth field in body axes and its rate, (n, 3) [nT] and [nT/s]; NaN where unknown."""
-    t_b = nav_to_body(dcm_from_euler(*flight.attitude_rad()), earth_model_ned(flight))
-    return t_b, time_derivative(t_b, flight.tt, scheme)
-
-
 def compensate_vector(
     flight: Flight,
     method: str,
     flux: str = "flux_a",
     filter_cfg: FilterConfig | None = None,
     calibration: np.ndarray | None = None,
+    mount: Mount | None = None,
 ) -> Compensation:
-    """Run a vector method; with ``calibration`` (bool mask), fit there and apply everywhere."""
+    """Run a vector method; with ``calibration`` (bool mask), fit there and apply everywhere.
+
+    ``mount`` rotates the fluxgate from its own axes into the body frame first
+    (:mod:`aeromag_env.flight.mounting`); None takes the sensor axes for body axes.
+    """
     cfg = replace(filter_cfg or FilterConfig(), method=method) if method != "lsq" else filter_cfg
     scheme = "central" if method == "lsq" else (cfg.rate_scheme if cfg else "backward")
     t_b, tdot_b = earth_model(flight, scheme)
-    meas = flight.vector(flux)
+    meas = flight.vector(flux) if mount is None else mount.to_body(flight.vector(flux))
     y = meas - t_b
     series: dict[str, np.ndarray] = {}
     divergences = 0
@@ -120,7 +105,12 @@ def compensate_vector(
     nonfinite = int(np.sum(~np.all(np.isfinite(y) & np.isfinite(tdot_b), axis=1)))
     return Compensation(
         method=method,
-        settings={**settings, "flux": flux, "calibration_samples": _count(calibration)},
+        settings={
+            **settings,
+            "flux": flux,
+            "calibration_samples": _count(calibration),
+            **({} if mount is None else {"mount": mount.to_dict()}),
+        },
         coefficients=VectorCoefficients.from_state(state).to_dict(),
         fields=fields,
         total_before=np.linalg.norm(meas, axis=1),

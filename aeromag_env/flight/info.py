@@ -17,6 +17,7 @@ import numpy as np
 from aeromag_env.errors import FlightFileError
 from aeromag_env.flight.data import ALTITUDE_NAMES, ATTITUDE_NAMES, AUX_PREFIXES, Flight
 from aeromag_env.flight.files import file_format, load_flight
+from aeromag_env.flight.quality import fault_report
 from aeromag_env.flight.validation import (
     PathLike,
     format_nonfinite,
@@ -50,7 +51,7 @@ class InfoReport:
     summary : dict
         The same content as plain JSON-serialisable data (path, format, samples, duration_s,
         sample_rate_hz, date, attributes, fields by group, maneuver_windows, flight_line_count,
-        flight_lines, nonfinite).
+        flight_lines, nonfinite, faults: time gaps and spikes, :mod:`aeromag_env.flight.quality`).
     """
 
     lines: list[str]
@@ -122,6 +123,7 @@ def summarise(flight: Flight) -> dict[str, Any]:
         "flight_line_count": _count_lines(flight),
         "flight_lines": _flight_lines(flight),
         "nonfinite": nonfinite_report(flight),
+        "faults": fault_report(flight),
     }
 
 
@@ -214,6 +216,9 @@ def _format_lines(summary: dict[str, Any], problems: list[str]) -> list[str]:
     nonfinite = summary["nonfinite"]
     lines.append(f"non-finite samples: {f'{len(nonfinite)} field(s)' if nonfinite else 'none'}")
     lines += [f"  {format_nonfinite(name, entry)}" for name, entry in nonfinite.items()]
+    faults = summary["faults"]
+    lines.append(f"continuous segments: {faults['segments']} ({faults['gap_count']} time gap(s))")
+    lines.append(f"spikes: {sum(e['count'] for e in faults['spikes'].values()) or 'none'}")
     lines.append(f"problems: {len(problems) or 'none'}")
     return lines + [f"  - {problem}" for problem in problems]
 

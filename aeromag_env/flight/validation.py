@@ -25,6 +25,7 @@ import numpy as np
 
 from aeromag_env.errors import FlightFileError
 from aeromag_env.flight.data import ATTITUDE_NAMES, POSITION_NAMES, Flight, vector_names
+from aeromag_env.flight.quality import fault_problems, fault_report
 from aeromag_env.geo.earth import igrf_ned
 from aeromag_env.geo.frames import dcm_from_euler, nav_to_body
 from aeromag_env.units import EARTH_FIELD_RANGE_NT, WGS84_A_M
@@ -98,7 +99,7 @@ def validate(flight: Flight, path: PathLike, needs: Iterable[str] = ("tt",)) -> 
     if report:
         parts = [format_nonfinite(name, entry) for name, entry in report.items()]
         warnings.append(f"non-finite samples in {len(report)} field(s): " + "; ".join(parts[:5]))
-    return warnings
+    return warnings + fault_problems(fault_report(flight))
 
 
 def check_structure(flight: Flight, path: PathLike) -> None:

@@ -237,7 +237,7 @@ def test_innovation_power_observations_follow_their_definition():
 def test_step_statistic_follows_its_definition_and_flags_a_step():
     """The two-window change statistic equals its formula on the filter's innovations, sits
     near 1 + K/(M − K) on white noise at any level, and a 5-sigma step lifts it by decades."""
-    from aeromag_env.compensation.kernels import INT_COUNT, INT_POS, INT_WINDOW
+    from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_POS, INT_WINDOW
     from aeromag_env.environment.kernels import _step_statistic
 
     env = _make(scenario="nonstationary", extras=True, step_statistic=True, split_q=True)

@@ -26,7 +26,6 @@ UNROLLED = "unrolled on purpose"
 #: shrink (a test below fails when an entry is no longer needed).
 KNOWN_OVERSIZE = {
     "aeromag_env/cli/main.py",
-    "aeromag_env/compensation/kernels.py",
     "aeromag_env/discovery/workflow.py",
     "aeromag_env/simulation/effects.py",
     "aeromag_env/compensation/kernels.py:advance",

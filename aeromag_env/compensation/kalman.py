@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aeromag_env.compensation.kernels import (
+from aeromag_env.compensation.kernel_layout import (
     INT_DIV,
     INT_INTERVAL,
     INT_K,
@@ -31,14 +31,14 @@ from aeromag_env.compensation.kernels import (
     PAR_SH_Q,
     PAR_ZOOM_Q,
     PAR_ZOOM_R,
-    advance,
 )
+from aeromag_env.compensation.kernels import advance
 from aeromag_env.compensation.model import MODE, STATE_SCALE, FilterConfig
 from aeromag_env.simulation.interference import N_STATES
 
-#: The arrays of a filter, in the order :func:`aeromag_env.compensation.kernels.advance` takes them
-# after : ``(mode, k0, k1)``; the first axis of ``TIME_ARRAYS`` is the sample, of ``WINDOW_ARRAYS``
-# the : innovation window.
+#: The arrays of a filter, in the order :func:`aeromag_env.compensation.kernels.advance` takes
+#: them after ``(mode, k0, k1)``; the first axis of ``TIME_ARRAYS`` is the sample, of
+#: ``WINDOW_ARRAYS`` the innovation window.
 CORE_ARRAYS = ("y", "t", "td", "valid", "d", "z", "p", "qd", "rm", "z_good", "p0", "q0", "r0",
                "rbuf", "sbuf", "acc", "ints", "par",
                "est", "innov", "ror", "qoq", "q_scale", "r_scale", "states")  # fmt: skip

@@ -26,7 +26,8 @@ from aeromag_env.compensation.kalman import (
     FilterResult,
     FilterState,
 )
-from aeromag_env.compensation.kernels import INT_DIV, INT_K, INT_SKIP, advance
+from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_SKIP
+from aeromag_env.compensation.kernels import advance
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.threads import run_chunks
 

@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from aeromag_env.compensation.kernels import INT_COUNT, INT_DIV, INT_K, INT_POS, INT_WINDOW, advance
+from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_DIV, INT_K, INT_POS, INT_WINDOW
+from aeromag_env.compensation.kernels import advance
 from aeromag_env.threads import run_chunks
 
 if TYPE_CHECKING:
@@ -36,7 +37,7 @@ N_RUN = 5
  PAR_QP_HI, PAR_POWER, PAR_STEP_STAT, PAR_REWARD_FORM, PAR_QP_GATE) = range(19)  # fmt: skip
 N_PAR = 19
 #: Reward forms of :class:`aeromag_env.environment.env.EnvConfig`, coded by their index in
-# PAR_REWARD_FORM.
+#: PAR_REWARD_FORM.
 REWARD_FORMS = ("log", "linear", "squared")
 #: States of the permanent-field block T_p (the first block of the 21-state vector).
 N_PERMANENT = 3

@@ -13,7 +13,7 @@ from gymnasium.vector.utils import batch_space
 
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
-from aeromag_env.compensation.kernels import INT_DIV, INT_K
+from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K
 from aeromag_env.environment import kernels
 from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig
 from aeromag_env.environment.kernels import (

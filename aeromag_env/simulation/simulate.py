@@ -9,6 +9,8 @@ from __future__ import annotations
 import datetime as _dt
 import json
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -23,6 +25,7 @@ from aeromag_env.simulation.auxiliary import aux_channel
 from aeromag_env.simulation.config import SimulationConfig
 from aeromag_env.simulation.effects import EffectContext, simulate_effects
 from aeromag_env.simulation.interference import (
+    VectorCoefficients,
     draw_coefficients,
     scalar_interference,
     vector_interference,
@@ -41,6 +44,47 @@ def clear_caches() -> None:
     not depend on the caches."""
     trajectory._track.cache_clear()
     earth.clear_caches()
+
+
+@dataclass(frozen=True)
+class _Flown:
+    """The trajectory stage: where and when the aircraft flies, and its auxiliary channels."""
+
+    traj: Trajectory
+    start: _dt.datetime
+    dt: float
+    aux: dict[str, np.ndarray]
+
+
+@dataclass(frozen=True)
+class _Ambient:
+    """The Earth-field stage: main field and external variation (NED), attitude and the
+    body-frame ambient field with its time derivative."""
+
+    earth_n: np.ndarray
+    ext_n: np.ndarray
+    c_nb: np.ndarray
+    t_b: np.ndarray
+    tdot_b: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Aircraft:
+    """The interference stage: coefficients, their field at the fluxgate, and the configured
+    effects' field (None without effects)."""
+
+    coef: VectorCoefficients
+    interf: np.ndarray
+    extra: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class _Scalar:
+    """The scalar magnetometer: its measurement, its interference and its true coefficients."""
+
+    measured: np.ndarray
+    interf: np.ndarray
+    coefficients: dict[str, Any]
 
 
 def simulate_flight(
@@ -79,6 +123,37 @@ def simulate_flight(
     step = progress or (lambda _stage: None)
 
     step(STAGES[0])
+    flown = _fly(config, replay, r_traj, r_aux)
+    step(STAGES[1])
+    ambient = _earth_field(config, flown, replay, r_earth)
+    step(STAGES[2])
+    aircraft = _aircraft_field(config, flown, ambient, r_coef, r_fx)
+    step(STAGES[3])
+    fields = _fluxgate_fields(config, flown, ambient, aircraft, r_flux)
+    coefficients: dict[str, dict] = {config.fluxgate: aircraft.coef.to_dict()}
+    scalar = _scalar_channel(config, flown, ambient, r_scalar)
+    if scalar is not None:
+        fields[config.scalar.name] = scalar.measured
+        coefficients[config.scalar.name] = scalar.coefficients
+    diurnal = _diurnal_channel(config, ambient, replay)
+    if diurnal is not None:
+        fields["diurnal"] = diurnal
+    step(STAGES[4])
+    fields.update(_truth_fields(config, flown.traj, ambient, aircraft, scalar))
+    attrs = _attributes(config, flown.start, coefficients, seed, replay)
+    return Flight(
+        fields={k: np.ascontiguousarray(v, float) for k, v in fields.items()}, attrs=attrs
+    )
+
+
+def _fly(
+    config: SimulationConfig,
+    replay: Flight | None,
+    r_traj: np.random.Generator,
+    r_aux: np.random.Generator,
+) -> _Flown:
+    """Trajectory stage: the configured (or replayed) trajectory, its start time and sampling
+    interval, and the auxiliary channels along it."""
     if replay is None:
         traj = generate_trajectory(config.trajectory, r_traj)
         dt = 1.0 / config.trajectory.sample_rate_hz
@@ -87,8 +162,15 @@ def simulate_flight(
         traj, start = _replayed_trajectory(replay), replay.date()
         dt = float(np.median(np.diff(traj.tt)))
     aux = _aux_channels(config, traj.tt, replay, r_aux)
+    return _Flown(traj=traj, start=start, dt=dt, aux=aux)
 
-    step(STAGES[1])
+
+def _earth_field(
+    config: SimulationConfig, flown: _Flown, replay: Flight | None, r_earth: np.random.Generator
+) -> _Ambient:
+    """Earth-field stage: IGRF along the track plus the external variation (the replayed
+    flight's ``diurnal`` along the main field, else simulated), rotated into the body frame."""
+    traj, start = flown.traj, flown.start
     earth_n = igrf_ned_along_track(
         traj.tt, traj.lat, traj.lon, traj.alt, start, config.earth.igrf_grid_spacing_s
     )
@@ -108,53 +190,125 @@ def simulate_flight(
     c_nb = dcm_from_euler(traj.roll, traj.pitch, traj.yaw)
     t_b = nav_to_body(c_nb, earth_n + ext_n)
     tdot_b = time_derivative(t_b, traj.tt, "central")
+    return _Ambient(earth_n=earth_n, ext_n=ext_n, c_nb=c_nb, t_b=t_b, tdot_b=tdot_b)
 
-    step(STAGES[2])
+
+def _aircraft_field(
+    config: SimulationConfig,
+    flown: _Flown,
+    ambient: _Ambient,
+    r_coef: np.random.Generator,
+    r_fx: np.random.Generator,
+) -> _Aircraft:
+    """Interference stage: draw the fluxgate's coefficients, their field (paper eq. 5) and the
+    configured effects on top of it."""
     coef = draw_coefficients(config.interference, r_coef)
-    interf = vector_interference(coef, t_b, tdot_b)
-    extra = None
-    if config.effects:
-        ctx = EffectContext(
-            tt=traj.tt, c_nb=c_nb, t_b=t_b, tdot_b=tdot_b,
-            t2dot_b=time_derivative(tdot_b, traj.tt, "central"), alt=traj.alt, aux=aux,
-            signal=t_b + interf, rng=r_fx, start=start,
-        )  # fmt: skip
-        extra = simulate_effects(ctx, config.effects)
+    interf = vector_interference(coef, ambient.t_b, ambient.tdot_b)
+    extra = _effects_field(config, flown, ambient, interf, r_fx) if config.effects else None
+    return _Aircraft(coef=coef, interf=interf, extra=extra)
 
-    step(STAGES[3])
-    flux = t_b + interf + sensor_noise(traj.tt.size, dt, config.fluxgate_noise, r_flux)
-    if extra is not None:
-        flux += extra
-    fields = _navigation_fields(traj, start)
-    fields.update(aux)
+
+def _effects_field(
+    config: SimulationConfig,
+    flown: _Flown,
+    ambient: _Ambient,
+    interf: np.ndarray,
+    r_fx: np.random.Generator,
+) -> np.ndarray:
+    """The field the configured effects add to the fluxgate (n, 3) [nT]."""
+    traj = flown.traj
+    ctx = EffectContext(
+        tt=traj.tt, c_nb=ambient.c_nb, t_b=ambient.t_b, tdot_b=ambient.tdot_b,
+        t2dot_b=time_derivative(ambient.tdot_b, traj.tt, "central"), alt=traj.alt,
+        aux=flown.aux, signal=ambient.t_b + interf, rng=r_fx, start=flown.start,
+    )  # fmt: skip
+    return simulate_effects(ctx, config.effects)
+
+
+def _fluxgate_fields(
+    config: SimulationConfig,
+    flown: _Flown,
+    ambient: _Ambient,
+    aircraft: _Aircraft,
+    r_flux: np.random.Generator,
+) -> dict[str, np.ndarray]:
+    """Sensor stage: navigation and auxiliary channels, then the noisy fluxgate."""
+    traj = flown.traj
+    noise = sensor_noise(traj.tt.size, flown.dt, config.fluxgate_noise, r_flux)
+    flux = ambient.t_b + aircraft.interf + noise
+    if aircraft.extra is not None:
+        flux += aircraft.extra
+    fields = _navigation_fields(traj, flown.start)
+    fields.update(flown.aux)
     fields.update(zip(vector_names(config.fluxgate), flux.T, strict=True))
-    coefficients: dict[str, dict] = {config.fluxgate: coef.to_dict()}
-    scalar = config.scalar
-    if scalar.enabled:
-        coef_s = draw_coefficients(scalar.interference, r_scalar)
-        interf_s = scalar_interference(coef_s, t_b, tdot_b)
-        noise_s = sensor_noise(traj.tt.size, dt, scalar.noise, r_scalar, dims=1)
-        fields[scalar.name] = np.linalg.norm(t_b, axis=1) + interf_s + noise_s
-        coefficients[scalar.name] = {
-            **coef_s.to_dict(),
-            "tolles_lawson": coefficients_from_vector(coef_s, dt).tolist(),
-        }
-    if replay is not None and "diurnal" in replay:
-        fields["diurnal"] = replay["diurnal"].copy()
-    elif config.earth.daily_amplitude_nt > 0 or config.earth.external_fogm_std_nt > 0:
-        # a base-station total-field magnetometer sees the projection on the main-field direction
-        unit = earth_n / np.linalg.norm(earth_n, axis=1, keepdims=True)
-        fields["diurnal"] = np.sum(unit * ext_n, axis=1)
+    return fields
 
-    step(STAGES[4])
-    fields["line"] = traj.line.astype(float)
-    fields["maneuver"] = traj.maneuver.astype(float)
-    fields.update(zip(vector_names("truth_earth"), t_b.T, strict=True))
-    fields.update(zip(vector_names("truth_interf"), interf.T, strict=True))
-    if extra is not None:
-        fields.update(zip(vector_names("truth_effects"), extra.T, strict=True))
-    if scalar.enabled:
-        fields[f"truth_interf_{scalar.name.removesuffix('_uc')}"] = interf_s
+
+def _scalar_channel(
+    config: SimulationConfig, flown: _Flown, ambient: _Ambient, r_scalar: np.random.Generator
+) -> _Scalar | None:
+    """The scalar magnetometer (None if disabled): coefficients first, then noise, from
+    ``r_scalar``."""
+    scalar = config.scalar
+    if not scalar.enabled:
+        return None
+    coef_s = draw_coefficients(scalar.interference, r_scalar)
+    interf_s = scalar_interference(coef_s, ambient.t_b, ambient.tdot_b)
+    noise_s = sensor_noise(flown.traj.tt.size, flown.dt, scalar.noise, r_scalar, dims=1)
+    coefficients = {
+        **coef_s.to_dict(),
+        "tolles_lawson": coefficients_from_vector(coef_s, flown.dt).tolist(),
+    }
+    return _Scalar(
+        measured=np.linalg.norm(ambient.t_b, axis=1) + interf_s + noise_s,
+        interf=interf_s,
+        coefficients=coefficients,
+    )
+
+
+def _diurnal_channel(
+    config: SimulationConfig, ambient: _Ambient, replay: Flight | None
+) -> np.ndarray | None:
+    """The base-station ``diurnal`` channel: the replayed one, else (with an external
+    variation) its projection on the main-field direction, else None."""
+    if replay is not None and "diurnal" in replay:
+        return replay["diurnal"].copy()
+    if config.earth.daily_amplitude_nt > 0 or config.earth.external_fogm_std_nt > 0:
+        # a base-station total-field magnetometer sees the projection on the main-field direction
+        unit = ambient.earth_n / np.linalg.norm(ambient.earth_n, axis=1, keepdims=True)
+        return np.sum(unit * ambient.ext_n, axis=1)
+    return None
+
+
+def _truth_fields(
+    config: SimulationConfig,
+    traj: Trajectory,
+    ambient: _Ambient,
+    aircraft: _Aircraft,
+    scalar: _Scalar | None,
+) -> dict[str, np.ndarray]:
+    """Assemble stage: line and maneuver labels and the ``truth_*`` channels."""
+    fields: dict[str, np.ndarray] = {
+        "line": traj.line.astype(float),
+        "maneuver": traj.maneuver.astype(float),
+    }
+    fields.update(zip(vector_names("truth_earth"), ambient.t_b.T, strict=True))
+    fields.update(zip(vector_names("truth_interf"), aircraft.interf.T, strict=True))
+    if aircraft.extra is not None:
+        fields.update(zip(vector_names("truth_effects"), aircraft.extra.T, strict=True))
+    if scalar is not None:
+        fields[f"truth_interf_{config.scalar.name.removesuffix('_uc')}"] = scalar.interf
+    return fields
+
+
+def _attributes(
+    config: SimulationConfig,
+    start: _dt.datetime,
+    coefficients: dict[str, dict],
+    seed: int | np.integer | None,
+    replay: Flight | None,
+) -> dict[str, str]:
+    """The flight's string attributes: date, configuration, true coefficients, provenance."""
     attrs: dict[str, str] = {
         "date": start.isoformat(),
         "config": to_json(config),
@@ -166,9 +320,7 @@ def simulate_flight(
         attrs["seed"] = str(int(seed))
     if replay is not None:
         attrs["replayed_from"] = str(replay.attrs.get("path", "a flight"))
-    return Flight(
-        fields={k: np.ascontiguousarray(v, float) for k, v in fields.items()}, attrs=attrs
-    )
+    return attrs
 
 
 def _replayed_trajectory(flight: Flight) -> Trajectory:

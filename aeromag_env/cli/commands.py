@@ -1,0 +1,342 @@
+"""Handlers of the ``aeromag`` subcommands: each takes the parsed arguments, does the job
+(importing what it needs lazily, ``agents`` included) and returns the exit status; bad input
+raises :class:`~aeromag_env.errors.AeromagError`, which :func:`aeromag_env.cli.main.main` turns
+into a one-line message and status 2. The parser is :mod:`aeromag_env.cli.parser`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from aeromag_env.configs import from_json
+from aeromag_env.errors import AeromagError, ConfigError
+from aeromag_env.flight.data import Flight
+from aeromag_env.simulation.config import SimulationConfig, preset, with_overrides
+
+FLIGHT_SUFFIXES = (".h5", ".hdf5", ".csv")
+
+
+def simulation_config(args: argparse.Namespace) -> SimulationConfig:
+    """The simulator configuration of ``aeromag simulate``'s arguments.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``config`` (a JSON file, else ``preset``), ``pattern`` and ``duration_s`` overrides.
+
+    Returns
+    -------
+    SimulationConfig
+    """
+    if args.config:
+        try:
+            text = Path(args.config).read_text(encoding="utf-8")
+        except OSError as e:
+            raise ConfigError(f"cannot read configuration {args.config}: {e.strerror}") from None
+        cfg = from_json(SimulationConfig, text)
+    else:
+        cfg = preset(args.preset)
+    overrides: dict[str, object] = {}
+    if args.pattern:
+        overrides["trajectory.pattern"] = args.pattern
+    if args.duration_s is not None:
+        overrides["trajectory.duration_s"] = args.duration_s
+    return with_overrides(cfg, overrides) if overrides else cfg
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """``aeromag simulate``: simulate a flight (or replay one) and write it.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from tqdm import tqdm
+
+    from aeromag_env.flight.files import write_flight
+    from aeromag_env.simulation.simulate import STAGES, simulate_flight
+
+    out = Path(args.out)
+    if out.suffix.lower() not in FLIGHT_SUFFIXES:
+        raise AeromagError(f"--out must end in {', '.join(FLIGHT_SUFFIXES)}, got {out.name!r}")
+    if args.seed < 0:
+        raise AeromagError(f"--seed must be ≥ 0, got {args.seed}")
+    cfg = simulation_config(args)
+    replay = None
+    if args.replay:
+        from aeromag_env.flight.files import load_flight
+
+        if Path(args.replay).resolve() == out.resolve():
+            raise AeromagError("--out must not be the --replay file (inputs are never overwritten)")
+        replay, _ = load_flight(args.replay, needs=("tt", "position", "attitude", "date"))
+        replay.attrs["path"] = str(args.replay)
+    with tqdm(
+        total=len(STAGES) + 1,
+        desc="simulate",
+        unit="stage",
+        disable=args.quiet or None,
+        leave=False,
+    ) as bar:
+
+        def progress(stage: str) -> None:
+            bar.set_description(stage)
+            bar.update(1)
+
+        flight = simulate_flight(cfg, args.seed, progress=progress, replay=replay)
+        progress("write")
+        inputs = [p for p in (args.config, args.replay) if p]
+        write_flight(flight, out, inputs=inputs)
+    print(simulation_summary(flight, out, cfg, args.seed))
+    return 0
+
+
+def simulation_summary(flight: Flight, out: Path, cfg: SimulationConfig, seed: int) -> str:
+    """One line: what was written.
+
+    Parameters
+    ----------
+    flight : Flight
+        The simulated flight.
+    out : pathlib.Path
+        Where it was written.
+    cfg : SimulationConfig
+        Its configuration.
+    seed : int
+        Its seed.
+
+    Returns
+    -------
+    str
+    """
+    interf = flight.vector("truth_interf")
+    rms = float(np.sqrt(np.mean(np.sum(interf**2, axis=1))))
+    return (
+        f"wrote {out}: {cfg.trajectory.pattern}, preset {cfg.preset}, seed {seed}; "
+        f"{flight.n} samples ({flight.duration_s:.1f} s at {flight.sample_rate_hz:g} Hz), "
+        f"{len(flight.maneuver_windows())} maneuver windows, "
+        f"fluxgate interference {rms:.0f} nT RMS"
+    )
+
+
+def cmd_discover(args: argparse.Namespace) -> int:
+    """``aeromag discover``: find what the model is missing in a flight file.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from aeromag_env.cli.discover import run_discover
+
+    out = Path(args.out)
+    window = tuple(args.calibration_window) if args.calibration_window else None
+
+    def say(msg: str) -> None:
+        if not args.quiet:
+            print(f"discover: {msg}", file=sys.stderr, flush=True)
+
+    report = run_discover(Path(args.file), out, args.flux, window, say)
+    gap = report["gap"]
+    print(
+        f"{report['verdict']}; held-out gap {gap['rms_before_nt']:.3g} → "
+        f"{gap['rms_after_nt']:.3g} nT ({gap['shrink']:.2f}×); wrote {out}/report.json, "
+        "report.md, model_config.json, residual.png, diagnostics.png"
+    )
+    return 0
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """``aeromag info``: validate and summarise a flight file.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from aeromag_env.flight.info import main_info
+
+    return main_info(args.file, as_json=args.json)
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """``aeromag demo``: simulate, compensate and compare, and print the summary.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from aeromag_env.cli.demo import run_demo
+
+    out = Path(args.out)
+    run_demo(out, args.seed)
+    print((out / "summary.md").read_text(encoding="utf-8"), end="")
+    files = "flight.h5, flight.png, compensation_*.png, tuners.png, summary.md, summary.json"
+    print(f"results in {out}/: {files}")
+    return 0
+
+
+def tl_bandpass(values: list[str]) -> tuple[float, float] | None:
+    """The ``--tl-bandpass`` values as (low, high) [Hz], or None for ``none``.
+
+    Parameters
+    ----------
+    values : list of str
+        LOW HIGH, or the single word ``none``.
+
+    Returns
+    -------
+    tuple of float or None
+    """
+    if len(values) == 1 and values[0].lower() == "none":
+        return None
+    try:
+        lo, hi = (float(v) for v in values)
+    except ValueError:
+        raise AeromagError(
+            f"--tl-bandpass takes LOW HIGH [Hz] or 'none', got {' '.join(values)}"
+        ) from None
+    return lo, hi
+
+
+def cmd_compensate(args: argparse.Namespace) -> int:
+    """``aeromag compensate``: compensate a flight file with one method.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from aeromag_env.cli.compensate import CompensateRequest, run_compensate, summary_line
+
+    req = CompensateRequest(
+        path=Path(args.file), out=Path(args.out), method=args.method, flux=args.flux,
+        scalar=args.scalar, tl_bandpass_hz=tl_bandpass(args.tl_bandpass), tl_trim=args.tl_trim,
+        tl_ridge=args.tl_ridge, calibration_window_s=tuple(args.calibration_window) if
+        args.calibration_window else None, filter_preset=args.filter_preset, r_std_nt=args.r_std_nt,
+    )  # fmt: skip
+    report = run_compensate(req)
+    print(summary_line(report, req.out))
+    return 0
+
+
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    """``aeromag reproduce-paper``: reproduce the paper's figures 3–5.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from aeromag_env.compensation.paper import reproduce_paper
+
+    reproduce_paper(Path(args.out), quick=args.quick, seed=args.seed)
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    """``aeromag evaluate``: compare tuning policies on the same flights.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from aeromag_env.cli.evaluate import run_evaluate
+
+    policies = [p.strip() for p in args.policies.split(",") if p.strip()]
+    run_evaluate(
+        args.scenario, policies, args.episodes, args.seed_start, Path(args.out), args.quiet
+    )
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    """``aeromag train``: train a PPO tuner (imports ``agents`` lazily).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    try:
+        from agents.ppo import train_ppo
+    except ImportError as e:
+        raise AeromagError(
+            f"training needs the rl extra (pip install 'aeromag-env[rl]'): {e}"
+        ) from None
+    if args.timesteps < 1 or args.seed < 0:
+        raise AeromagError("--timesteps must be ≥ 1 and --seed ≥ 0")
+    extra = {"hyperparams": Path(args.hyperparams)} if args.hyperparams else {}
+    summary = train_ppo(args.scenario, args.timesteps, args.seed, Path(args.out), args.quick,
+                        progress=not args.quiet, **extra)  # fmt: skip
+    print(
+        f"trained {summary['timesteps']} steps in {summary['train_seconds_this_run']:.0f} s; "
+        f"best validation RMSE {summary['best_validation_rmse_nt']:.3g} nT; "
+        f"policy: {args.out}/policy.npz"
+    )
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """``aeromag bench``: run the speed benchmarks.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from aeromag_env.cli.bench import run_benchmarks
+
+    run_benchmarks(Path(args.out), quick=args.quick)
+    return 0

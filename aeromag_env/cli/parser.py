@@ -1,0 +1,242 @@
+"""The ``aeromag`` argument parser: one ``_add_*`` per subcommand (its options and ``--help``
+text), each bound to its handler in :mod:`aeromag_env.cli.commands`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import NoReturn
+
+from aeromag_env.cli.commands import (
+    cmd_bench,
+    cmd_compensate,
+    cmd_demo,
+    cmd_discover,
+    cmd_evaluate,
+    cmd_info,
+    cmd_reproduce,
+    cmd_simulate,
+    cmd_train,
+)
+from aeromag_env.simulation.config import PATTERNS, PRESETS
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error message (no usage dump)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _add_simulate(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "simulate",
+        help="simulate a flight and write it as a flight file",
+        description="Simulate a flight (trajectory, IGRF-14 Earth field, aircraft "
+        "interference, sensor noise) and write it in the MagNav/SGL layout.",
+    )
+    p.add_argument(
+        "--pattern", choices=PATTERNS, help="flight pattern (default: the preset's, calibration)"
+    )
+    p.add_argument(
+        "--preset",
+        default="nominal",
+        choices=list(PRESETS),
+        help="physics preset (default nominal)",
+    )
+    p.add_argument("--config", help="JSON simulator configuration (instead of --preset)")
+    p.add_argument("--seed", type=int, default=0, help="random seed, ≥ 0 (default 0)")
+    p.add_argument(
+        "--duration-s", type=float, help="flight duration [s] (default: the pattern's own)"
+    )
+    p.add_argument("--out", required=True, help="output flight file (.h5 or .csv)")
+    p.add_argument(
+        "--replay",
+        metavar="FILE",
+        help="fly this file's time, position, attitude and auxiliary channels instead of the "
+        "configured trajectory (e.g. with a model_config.json from aeromag discover)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_simulate)
+
+
+def _add_discover(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "discover",
+        help="find what the model is missing in a measured flight",
+        description="Fit the base model (paper eq. 5) on a calibration part, report where the "
+        "simulated and measured fluxgate disagree, name the missing physical effects from the "
+        "effects library (GLS F-tests, Holm-corrected), add them and show the gap on held-out "
+        "data. Writes report.json, report.md, model_config.json, residual.png, diagnostics.png.",
+    )
+    p.add_argument("file", help="flight file (.h5 or .csv), real or simulated")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--flux", default="flux_a", help="vector magnetometer (default flux_a)")
+    p.add_argument(
+        "--calibration-window",
+        nargs=2,
+        type=float,
+        metavar=("T0", "T1"),
+        help="fit on this time window [s] and score the rest (default: interleaved 60-s "
+        "blocks, every third held out)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress messages")
+    p.set_defaults(func=cmd_discover)
+
+
+def _add_info(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "info",
+        help="validate and summarise a flight file",
+        description="Validate a flight file and summarise it; exits 2 if it is unusable.",
+    )
+    p.add_argument("file", help="flight file (.h5 or .csv)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=cmd_info)
+
+
+def _add_demo(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "demo",
+        help="the main job: simulate, compensate, compare",
+        description="Simulate a 30-minute nominal calibration flight, compensate it with kf, "
+        "fakf, lsq and tl, and write figures and a summary table to --out.",
+    )
+    p.add_argument("--out", default="results/demo", help="output folder (default results/demo)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.set_defaults(func=cmd_demo)
+
+
+def _add_compensate(sub: argparse._SubParsersAction) -> None:
+    from aeromag_env.compensation.compensate import METHODS
+
+    p = sub.add_parser(
+        "compensate",
+        help="compensate a flight file with one method",
+        description="Estimate and remove the aircraft's interference; write "
+        "compensated.h5, report.json and compensation.png to --out.",
+    )
+    p.add_argument("file", help="flight file (.h5 or .csv)")
+    p.add_argument("--method", required=True, choices=METHODS, help="compensation method")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--flux", default="flux_a", help="vector magnetometer id (default flux_a)")
+    p.add_argument(
+        "--scalar", default="mag_1_uc", help="scalar magnetometer for tl (default mag_1_uc)"
+    )
+    p.add_argument(
+        "--tl-bandpass",
+        nargs="+",
+        default=["0.1", "0.9"],
+        metavar="HZ",
+        help="tl band-pass LOW HIGH [Hz] or 'none' (default 0.1 0.9)",
+    )
+    p.add_argument("--tl-trim", type=int, default=20, help="tl: samples trimmed at each end (20)")
+    p.add_argument("--tl-ridge", type=float, default=0.0, help="tl: ridge parameter λ (0)")
+    p.add_argument(
+        "--calibration-window",
+        nargs=2,
+        type=float,
+        metavar=("T0", "T1"),
+        help="fit on T0 ≤ tt ≤ T1 [s] only, apply everywhere",
+    )
+    p.add_argument(
+        "--filter-preset",
+        choices=("default", "paper"),
+        default="default",
+        help="filter settings: package defaults or the paper's §4 Q(0), R(0), x(0)",
+    )
+    p.add_argument("--r-std-nt", type=float, help="filter measurement-noise std [nT] (default 1.5)")
+    p.set_defaults(func=cmd_compensate)
+
+
+def _add_reproduce(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "reproduce-paper",
+        help="reproduce Zhang, Zhao & Chang (2014) figs. 3–5",
+        description="Run the paper's setting on a simulated flight and compare "
+        "with its claims; writes report.json and fig3/4/5 PNGs to --out.",
+    )
+    p.add_argument("--out", default="results/paper", help="output folder (default results/paper)")
+    p.add_argument("--quick", action="store_true", help="one calibration box instead of 30 min")
+    p.add_argument("--seed", type=int, default=2014, help="random seed (default 2014)")
+    p.set_defaults(func=cmd_reproduce)
+
+
+def _add_evaluate(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "evaluate",
+        help="compare tuning policies on the same flights",
+        description="Run every policy on the same seeds of a scenario; write "
+        "results.json (paired differences vs fis with 95 %% intervals) and a figure.",
+    )
+    p.add_argument("--scenario", default="nominal", help="scenario (default nominal)")
+    p.add_argument(
+        "--policies",
+        default="constant,fis,sage_husa,ding,tuned_constant,oracle",
+        help="comma-separated policy names",
+    )
+    p.add_argument("--episodes", type=int, default=20, help="episodes (seeds) per policy (20)")
+    p.add_argument(
+        "--seed-start",
+        type=int,
+        default=100_000,
+        help="first evaluation seed, ≥ 100000 (training uses the seeds below)",
+    )
+    p.add_argument("--out", default="results/evaluate", help="output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_evaluate)
+
+
+def _add_train(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "train",
+        help="train a PPO tuner (needs the rl extra)",
+        description="Train stable-baselines3 PPO on a scenario (hyperparameters in "
+        "agents/hyperparams/ppo.json); resumes from --out's checkpoint; keeps the "
+        "best validated policy as --out/policy.npz.",
+    )
+    p.add_argument("--scenario", default="nonstationary", help="scenario (default nonstationary)")
+    p.add_argument("--timesteps", type=int, default=3_000_000, help="environment steps (3e6)")
+    p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    p.add_argument("--out", default="results/ppo", help="output folder (default results/ppo)")
+    p.add_argument("--quick", action="store_true", help="tiny settings (tests)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--hyperparams", help="hyperparameter file (default agents/hyperparams/ppo.json)"
+    )
+    p.set_defaults(func=cmd_train)
+
+
+def _add_bench(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "bench",
+        help="speed benchmarks, measured side by side in one run",
+        description="Run the speed benchmarks (simulation, filters, environments, PPO "
+        "training, discovery, memory), each against a reference measured in the same run; "
+        "print a table and write bench.json (medians of repeated runs). A full run takes "
+        "a few minutes.",
+    )
+    p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
+    p.add_argument("--quick", action="store_true", help="fewer repeats and shorter runs")
+    p.set_defaults(func=cmd_bench)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full ``aeromag`` parser.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        Subcommands in ``--help`` order; each sets ``func`` (its handler) and ``command``; bad
+        arguments exit with status 2 and a one-line message.
+    """
+    parser = _Parser(prog="aeromag", description="Aircraft aeromagnetic compensation toolkit.")
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=_Parser
+    )
+    adders = (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_evaluate, _add_train,
+              _add_discover, _add_demo,
+              _add_bench)  # fmt: skip
+    for add in adders:
+        add(sub)
+    return parser

@@ -25,6 +25,16 @@ import numpy as np
 
 from aeromag_env.compensation.fuzzy import zoomed_scale
 from aeromag_env.compensation.model import MODE
+from aeromag_env.environment.spaces import (
+    ACT_Q,
+    ACT_QP,
+    ACT_R,
+    ACTIONS,
+    BASE_ACTIONS,
+    OBS_LOG_QOQ,
+    OBS_LOG_ROR,
+    observation_index,
+)
 from aeromag_env.errors import ConfigError
 from agents.tuned_table import load_tuned
 
@@ -49,7 +59,7 @@ class ConstantPolicy:
     def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
         batch, single = _batch(obs)
-        return _out(np.zeros((batch.shape[0], 2)), single), state
+        return _out(np.zeros((batch.shape[0], len(BASE_ACTIONS))), single), state
 
 
 class FisPolicy:
@@ -74,13 +84,14 @@ class FisPolicy:
                 deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
         batch, single = _batch(obs)
         steps = _step_counter(state, episode_start, batch.shape[0])
-        actions = np.zeros((batch.shape[0], 2))
+        actions = np.zeros((batch.shape[0], len(BASE_ACTIONS)))
         for i, row in enumerate(batch):
-            if steps[i] > 0 and steps[i] % self.interval == 0 and row[0] != 0.0:
-                ror, qoq = 10.0 ** row[0], 10.0 ** row[1]
+            if steps[i] > 0 and steps[i] % self.interval == 0 and row[OBS_LOG_ROR] != 0.0:
+                ror, qoq = 10.0 ** row[OBS_LOG_ROR], 10.0 ** row[OBS_LOG_QOQ]
                 s_a = zoomed_scale(qoq, self.eta, self.zoom_q)
                 s_r = zoomed_scale(ror, self.eps, self.zoom_r)
-                actions[i] = (math.log(s_a) / self.log_s_max, math.log(s_r) / self.log_s_max)
+                actions[i, ACT_Q] = math.log(s_a) / self.log_s_max
+                actions[i, ACT_R] = math.log(s_r) / self.log_s_max
         return _out(actions, single), steps + 1
 
 
@@ -103,14 +114,14 @@ class ClassicalPolicy:
 
     def __init__(self, method: str, env: Any) -> None:
         self.name = method.replace("-", "_")
-        self.mode = MODE[method]
+        self.mode = int(MODE[method])
         self.env = env.unwrapped
 
     def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
         _single_env(obs, self.name)
         self.env.filter.mode = self.mode  # idempotent; the env builds a new filter on reset
-        return np.zeros(2, np.float32), state
+        return np.zeros(len(BASE_ACTIONS), np.float32), state
 
 
 class TargetScalePolicy:
@@ -132,7 +143,9 @@ class TargetScalePolicy:
         log_s_max = math.log(env.config.s_max)
         tq, tr = self.targets()
         log_q, log_r = env.log_scales
-        action = np.array([[(tq - log_q) / log_s_max, (tr - log_r) / log_s_max]])
+        action = np.zeros((1, len(BASE_ACTIONS)))
+        action[0, ACT_Q] = (tq - log_q) / log_s_max
+        action[0, ACT_R] = (tr - log_r) / log_s_max
         return _out(action, np.asarray(obs).ndim == 1), state
 
 
@@ -191,19 +204,21 @@ class InnovationDetectorPolicy:
                 "action_mode='absolute'"
             )
         r0 = FilterConfig().r_std_nt ** 2 if r0_nt2 is None else r0_nt2
-        self.column = 9  # |mean r|² over the last window / tr R(0) (see the env's observations)
+        # |mean r|² over the last decision window / tr R(0)
+        self.column = observation_index(config, "log_mean_innovation_power")
         self.log_threshold = math.log10(threshold_nt**2 / (3.0 * r0))
         quiet_qp = -1.0 if c.qp_gate else _to_action(0.0, c.absolute_qp_log10)
-        self.quiet = np.array(
-            [_to_action(log_q, c.absolute_q_log10), _to_action(log_r, c.absolute_r_log10), quiet_qp]
-        )
+        self.quiet = np.zeros(len(ACTIONS))
+        self.quiet[ACT_Q] = _to_action(log_q, c.absolute_q_log10)
+        self.quiet[ACT_R] = _to_action(log_r, c.absolute_r_log10)
+        self.quiet[ACT_QP] = quiet_qp
         self.raise_qp = 1.0 if c.qp_gate else _to_action(log_qp, c.absolute_qp_log10)
 
     def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
         batch, single = _batch(obs)
         actions = np.repeat(self.quiet[None, :], batch.shape[0], axis=0)
-        actions[batch[:, self.column] > self.log_threshold, 2] = self.raise_qp
+        actions[batch[:, self.column] > self.log_threshold, ACT_QP] = self.raise_qp
         return _out(actions, single), state
 
 

@@ -37,6 +37,9 @@ import gymnasium as gym
 import numpy as np
 
 import aeromag_env  # noqa: F401
+from aeromag_env.environment.env import EnvConfig
+from aeromag_env.environment.spaces import BASE_ACTIONS, observation_index
+from aeromag_env.simulation.interference import STATE_SLICES
 from agents import DEFAULT_PPO, make_policy
 from agents.evaluate import TEST_SEED_START, VALIDATION_SEEDS, run_episode
 
@@ -103,7 +106,7 @@ def privileged_split(
     for k in range(0, ep.n, window):
         scale = np.ones(f.qd.size)
         if np.any((k - steps >= 0) & (k - steps < 30)):
-            scale[:3] = 1e10
+            scale[STATE_SLICES["permanent"]] = 1e10
         f.qd[:] = f.q0 * scale
         f.rm[:] = np.eye(3) * ep.noise_var[k] if r_log10 is None else r0 * 10**r_log10
         f.advance(k + window)
@@ -146,10 +149,12 @@ def _run_batched(cfg: dict[str, Any], seeds: Sequence[int], act: Any) -> float:
 
 def _mean_innovation_rule(nt: float, r0: float) -> Any:
     """T_p's Q at 10^10 × Q(0) for the next window when the mean innovation over the last one
-    exceeds ``nt`` (observation 9 of ``innovation_power``: log10 |mean r|² / tr R(0), tr R(0) =
-    3 ``r0``), else Q(0); R at 100 × R(0)."""
+    exceeds ``nt`` (``innovation_power``'s observation ``log_mean_innovation_power``:
+    log10 |mean r|² / tr R(0), tr R(0) = 3 ``r0``), else Q(0); R at 100 × R(0)."""
     threshold = math.log10(nt**2 / (3 * r0))
-    return lambda obs: _absolute_action(0.0, 2.0, np.where(obs[:, 9] > threshold, 10.0, 0.0))
+    layout = EnvConfig(**DETECTOR_ENV, innovation_power=True)
+    col = observation_index(layout, "log_mean_innovation_power")
+    return lambda obs: _absolute_action(0.0, 2.0, np.where(obs[:, col] > threshold, 10.0, 0.0))
 
 
 def detector(seeds: Sequence[int] = SEEDS) -> None:
@@ -166,13 +171,14 @@ def detector(seeds: Sequence[int] = SEEDS) -> None:
 
     base = {"scenario": "nonstationary", **DETECTOR_ENV}
     r0 = make_episode("nonstationary", seeds[0]).filter_cfg.r_std_nt ** 2  # per axis [nT²]
+    col = observation_index(EnvConfig(**base, step_statistic=True), "log_step_statistic")
 
     def held(log_threshold: float, hold_windows: int) -> Any:
         hold = np.zeros(len(seeds), int)
 
         def act(obs: np.ndarray) -> np.ndarray:
             nonlocal hold
-            hold = np.where(obs[:, 8] > log_threshold, hold_windows, np.maximum(hold - 1, 0))
+            hold = np.where(obs[:, col] > log_threshold, hold_windows, np.maximum(hold - 1, 0))
             return _absolute_action(0.0, 2.0, np.where(hold > 0, 10.0, 0.0))
 
         return act
@@ -205,7 +211,8 @@ def shift(policy_path: str, seeds: Sequence[int]) -> None:
 
     def mixed(obs: np.ndarray, tp_from_policy: bool) -> np.ndarray:
         a, b = learned(obs), rule(obs)
-        return np.concatenate([b[:, :2], a[:, 2:]] if tp_from_policy else [a[:, :2], b[:, 2:]], 1)
+        q_r, tp = slice(0, len(BASE_ACTIONS)), slice(len(BASE_ACTIONS), None)  # a_q, a_r | a_qp
+        return np.concatenate([b[:, q_r], a[:, tp]] if tp_from_policy else [a[:, q_r], b[:, tp]], 1)
 
     for scenario in ("nonstationary", "nonstationary_dense"):
         cfg = {**policy.env_kwargs, "scenario": scenario}

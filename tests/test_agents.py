@@ -8,6 +8,7 @@ import pytest
 import aeromag_env  # noqa: F401
 from aeromag_env.cli.main import main
 from aeromag_env.compensation.kalman import run_filter
+from aeromag_env.environment.spaces import ACT_Q, ACT_R
 from aeromag_env.errors import AeromagError, ConfigError
 from agents import POLICIES, make_policy
 from agents.evaluate import evaluate, run_episode
@@ -55,7 +56,7 @@ def test_fis_raises_r_when_ror_is_large():
     policy = make_policy("fis", _env())
     state = np.array([5])  # the step on which the FIS acts (once per statistics window)
     action, _ = policy.predict(np.array([3.0, 0.0], np.float32), state=state)
-    assert action[1] > 0.5 and action[0] == pytest.approx(0.0, abs=1e-6)  # QOQ = 1: keep Q
+    assert action[ACT_R] > 0.5 and action[ACT_Q] == pytest.approx(0.0, abs=1e-6)  # QOQ 1: keep Q
 
 
 def test_oracle_and_tuned_constant_fix_the_papers_r():
@@ -97,6 +98,7 @@ def test_evaluate_cli(tmp_path, capsys):
 
 def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation():
     from aeromag_env.environment.env import EnvConfig
+    from aeromag_env.environment.spaces import ACT_QP, observation_index
     from agents.policies import InnovationDetectorPolicy
 
     kw = {"extras": True, "innovation_power": True, "split_q": True, "action_mode": "absolute",
@@ -104,12 +106,13 @@ def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation(
           "absolute_qp_log10": (-2.0, 10.0)}  # fmt: skip
     tr_r0 = 3 * 1.5**2  # nT², the default R(0)
     obs = np.zeros((3, 10), np.float32)
-    obs[:, 9] = np.log10(np.array([19.0, 21.0, 60.0]) ** 2 / tr_r0)  # |mean r| 19, 21, 60 nT
+    column = observation_index(EnvConfig(**kw), "log_mean_innovation_power")
+    obs[:, column] = np.log10(np.array([19.0, 21.0, 60.0]) ** 2 / tr_r0)  # |mean r| 19, 21, 60 nT
     actions, _ = InnovationDetectorPolicy(EnvConfig(**kw)).predict(obs)
-    np.testing.assert_allclose(actions[:, 0], 0.0, atol=1e-7)  # Q at 10^0 in (-4, 4)
-    np.testing.assert_allclose(actions[:, 1], 0.5, atol=1e-7)  # R at 10^2 in (-1, 3)
-    np.testing.assert_allclose(actions[:, 2], [-2 / 3, 1.0, 1.0], atol=1e-6)  # 10^0 or 10^10
+    np.testing.assert_allclose(actions[:, ACT_Q], 0.0, atol=1e-7)  # Q at 10^0 in (-4, 4)
+    np.testing.assert_allclose(actions[:, ACT_R], 0.5, atol=1e-7)  # R at 10^2 in (-1, 3)
+    np.testing.assert_allclose(actions[:, ACT_QP], [-2 / 3, 1.0, 1.0], atol=1e-6)  # 10^0, 10^10
     gated, _ = InnovationDetectorPolicy(EnvConfig(**kw, qp_gate=True)).predict(obs[0])
-    assert gated[2] == -1.0
+    assert gated[ACT_QP] == -1.0
     with pytest.raises(ConfigError, match="innovation_detector needs"):
         InnovationDetectorPolicy(EnvConfig(extras=True))

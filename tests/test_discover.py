@@ -11,22 +11,21 @@ import pytest
 
 from aeromag_env.cli.main import main
 from aeromag_env.configs import from_json, to_json
-from aeromag_env.discovery.suite import Case, base_config, build_case, run_case
-from aeromag_env.discovery.workflow import (
+from aeromag_env.discovery.base_model import base_columns
+from aeromag_env.discovery.evidence import MIN_DELTA_BIC, significant
+from aeromag_env.discovery.noise_model import (
     ABSORBABLE_SHARE,
-    MIN_DELTA_BIC,
     NoiseModel,
-    _fogm_quadratic,
-    _prepare,
-    _Problem,
-    _ratchet,
-    _significant,
-    base_columns,
-    discover,
     fit_noise,
+    fogm_quadratic,
     ljung_box,
+    ratchet,
     whiten,
 )
+from aeromag_env.discovery.preparation import prepare
+from aeromag_env.discovery.suite import Case, base_config, build_case, run_case
+from aeromag_env.discovery.whitened_problem import WhitenedProblem
+from aeromag_env.discovery.workflow import discover
 from aeromag_env.errors import AeromagError, ConfigError
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.files import read_flight, write_flight
@@ -62,7 +61,7 @@ def test_effect_configs_are_validated_with_one_line_errors() -> None:
 def test_every_fitted_group_re_simulates_its_columns_exactly(null_flight: Flight) -> None:
     """``simulate(to_parameters(beta))`` reproduces ``columns @ beta`` for every candidate group:
     what discovery names, the simulator can inject (the shared-library contract)."""
-    ctx = _prepare(null_flight, "flux_a", None).ctx
+    ctx = prepare(null_flight, "flux_a", None).ctx
     rng = np.random.default_rng(0)
     for name in IDENTIFIABLE:
         groups, _ = EFFECTS[name].groups(ctx)
@@ -79,7 +78,7 @@ def test_the_lag_on_the_modelled_signal_re_simulates_its_column_exactly(
 ) -> None:
     """The form discovery fits once a lag is chosen (the modelled signal shifted, a gain) is what
     the simulator injects for ``signal_gain``: it shifts its signal the same way."""
-    ctx = _prepare(null_flight, "flux_a", None).ctx
+    ctx = prepare(null_flight, "flux_a", None).ctx
     aircraft = np.column_stack(
         [ctx.tdot_b[:, 1] * 3e-4, ctx.t_b[:, 0] * 1e-3, np.full(ctx.n, 40.0)]
     )
@@ -139,7 +138,7 @@ def test_fogm_quadratic_form_matches_the_dense_correlation_matrix() -> None:
     for tau in (0.3, 5.0, 600.0):
         k = np.exp(-np.abs(tt[:, None] - tt[None, :]) / tau)
         want = np.einsum("kj,kl,lj->j", q, k, q)
-        got = _fogm_quadratic(q, gap, tau)
+        got = fogm_quadratic(q, gap, tau)
         np.testing.assert_allclose(got, want, rtol=1e-10)  # the same sums reordered: rounding
 
 
@@ -150,13 +149,13 @@ def test_fast_groups_cannot_absorb_slow_sensor_noise_but_the_external_splines_ca
     noise model's coloured part may shrink after it enters: eddy lags and sensor lags at both
     ends of their grids are T̈-like (well below :data:`ABSORBABLE_SHARE`), the 120-s splines
     are not (about 40 %)."""
-    data = _prepare(null_flight, "flux_a", None)
+    data = prepare(null_flight, "flux_a", None)
     ctx = data.ctx
     fast = [g for nm in ("eddy_time_constant", "sensor_lag")
             for g in (EFFECTS[nm].groups(ctx)[0][i] for i in (0, -1))]  # fmt: skip
     splines = EFFECTS["external_field_variation"].groups(ctx)[0][0]
     base = base_columns(ctx.t_b, ctx.tdot_b)
-    prob = _Problem(data, [base] + [g.columns for g in (*fast, splines)])
+    prob = WhitenedProblem(data, [base] + [g.columns for g in (*fast, splines)])
     share = [prob.absorbable_share([0], j, np.full(3, 600.0))[0] for j in range(1, 6)]
     assert max(s.max() for s in share[:4]) < ABSORBABLE_SHARE / 4
     assert share[4].min() > 4 * ABSORBABLE_SHARE
@@ -165,7 +164,7 @@ def test_fast_groups_cannot_absorb_slow_sensor_noise_but_the_external_splines_ca
 def test_ratchet_keeps_the_coloured_part_only_where_the_entered_group_could_absorb_it() -> None:
     old = NoiseModel(np.zeros(3), np.array([6.0, 6.0, 0.1]), np.full(3, 0.2))
     new = NoiseModel(np.ones(3), np.full(3, 0.5), np.full(3, 150.0))
-    noise, kept = _ratchet(old, new, np.array([0.5, 0.001, 0.5]))
+    noise, kept = ratchet(old, new, np.array([0.5, 0.001, 0.5]))
     assert kept.tolist() == [True, False, False]  # axis 2: the re-fit is the larger anyway
     np.testing.assert_array_equal(noise.fogm_std_nt, [6.0, 0.5, 0.5])
     np.testing.assert_array_equal(noise.fogm_tau_s, [0.2, 150.0, 150.0])
@@ -182,9 +181,9 @@ def test_eddy_time_constant_at_snr_4_is_named_alone_and_no_decoy_follows() -> No
 
 
 def test_evidence_needs_both_the_holm_f_test_and_a_positive_delta_bic() -> None:
-    assert _significant({"p_value": 1e-5, "delta_bic": MIN_DELTA_BIC + 1.0}, 1e-3)
-    assert not _significant({"p_value": 1e-5, "delta_bic": MIN_DELTA_BIC - 10.0}, 1e-3)
-    assert not _significant({"p_value": 2e-3, "delta_bic": MIN_DELTA_BIC + 50.0}, 1e-3)
+    assert significant({"p_value": 1e-5, "delta_bic": MIN_DELTA_BIC + 1.0}, 1e-3)
+    assert not significant({"p_value": 1e-5, "delta_bic": MIN_DELTA_BIC - 10.0}, 1e-3)
+    assert not significant({"p_value": 2e-3, "delta_bic": MIN_DELTA_BIC + 50.0}, 1e-3)
 
 
 @pytest.mark.parametrize(
@@ -275,7 +274,7 @@ def test_cli_discover_writes_the_report_and_a_model_that_re_simulates_the_gap(
     assert main(["simulate", "--config", str(tmp_path / "quiet.json"), "--replay", str(src),
                  "--out", str(sim), "--quiet"]) == 0  # fmt: skip
     measured, resim = read_flight(src), read_flight(sim)
-    prep = _prepare(measured, "flux_a", None)
+    prep = prepare(measured, "flux_a", None)
     diff = (measured.vector("flux_a") - resim.vector("flux_a"))[prep.held_out]
     raw = float(np.sqrt(np.mean(diff**2)))
     assert raw == pytest.approx(rep["gap"]["raw_rms_after_nt"], rel=1e-6)

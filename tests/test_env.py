@@ -1,3 +1,4 @@
+import functools
 import json
 import math
 import warnings
@@ -12,7 +13,20 @@ import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.configs import to_dict
 from aeromag_env.environment.env import EnvConfig
 from aeromag_env.environment.scenarios import REGIME_STD_NT, SCENARIOS, make_episode
+from aeromag_env.environment.spaces import (
+    OBS_LOG_Q_SCALE,
+    OBS_LOG_QP_SCALE,
+    OBSERVATIONS,
+    action_names,
+    observation_bounds,
+    observation_index,
+    observation_names,
+    observation_positions,
+)
 from aeromag_env.errors import ConfigError
+from aeromag_env.simulation.interference import INDUCED_START, STATE_SLICES
+
+TP = STATE_SLICES["permanent"]
 
 
 def _make(**kw):
@@ -183,14 +197,15 @@ def test_split_q_scales_the_permanent_block_on_its_own():
     b = _rollout(plain, 100_000, actions)
     for (obs_a, *rest_a), (obs_b, *rest_b) in zip(a[1:], b[1:], strict=True):
         np.testing.assert_array_equal(obs_a[:7], obs_b)
-        assert obs_a[7] == obs_a[2]  # the T_p scale followed the other blocks' scale
+        # the T_p scale followed the other blocks' scale
+        assert obs_a[OBS_LOG_QP_SCALE] == obs_a[OBS_LOG_Q_SCALE]
         assert rest_a[:3] == rest_b[:3]
     split.reset(seed=100_000)
     q0 = split.unwrapped.filter.qd.copy()
     split.step(np.array([0.0, 0.5, 0.6], np.float32))  # T_p at 10^6, the rest at 10^0
     qd = split.unwrapped.filter.qd
-    np.testing.assert_allclose(qd[:3] / q0[:3], 1e6, rtol=1e-5)  # 0.6 in float32
-    np.testing.assert_allclose(qd[3:] / q0[3:], 1.0, rtol=1e-9)
+    np.testing.assert_allclose(qd[TP] / q0[TP], 1e6, rtol=1e-5)  # 0.6 in float32
+    np.testing.assert_allclose(qd[INDUCED_START:] / q0[INDUCED_START:], 1.0, rtol=1e-9)
     _, _, _, _, info = split.step(np.array([0.0, 0.5, 0.6], np.float32))
     assert info["q_permanent_scale"] == pytest.approx(1e6, rel=1e-5) and info["q_scale"] == 1.0
     with pytest.raises(ValueError, match="3 finite numbers"):
@@ -208,8 +223,8 @@ def test_qp_gate_sets_the_permanent_q_to_either_end_of_its_range():
     for a_qp, log_scale in [(0.01, 10.0), (-0.01, -2.0), (0.9, 10.0), (0.0, -2.0)]:
         _, _, _, _, info = env.step(np.array([0.0, 0.5, a_qp], np.float32))
         qd = env.unwrapped.filter.qd
-        np.testing.assert_allclose(qd[:3] / q0[:3], 10.0**log_scale, rtol=1e-9)
-        np.testing.assert_allclose(qd[3:] / q0[3:], 1.0, rtol=1e-9)
+        np.testing.assert_allclose(qd[TP] / q0[TP], 10.0**log_scale, rtol=1e-9)
+        np.testing.assert_allclose(qd[INDUCED_START:] / q0[INDUCED_START:], 1.0, rtol=1e-9)
         assert info["q_permanent_scale"] == pytest.approx(10.0**log_scale, rel=1e-9)
     with pytest.raises(ConfigError, match="qp_gate needs split_q"):
         _make(qp_gate=True, extras=True, action_mode="absolute")
@@ -228,8 +243,11 @@ def test_innovation_power_observations_follow_their_definition():
     r = r[np.all(np.isfinite(r), axis=1)]
     power = np.mean(np.sum(r[-window:] ** 2, axis=1))
     mean_power = np.sum(np.mean(r[-10:], axis=0) ** 2)
-    assert obs[7] == pytest.approx(np.log10(power / tr_r0), rel=1e-5)
-    assert obs[8] == pytest.approx(np.log10(mean_power / tr_r0), rel=1e-5)
+    column = functools.partial(observation_index, env.unwrapped.config)
+    assert obs[column("log_innovation_power")] == pytest.approx(np.log10(power / tr_r0), rel=1e-5)
+    assert obs[column("log_mean_innovation_power")] == pytest.approx(
+        np.log10(mean_power / tr_r0), rel=1e-5
+    )
     with pytest.raises(ConfigError, match="innovation_power needs extras"):
         _make(innovation_power=True)
 
@@ -250,7 +268,8 @@ def test_step_statistic_follows_its_definition_and_flags_a_step():
     r = r[np.all(np.isfinite(r), axis=1)][-f.cfg.window :]
     recent, before = r[-10:], r[:-10]
     expect = 10 * np.sum((recent.mean(0) - before.mean(0)) ** 2) / np.sum(before.var(0, ddof=1))
-    assert obs[8] == pytest.approx(np.log10(expect), rel=1e-5)
+    column = observation_index(env.unwrapped.config, "log_step_statistic")
+    assert obs[column] == pytest.approx(np.log10(expect), rel=1e-5)
 
     m, k = 50, 10
     ints = np.zeros(8, np.int64)
@@ -267,3 +286,28 @@ def test_step_statistic_follows_its_definition_and_flags_a_step():
     assert _step_statistic(k, ints, buf) > 100.0
     with pytest.raises(ConfigError, match="step_statistic needs extras"):
         _make(step_statistic=True)
+
+
+def test_spaces_lay_out_the_observations_and_actions_as_documented():
+    """The layouts the environment's docstring states: two observations, seven with extras, then
+    T_p's Q scale (split_q), the two innovation powers and the change statistic, in that
+    order; whiteness in [-1, 1], progress in [0, 1], the rest in ±8; a third action with
+    split_q. The compiled step writes each observation where observation_positions says."""
+    paper = EnvConfig()
+    assert observation_names(paper) == ("log_ror", "log_qoq")
+    assert action_names(paper) == ("a_q", "a_r")
+    full = EnvConfig(extras=True, split_q=True, innovation_power=True, step_statistic=True)
+    assert observation_names(full) == OBSERVATIONS and len(OBSERVATIONS) == 11
+    assert action_names(full) == ("a_q", "a_r", "a_qp")
+    detector = EnvConfig(extras=True, split_q=True, innovation_power=True)
+    assert observation_index(detector, "log_mean_innovation_power") == 9
+    assert observation_index(EnvConfig(extras=True, step_statistic=True), "log_step_statistic") == 7
+    with pytest.raises(ValueError, match="not in this layout"):
+        observation_index(paper, "whiteness")
+    positions = observation_positions(detector)
+    assert positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, -1]
+    low, high = observation_bounds(EnvConfig(extras=True))
+    np.testing.assert_array_equal(low, np.float32([-8, -8, -8, -8, -1, 0, -8]))
+    np.testing.assert_array_equal(high, np.float32([8, 8, 8, 8, 1, 1, 8]))
+    env = _make(config=full)
+    assert env.observation_space.shape == (11,) and env.action_space.shape == (3,)

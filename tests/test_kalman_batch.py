@@ -81,3 +81,26 @@ def test_load_replaces_one_flight_and_grows_the_padding(flights):
     assert list(batch.k) == [1500, 200]
     _assert_same(batch.result(0), run_filter(wide, *flights[0], store_states=False))
     _assert_same(batch.result(1), run_filter(cfg, *short[1], store_states=False))
+
+
+def test_filter_arrays_are_the_attributes_grouped(flights):
+    """The NamedTuples the compiled loop takes hold the very arrays of the filter state, every
+    array once; a flight's row of the stacked arrays views that flight's rows."""
+    from aeromag_env.compensation.arrays import CORE_ARRAYS, GROUPS, row
+    from aeromag_env.compensation.model import MODE, FilterMode
+
+    assert {m: int(c) for m, c in MODE.items()} == {m: i for i, m in enumerate(METHODS)}
+    assert set(MODE.values()) == set(FilterMode)
+    assert len(set(CORE_ARRAYS)) == len(CORE_ARRAYS) == sum(len(g._fields) for g in GROUPS)
+    state = FilterState(FilterConfig(), *flights[0])
+    assert type(state.mode) is int
+    grouped = state.arrays()
+    for group in grouped:
+        for name, array in zip(group._fields, group, strict=True):
+            assert array is getattr(state, name)
+    batch = BatchFilterState([state, FilterState(FilterConfig(method="ding"), *flights[2])])
+    second = row(batch.arrays(), 1)
+    second.state.z[0] = 5.0  # views: writing one writes the stacked array
+    assert batch.z[1, 0] == 5.0 and batch.z[0, 0] == 0.0
+    assert np.shares_memory(second.outputs.est, batch.est[1])
+    np.testing.assert_array_equal(second.signals.y[: batch.n[1]], batch.y[1, : batch.n[1]])

@@ -24,18 +24,7 @@ MAX_PARAMETERS = 12
 UNROLLED = "unrolled on purpose"
 #: Still over the limits when the layout was re-laid (issue 18), to be split: this list may only
 #: shrink (a test below fails when an entry is no longer needed).
-KNOWN_OVERSIZE = {
-    "aeromag_env/discovery/workflow.py",
-    "aeromag_env/compensation/kernels.py:advance",
-    "aeromag_env/discovery/workflow.py:_prepare",
-    "aeromag_env/discovery/workflow.py:discover",
-    "aeromag_env/discovery/workflow.py:_diagnostics",
-    "aeromag_env/compensation/kernels.py:advance (parameters)",
-    "aeromag_env/compensation/kalman_batch.py:_advance_range (parameters)",
-    "aeromag_env/environment/kernels.py:_observe (parameters)",
-    "aeromag_env/environment/kernels.py:env_step (parameters)",
-    "aeromag_env/environment/kernels.py:_env_step_range (parameters)",
-}
+KNOWN_OVERSIZE: set[str] = set()
 
 
 def _sources() -> list[Path]:

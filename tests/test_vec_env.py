@@ -122,3 +122,21 @@ def test_disabled_autoreset_refuses_to_step_an_ended_environment():
     obs, info = env.reset(options={"reset_mask": done})
     assert not obs.any() and info["_flight_seed"].all()
     env.step(np.zeros((2, 2)))
+
+
+def test_building_either_environment_loads_no_training_or_plotting_package():
+    """``gym.make`` and ``gym.make_vec`` of the environment import neither torch,
+    stable-baselines3 nor matplotlib (the stable-baselines3 adapter is imported by its users)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, gymnasium as gym, aeromag_env;"
+        "gym.make('AeroMagCompensation-v0');"
+        "gym.make_vec('AeroMagCompensation-v0', num_envs=2,"
+        " vectorization_mode='vector_entry_point');"
+        "print(' '.join(sorted(m for m in sys.modules"
+        " if m.split('.')[0] in ('torch', 'stable_baselines3', 'matplotlib'))))"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == ""

@@ -39,6 +39,7 @@ import numpy as np
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.compensation.kalman_reference import run_reference
 from aeromag_env.compensation.model import FilterConfig
+from aeromag_env.environment.spaces import BASE_ACTIONS
 
 #: Environments of the batched-environment figure.
 VEC_ENVS = 64
@@ -49,7 +50,8 @@ SEED = 100_000
 def _episode_rate(env: Any, num_envs: int) -> float:
     """Env steps per second over one episode of every environment (steps only, no reset)."""
     env.reset(seed=SEED)
-    action = np.zeros((num_envs, 2) if num_envs > 1 else 2, np.float32)
+    size = len(BASE_ACTIONS)  # zero a_q, a_r: the constant policy
+    action = np.zeros((num_envs, size) if num_envs > 1 else size, np.float32)
     done = np.zeros(num_envs, bool)
     t0, steps = time.perf_counter(), 0
     while not done.all():

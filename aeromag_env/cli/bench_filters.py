@@ -32,6 +32,7 @@ from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kalman_reference import run_reference
 from aeromag_env.compensation.model import FilterConfig, measurement_rows
+from aeromag_env.simulation.interference import N_STATES
 
 #: Flights advanced together for ``filter_batched_samples_per_s``.
 BATCH = 64
@@ -55,12 +56,12 @@ def run_filterpy(cfg: FilterConfig, y: np.ndarray, t_b: np.ndarray, tdot_b: np.n
     """The plain KF of ``cfg`` with filterpy 2.0 (unscaled state, ``F = I``)."""
     from filterpy.kalman import KalmanFilter
 
-    kf = KalmanFilter(dim_x=21, dim_z=3)
-    kf.x = cfg.initial_state().reshape(21, 1)
+    kf = KalmanFilter(dim_x=N_STATES, dim_z=3)
+    kf.x = cfg.initial_state().reshape(N_STATES, 1)
     kf.P = cfg.initial_covariance()
     kf.Q = np.diag(cfg.process_noise())
     kf.R = cfg.measurement_noise()
-    kf.F = np.eye(21)
+    kf.F = np.eye(N_STATES)
     h_all = measurement_rows(t_b, tdot_b)
     for k in range(y.shape[0]):
         kf.predict()

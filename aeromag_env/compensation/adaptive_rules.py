@@ -24,6 +24,7 @@ from aeromag_env.compensation.kernel_layout import (
     PAR_ZOOM_Q,
     PAR_ZOOM_R,
 )
+from aeromag_env.compensation.model import FilterMode
 
 
 @njit(cache=True)
@@ -53,12 +54,12 @@ def adapt(
     par: np.ndarray,
 ) -> None:
     """Windowed adaptation of Q and R: fuzzy (eq. 21) or Ding et al. 2007."""
-    if mode == 1:
+    if mode == FilterMode.FAKF:
         s_r = zoomed_scale(ror, par[PAR_EPS], par[PAR_ZOOM_R])
         s_a = zoomed_scale(qoq, par[PAR_ETA], par[PAR_ZOOM_Q])
         rm *= s_r
         qd *= s_a
-    elif mode == 4:
+    elif mode == FilterMode.DING:
         m = ints[INT_COUNT]
         trr = rm[0, 0] + rm[1, 1] + rm[2, 2]
         denom = abs(acc[ACC_S] / m - trr)

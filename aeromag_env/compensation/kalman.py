@@ -1,9 +1,10 @@
 """Recursive compensators (KF, fuzzy adaptive KF, RLS, Sage–Husa, Ding) as a stateful filter.
 
 :class:`FilterState` holds everything the compiled loop
-(:func:`aeromag_env.compensation.kernels.advance`) updates, so a caller can advance a flight window
-by window and rescale Q and R in between (the environment does); :func:`run_filter` runs a whole
-flight.
+(:func:`aeromag_env.compensation.kernels.advance`) updates — the arrays of
+:class:`aeromag_env.compensation.arrays.FilterArrays`, each an attribute of the same name — so a
+caller can advance a flight window by window and rescale Q and R in between (the environment
+does); :func:`run_filter` runs a whole flight.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aeromag_env.compensation.arrays import FilterArrays, filter_arrays, packed
 from aeromag_env.compensation.kernel_layout import (
     INT_DIV,
     INT_INTERVAL,
@@ -35,16 +37,6 @@ from aeromag_env.compensation.kernel_layout import (
 from aeromag_env.compensation.kernels import advance
 from aeromag_env.compensation.model import MODE, STATE_SCALE, FilterConfig
 from aeromag_env.simulation.interference import N_STATES
-
-#: The arrays of a filter, in the order :func:`aeromag_env.compensation.kernels.advance` takes
-#: them after ``(mode, k0, k1)``; the first axis of ``TIME_ARRAYS`` is the sample, of
-#: ``WINDOW_ARRAYS`` the innovation window.
-CORE_ARRAYS = ("y", "t", "td", "valid", "d", "z", "p", "qd", "rm", "z_good", "p0", "q0", "r0",
-               "rbuf", "sbuf", "acc", "ints", "par",
-               "est", "innov", "ror", "qoq", "q_scale", "r_scale", "states")  # fmt: skip
-TIME_ARRAYS = ("y", "t", "td", "valid", "est", "innov", "ror", "qoq", "q_scale", "r_scale",
-               "states")  # fmt: skip
-WINDOW_ARRAYS = ("rbuf", "sbuf")
 
 
 @dataclass
@@ -90,6 +82,12 @@ class FilterState:
     y : (n, 3) measurement ``T_m − T`` [nT]
     t_b, tdot_b : (n, 3) model Earth field in body axes [nT] and its rate [nT/s]
     store_states : keep the (n, 21) posterior state history
+
+    Attributes
+    ----------
+    mode : the method's :class:`~aeromag_env.compensation.model.FilterMode`, as an int
+    every name of :data:`aeromag_env.compensation.arrays.CORE_ARRAYS` : that array (updated in
+        place, never replaced)
     """
 
     def __init__(
@@ -102,7 +100,7 @@ class FilterState:
     ) -> None:
         n = y.shape[0]
         self.cfg = cfg
-        self.mode = MODE[cfg.method]
+        self.mode = int(MODE[cfg.method])
         self.d = STATE_SCALE.copy()
         self.valid = np.all(np.isfinite(y) & np.isfinite(t_b) & np.isfinite(tdot_b), axis=1)
         # non-finite inputs become 0 in the arrays the loop reads; those samples only predict
@@ -128,6 +126,8 @@ class FilterState:
         self.ror, self.qoq = np.full(n, np.nan), np.full(n, np.nan)
         self.q_scale, self.r_scale = np.full(n, np.nan), np.full(n, np.nan)
         self.states = np.full((n if store_states else 0, N_STATES), np.nan)
+        self._arrays = filter_arrays(self)
+        self._packed = packed(self._arrays)
 
     @property
     def n(self) -> int:
@@ -149,11 +149,17 @@ class FilterState:
         k1 = min(int(k1), self.n)
         if k1 <= self.k:
             return
-        advance(self.mode, self.k, k1, *self.arrays())
+        advance(int(self.mode), self.k, k1, self._packed)
 
-    def arrays(self) -> tuple[np.ndarray, ...]:
-        """Inputs, state and outputs in the order of :data:`CORE_ARRAYS` (views, not copies)."""
-        return tuple(getattr(self, name) for name in CORE_ARRAYS)
+    def arrays(self) -> FilterArrays:
+        """The filter's arrays, grouped as the compiled loop takes them (the same arrays as the
+        attributes, not copies)."""
+        return self._arrays
+
+    def packed(self) -> tuple:
+        """:meth:`arrays` as plain tuples (:func:`aeromag_env.compensation.arrays.packed`), for
+        calls from Python into compiled code."""
+        return self._packed
 
     def scale_noise(self, s_q: float, s_r: float) -> None:
         """Multiply Q and R by ``s_q`` and ``s_r`` (paper eq. 21 with an external tuner)."""

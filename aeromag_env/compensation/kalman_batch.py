@@ -19,13 +19,18 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from aeromag_env.compensation.kalman import (
+from aeromag_env.compensation.arrays import (
     CORE_ARRAYS,
     TIME_ARRAYS,
     WINDOW_ARRAYS,
-    FilterResult,
-    FilterState,
+    FilterArrays,
+    Packed,
+    filter_arrays,
+    named,
+    packed,
+    row,
 )
+from aeromag_env.compensation.kalman import FilterResult, FilterState
 from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_SKIP
 from aeromag_env.compensation.kernels import advance
 from aeromag_env.compensation.model import FilterConfig
@@ -34,32 +39,25 @@ from aeromag_env.threads import run_chunks
 
 @njit(cache=True, nogil=True)
 def _advance_range(
-    lo: int, hi: int, modes: np.ndarray, k0: np.ndarray, k1: np.ndarray,
-    y: np.ndarray, t: np.ndarray, td: np.ndarray, valid: np.ndarray, d: np.ndarray,
-    z: np.ndarray, p: np.ndarray, qd: np.ndarray, rm: np.ndarray, z_good: np.ndarray,
-    p0: np.ndarray, q0: np.ndarray, r0: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray,
-    acc: np.ndarray, ints: np.ndarray, par: np.ndarray, est: np.ndarray, innov: np.ndarray,
-    ror: np.ndarray, qoq: np.ndarray, q_scale: np.ndarray, r_scale: np.ndarray,
-    states: np.ndarray,
-) -> None:  # fmt: skip
+    lo: int, hi: int, modes: np.ndarray, k0: np.ndarray, k1: np.ndarray, arrays: Packed
+) -> None:
     """Flights ``lo ≤ i < hi`` of :func:`advance_batch`."""
+    f = named(arrays)
     for i in range(lo, hi):
         if k1[i] > k0[i]:
-            advance(
-                modes[i], k0[i], k1[i], y[i], t[i], td[i], valid[i], d[i], z[i], p[i], qd[i],
-                rm[i], z_good[i], p0[i], q0[i], r0[i], rbuf[i], sbuf[i], acc[i], ints[i], par[i],
-                est[i], innov[i], ror[i], qoq[i], q_scale[i], r_scale[i], states[i],
-            )  # fmt: skip
+            advance(modes[i], k0[i], k1[i], row(f, i))
 
 
-def advance_batch(modes: np.ndarray, k0: np.ndarray, k1: np.ndarray, *arrays: np.ndarray) -> None:
+def advance_batch(
+    modes: np.ndarray, k0: np.ndarray, k1: np.ndarray, f: FilterArrays | Packed
+) -> None:
     """Advance flight i over samples ``k0[i] ≤ k < k1[i]``, for every i, on all cores.
 
-    ``modes``, ``k0``, ``k1`` are (N,) int64; ``arrays`` are those of
-    :func:`aeromag_env.compensation.kernels.advance` after ``(mode, k0, k1)``, in the order of
-    :data:`aeromag_env.compensation.kalman.CORE_ARRAYS`, each with a leading flight axis (N, ...).
+    ``modes``, ``k0``, ``k1`` are (N,) int64; ``f`` holds the arrays of
+    :func:`aeromag_env.compensation.kernels.advance` (or them packed), each with a leading
+    flight axis (N, ...).
     """
-    run_chunks(_advance_range, int(modes.shape[0]), modes, k0, k1, *arrays)
+    run_chunks(_advance_range, int(modes.shape[0]), modes, k0, k1, packed(f))
 
 
 class BatchFilterState:
@@ -71,11 +69,11 @@ class BatchFilterState:
 
     Attributes
     ----------
-    mode : (N,) int64 method code per flight (:data:`aeromag_env.compensation.model.MODE`)
+    mode : (N,) int64 method per flight (:class:`aeromag_env.compensation.model.FilterMode`)
     n : (N,) int64 flight lengths [samples]
-    every name of :data:`aeromag_env.compensation.kalman.CORE_ARRAYS` : that array with a leading
-    axis N;
-        time arrays are padded to ``n.max()`` samples, window buffers to the longest window.
+    every name of :data:`aeromag_env.compensation.arrays.CORE_ARRAYS` : that array with a
+        leading axis N; time arrays are padded to ``n.max()`` samples, window buffers to the
+        longest window.
     """
 
     y: np.ndarray
@@ -110,7 +108,7 @@ class BatchFilterState:
         self.mode = np.array([s.mode for s in states], dtype=np.int64)
         self.n = np.array([s.n for s in states], dtype=np.int64)
         self.cfgs = [s.cfg for s in states]
-        self._arrays: tuple[np.ndarray, ...] | None = None
+        self._arrays: FilterArrays | None = None
         first = states[0]
         for name in CORE_ARRAYS:
             shape = list(getattr(first, name).shape)
@@ -170,18 +168,17 @@ class BatchFilterState:
             else:
                 dst[...] = src
 
-    def arrays(self) -> tuple[np.ndarray, ...]:
-        """The stacked arrays in the order of
-        :data:`aeromag_env.compensation.kalman.CORE_ARRAYS`."""
+    def arrays(self) -> FilterArrays:
+        """The stacked arrays, grouped as the compiled loop takes them."""
         if self._arrays is None:  # built once per allocation: an env step asks every time
-            self._arrays = tuple(getattr(self, name) for name in CORE_ARRAYS)
+            self._arrays = filter_arrays(self)
         return self._arrays
 
     def advance(self, k1: int | np.ndarray) -> None:
         """Run every flight from its current sample up to (not including) ``k1`` (scalar or
         (N,)), never past its own length."""
         target = np.minimum(np.broadcast_to(np.asarray(k1, dtype=np.int64), self.n.shape), self.n)
-        advance_batch(self.mode, self.k, target, *self.arrays())
+        advance_batch(self.mode, self.k, target, self.arrays())
 
     def scale_noise(self, s_q: float | np.ndarray, s_r: float | np.ndarray) -> None:
         """Multiply Q and R of flight i by ``s_q[i]`` and ``s_r[i]`` (scalars: all flights)."""

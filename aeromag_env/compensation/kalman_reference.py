@@ -1,6 +1,7 @@
 """Plain-numpy reference of the recursive compensators, written for reading, not speed.
 
-It mirrors :mod:`aeromag_env.compensation.kernels` equation by equation with dense matrices and the
+It mirrors :mod:`aeromag_env.compensation.kernels` (and
+:mod:`aeromag_env.compensation.adaptive_rules`) equation by equation with dense matrices and the
 factored Joseph form, so the compiled loop is tested against an independent transcription.
 Pure functions (``kf_predict``, ``kf_update``) follow filterpy's procedural style.
 """
@@ -12,6 +13,7 @@ import numpy as np
 from aeromag_env.compensation.fuzzy import fis_scale_reference
 from aeromag_env.compensation.kalman import FilterResult
 from aeromag_env.compensation.model import STATE_SCALE, FilterConfig, measurement_rows
+from aeromag_env.simulation.interference import N_STATES
 
 
 def kf_predict(x: np.ndarray, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -48,7 +50,8 @@ def run_reference(
     r = r0.copy()
     window: list[tuple[np.ndarray, float]] = []
     out = {k: np.full(n, np.nan) for k in ("ror", "qoq", "q_scale", "r_scale")}
-    est, innovations, states = np.full((n, 3), np.nan), np.full((n, 3), np.nan), np.zeros((n, 21))
+    est, innovations = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+    states = np.zeros((n, N_STATES))
     skipped, since = 0, 0
     for k in range(n):
         if cfg.method == "rls":
@@ -105,7 +108,8 @@ def _adapt(cfg: FilterConfig, ror: float, qoq: float, window: list, r: np.ndarra
 
 
 def _sage_husa(cfg, k, innov, s, gain, r, q, q0, post_fit, hph_post):
-    """R from the post-fit residual (always positive definite), optional Q (see kalman_core)."""
+    """R from the post-fit residual (always positive definite), optional Q (as
+    :func:`aeromag_env.compensation.adaptive_rules.sage_husa`)."""
     dk = (1 - cfg.sage_husa_b) / (1 - cfg.sage_husa_b ** (k + 1))
     if cfg.sage_husa_form == "innovation":
         r_new = (1 - dk) * r + dk * (np.outer(innov, innov) - (s - r))

@@ -15,20 +15,41 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import IntEnum
 
 import numpy as np
 
 from aeromag_env.configs import check, require_nonnegative, require_positive
-from aeromag_env.simulation.interference import N_STATES, STATE_SLICES
+from aeromag_env.simulation.interference import (
+    BLOCK_SIZES,
+    EDDY_START,
+    INDUCED_START,
+    N_STATES,
+    PERMANENT_START,
+    STATE_SLICES,
+)
 
 #: Typical magnitude of each state block: T_p [nT], A [-], B [s].
 BLOCK_SCALE = (100.0, 1e-3, 1e-4)
 #: Per-state normalisation ``d`` (21,).
-STATE_SCALE = np.repeat(BLOCK_SCALE, (3, 9, 9)).astype(float)
+STATE_SCALE = np.repeat(BLOCK_SCALE, BLOCK_SIZES).astype(float)
 
 METHODS = ("kf", "fakf", "rls", "sage-husa", "ding")
-#: Integer codes of the methods inside the compiled loop.
-MODE = {"kf": 0, "fakf": 1, "rls": 2, "sage-husa": 3, "ding": 4}
+
+
+class FilterMode(IntEnum):
+    """The methods of :data:`METHODS` as the compiled loop knows them (an ``int`` argument,
+    compared with these members, which numba reads as constants)."""
+
+    KF = 0
+    FAKF = 1
+    RLS = 2
+    SAGE_HUSA = 3
+    DING = 4
+
+
+#: Method name → its :class:`FilterMode`.
+MODE = {name: FilterMode[name.upper().replace("-", "_")] for name in METHODS}
 
 
 def measurement_rows(t_b: np.ndarray, tdot_b: np.ndarray) -> np.ndarray:
@@ -46,9 +67,9 @@ def measurement_rows(t_b: np.ndarray, tdot_b: np.ndarray) -> np.ndarray:
     n = t_b.shape[0]
     h = np.zeros((n, 3, N_STATES))
     for i in range(3):
-        h[:, i, i] = 1.0
-        h[:, i, 3 + 3 * i : 6 + 3 * i] = t_b
-        h[:, i, 12 + 3 * i : 15 + 3 * i] = tdot_b
+        h[:, i, PERMANENT_START + i] = 1.0
+        h[:, i, INDUCED_START + 3 * i : INDUCED_START + 3 * i + 3] = t_b
+        h[:, i, EDDY_START + 3 * i : EDDY_START + 3 * i + 3] = tdot_b
     return h
 
 
@@ -122,7 +143,7 @@ class FilterConfig:
             f"method must be one of {', '.join(METHODS)}; got {self.method!r}",
         )
         check(
-            len(self.p0_std) == 3 and len(self.q_std) == 3,
+            len(self.p0_std) == len(BLOCK_SIZES) and len(self.q_std) == len(BLOCK_SIZES),
             "p0_std and q_std need 3 values (T_p, A, B)",
         )
         check(all(v > 0 for v in self.p0_std), "FilterConfig.p0_std must be > 0")
@@ -152,11 +173,11 @@ class FilterConfig:
 
     def initial_covariance(self) -> np.ndarray:
         """``P(0)`` (21, 21), diagonal."""
-        return np.diag(np.repeat(np.square(self.p0_std), (3, 9, 9)))
+        return np.diag(np.repeat(np.square(self.p0_std), BLOCK_SIZES))
 
     def process_noise(self) -> np.ndarray:
         """Diagonal of ``Q(0)`` (21,)."""
-        return np.repeat(np.square(self.q_std), (3, 9, 9)).astype(float)
+        return np.repeat(np.square(self.q_std), BLOCK_SIZES).astype(float)
 
     def measurement_noise(self) -> np.ndarray:
         """``R(0)`` (3, 3)."""
@@ -176,7 +197,7 @@ def paper_filter_config(method: str = "fakf") -> FilterConfig:
         method=method,
         q_std=tuple(q * s for s in BLOCK_SCALE),
         r_std_nt=math.sqrt(2e-3),
-        x0=(0.1, 0.1, 0.1) + (0.0,) * 18,
+        x0=(0.1,) * BLOCK_SIZES[0] + (0.0,) * (N_STATES - BLOCK_SIZES[0]),  # T_p(0) = 0.1 nT
         epsilon=0.05,
         eta=0.025,
     )

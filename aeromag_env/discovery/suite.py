@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env.discovery.workflow import BaseSpan, base_columns, discover
+from aeromag_env.discovery.base_model import BaseSpan, base_columns
+from aeromag_env.discovery.workflow import discover
 from aeromag_env.flight.data import Flight
 from aeromag_env.geo.frames import time_derivative
 from aeromag_env.simulation.config import (

@@ -10,10 +10,12 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from aeromag_env.compensation.arrays import packed
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.configs import check, from_dict, to_dict
 from aeromag_env.environment import kernels
 from aeromag_env.environment.kernels import (
+    N_PAR,
     OUT_EPISODE_RMSE,
     OUT_Q_SCALE,
     OUT_QOQ,
@@ -24,14 +26,35 @@ from aeromag_env.environment.kernels import (
     OUT_ROR,
     OUT_TERMINATED,
     OUT_TRUNCATED,
+    PAR_ABSOLUTE,
+    PAR_K,
+    PAR_LN10,
+    PAR_LOG_LIMIT,
+    PAR_LOG_S_MAX,
+    PAR_PENALTY,
+    PAR_Q_HI,
+    PAR_Q_LO,
+    PAR_QP_GATE,
+    PAR_QP_HI,
+    PAR_QP_LO,
+    PAR_R_HI,
+    PAR_R_LO,
+    PAR_REWARD_FORM,
+    PAR_REWARD_NT,
+    PAR_SPLIT_Q,
     REWARD_FORMS,
     RUN_LOG_Q,
     RUN_LOG_R,
+    EnvArrays,
+    EnvSettings,
 )
 from aeromag_env.environment.scenarios import Episode, check_scenario, make_episode
-
-#: Observations are log10 ratios clipped to ±OBS_LIMIT.
-OBS_LIMIT = 8.0
+from aeromag_env.environment.spaces import (
+    action_size,
+    check_actions,
+    observation_bounds,
+    observation_positions,
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -119,6 +142,33 @@ class EnvConfig:
             check(len(lo_hi) == 2 and lo_hi[0] < lo_hi[1], f"{nm} must be (lo, hi), lo < hi")
 
 
+def parameters(config: EnvConfig) -> np.ndarray:
+    """The settings of ``config`` the compiled step reads, as a float vector (N_PAR,) laid out by
+    the ``PAR_*`` indices of :mod:`aeromag_env.environment.kernels`."""
+    par = np.zeros(N_PAR)
+    par[PAR_K] = config.decision_window
+    par[PAR_LOG_S_MAX] = math.log(config.s_max)
+    par[PAR_LOG_LIMIT] = math.log(config.scale_limit)
+    par[PAR_ABSOLUTE] = float(config.action_mode == "absolute")
+    par[PAR_Q_LO], par[PAR_Q_HI] = config.absolute_q_log10
+    par[PAR_R_LO], par[PAR_R_HI] = config.absolute_r_log10
+    par[PAR_REWARD_NT] = config.reward_scale_nt
+    par[PAR_PENALTY] = config.divergence_penalty
+    par[PAR_LN10] = math.log(10.0)
+    par[PAR_SPLIT_Q] = float(config.split_q)
+    par[PAR_QP_LO], par[PAR_QP_HI] = config.absolute_qp_log10
+    par[PAR_REWARD_FORM] = REWARD_FORMS.index(config.reward_form)
+    par[PAR_QP_GATE] = float(config.qp_gate)
+    return par
+
+
+def step_settings(config: EnvConfig) -> EnvSettings:
+    """What the compiled step of every environment of ``config`` shares: the parameters, the
+    observation layout and its bounds."""
+    low, high = observation_bounds(config)
+    return EnvSettings(parameters(config), observation_positions(config), low, high)
+
+
 class AeroMagCompensationEnv(gym.Env):
     """Online tuning of the 21-state aeromagnetic Kalman compensator's noise covariances.
 
@@ -128,10 +178,11 @@ class AeroMagCompensationEnv(gym.Env):
     :mod:`aeromag_env.environment.scenarios`). The flight and its signals are generated in
     ``reset``; each ``step`` rescales the filter's process noise Q and measurement noise R (the
     paper's eq. 21, ``Q ← s_a Q``, ``R ← s_r R``) and advances the filter over one decision window
-    of K samples. The paper's fuzzy rules are one policy for this task (``agents.fis``); others are
-    learned. The step is compiled (:func:`aeromag_env.environment.kernels.env_step`) and is the
-    same code that ``gym.make_vec("AeroMagCompensation-v0", num_envs=N)`` runs for N environments
-    at once (:class:`aeromag_env.environment.vec_env.AeroMagCompensationVecEnv`).
+    of K samples. The paper's fuzzy rules are one policy for this task
+    (:class:`agents.policies.FisPolicy`); others are learned. The step is compiled
+    (:func:`aeromag_env.environment.kernels.env_step`) and is the same code that
+    ``gym.make_vec("AeroMagCompensation-v0", num_envs=N)`` runs for N environments at once
+    (:class:`aeromag_env.environment.vec_env.AeroMagCompensationVecEnv`).
 
     ## Action Space
 
@@ -158,7 +209,10 @@ class AeroMagCompensationEnv(gym.Env):
     progress through the flight (in [0, 1]) and log10 of the ROR over the last decision window
     only (it reacts to an interference step within K samples, the M-window ROR only slowly);
     with ``split_q`` an eighth, log10 of the cumulative T_p Q scale; with ``innovation_power``
-    two more, with ``step_statistic`` one more, in that order (see :class:`EnvConfig`).
+    two more, with ``step_statistic`` one more, in that order (see :class:`EnvConfig`). Their
+    names and columns: :func:`aeromag_env.environment.spaces.observation_names` and
+    :func:`~aeromag_env.environment.spaces.observation_index` (actions:
+    :data:`~aeromag_env.environment.spaces.ACTIONS`).
 
     ## Rewards
 
@@ -202,18 +256,13 @@ class AeroMagCompensationEnv(gym.Env):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
-        self._action_size = kernels.action_size(self.config)
+        self._action_size = action_size(self.config)
         self.action_space = spaces.Box(-1.0, 1.0, (self._action_size,), np.float32)
-        c = self.config
-        dim = (7 + c.split_q + 2 * c.innovation_power + c.step_statistic) if c.extras else 2
-        low = np.full(dim, -OBS_LIMIT, np.float32)
-        high = np.full(dim, OBS_LIMIT, np.float32)
-        if self.config.extras:
-            low[4:6], high[4:6] = (-1.0, 0.0), (1.0, 1.0)
-        self.observation_space = spaces.Box(low, high, (dim,), np.float32)
-        self._obs_low, self._obs_high = low, high
+        self._settings = step_settings(self.config)
+        self._shared = packed(self._settings)
+        low, high = self._settings.low, self._settings.high
+        self.observation_space = spaces.Box(low, high, low.shape, np.float32)
         self._scenario = self.config.scenario
-        self._par = kernels.parameters(self.config)
         self._out = np.zeros(kernels.N_OUT)
 
     def reset(
@@ -232,7 +281,7 @@ class AeroMagCompensationEnv(gym.Env):
         self._run = np.zeros(kernels.N_RUN)
         self._score_start = int(self.config.score_from * ep.n)
         self._rewards: list[float] = []
-        return np.zeros(self._obs_low.size, np.float32), {"flight_seed": self._flight_seed}
+        return np.zeros(self._settings.low.size, np.float32), {"flight_seed": self._flight_seed}
 
     @property
     def scenario(self) -> str:
@@ -245,10 +294,10 @@ class AeroMagCompensationEnv(gym.Env):
         return float(self._run[RUN_LOG_Q]), float(self._run[RUN_LOG_R])
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        a = kernels.check_actions(action, size=self._action_size)
-        f, obs, out = self.filter, np.empty(self._obs_low.size, np.float32), self._out
-        kernels.env_step(a, self._run, self._par, self._score_start, f.n, self._truth,
-                          self._obs_low, self._obs_high, obs, out, f.mode, *f.arrays())  # fmt: skip
+        a = check_actions(action, size=self._action_size)
+        f, obs, out = self.filter, np.empty(self._settings.low.size, np.float32), self._out
+        arrays = packed(EnvArrays(a, self._run, self._truth, obs, out))
+        kernels.env_step(int(f.mode), f.n, self._score_start, arrays, self._shared, f.packed())
         reward = float(out[OUT_REWARD])
         terminated, truncated = bool(out[OUT_TERMINATED]), bool(out[OUT_TRUNCATED])
         self._rewards.append(reward)

@@ -9,93 +9,81 @@ used by :class:`aeromag_env.environment.vec_env.AeroMagCompensationVecEnv`). Bot
 compiled code, so environment i of the vector environment is bitwise the single environment given
 the same flight and actions (tested).
 
-The action mapping, reward and observation are specified in the environment's docstring.
+The action mapping, reward and observation are specified in the environment's docstring; the
+action and observation layouts are named in :mod:`aeromag_env.environment.spaces`.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
+from aeromag_env.compensation.arrays import FilterArrays, Packed, named, packed, row
 from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_DIV, INT_K, INT_POS, INT_WINDOW
 from aeromag_env.compensation.kernels import advance
+from aeromag_env.environment.spaces import (
+    ACT_Q,
+    ACT_QP,
+    ACT_R,
+    OBS_LOG_INNOVATION_POWER,
+    OBS_LOG_MEAN_INNOVATION_POWER,
+    OBS_LOG_Q_SCALE,
+    OBS_LOG_QOQ,
+    OBS_LOG_QP_SCALE,
+    OBS_LOG_R_SCALE,
+    OBS_LOG_RECENT_ROR,
+    OBS_LOG_ROR,
+    OBS_LOG_STEP_STATISTIC,
+    OBS_PROGRESS,
+    OBS_WHITENESS,
+)
+from aeromag_env.simulation.interference import INDUCED_START, PERMANENT_START
 from aeromag_env.threads import run_chunks
-
-if TYPE_CHECKING:
-    from aeromag_env.environment.env import EnvConfig
 
 # running values of one environment (float vector); RUN_LOG_Q is the Q of all 21 states, or with
 # split_q of the coefficient blocks (A, B) only, and RUN_LOG_QP that of the permanent block T_p
 RUN_LOG_Q, RUN_LOG_R, RUN_SQ_ERR, RUN_N_ERR, RUN_LOG_QP = range(5)
 N_RUN = 5
-# environment parameters (float vector, see parameters())
+# environment parameters (float vector, see aeromag_env.environment.env.parameters)
 (PAR_K, PAR_LOG_S_MAX, PAR_LOG_LIMIT, PAR_ABSOLUTE, PAR_Q_LO, PAR_Q_HI, PAR_R_LO, PAR_R_HI,
- PAR_REWARD_NT, PAR_PENALTY, PAR_EXTRAS, PAR_LN10, PAR_SPLIT_Q, PAR_QP_LO,
- PAR_QP_HI, PAR_POWER, PAR_STEP_STAT, PAR_REWARD_FORM, PAR_QP_GATE) = range(19)  # fmt: skip
-N_PAR = 19
+ PAR_REWARD_NT, PAR_PENALTY, PAR_LN10, PAR_SPLIT_Q, PAR_QP_LO, PAR_QP_HI, PAR_REWARD_FORM,
+ PAR_QP_GATE) = range(16)  # fmt: skip
+N_PAR = 16
 #: Reward forms of :class:`aeromag_env.environment.env.EnvConfig`, coded by their index in
 #: PAR_REWARD_FORM.
 REWARD_FORMS = ("log", "linear", "squared")
-#: States of the permanent-field block T_p (the first block of the 21-state vector).
-N_PERMANENT = 3
 # outcome of one step (float vector)
 (OUT_REWARD, OUT_RMSE, OUT_ROR, OUT_QOQ, OUT_Q_SCALE, OUT_R_SCALE, OUT_TERMINATED,
  OUT_TRUNCATED, OUT_EPISODE_RMSE, OUT_QP_SCALE) = range(10)  # fmt: skip
 N_OUT = 10
 
 
-def parameters(config: EnvConfig) -> np.ndarray:
-    """The settings of ``config`` the compiled step reads, as a float vector (N_PAR,)."""
-    par = np.zeros(N_PAR)
-    par[PAR_K] = config.decision_window
-    par[PAR_LOG_S_MAX] = math.log(config.s_max)
-    par[PAR_LOG_LIMIT] = math.log(config.scale_limit)
-    par[PAR_ABSOLUTE] = float(config.action_mode == "absolute")
-    par[PAR_Q_LO], par[PAR_Q_HI] = config.absolute_q_log10
-    par[PAR_R_LO], par[PAR_R_HI] = config.absolute_r_log10
-    par[PAR_REWARD_NT] = config.reward_scale_nt
-    par[PAR_PENALTY] = config.divergence_penalty
-    par[PAR_EXTRAS] = float(config.extras)
-    par[PAR_LN10] = math.log(10.0)
-    par[PAR_SPLIT_Q] = float(config.split_q)
-    par[PAR_QP_LO], par[PAR_QP_HI] = config.absolute_qp_log10
-    par[PAR_POWER] = float(config.innovation_power)
-    par[PAR_STEP_STAT] = float(config.step_statistic)
-    par[PAR_REWARD_FORM] = REWARD_FORMS.index(config.reward_form)
-    par[PAR_QP_GATE] = float(config.qp_gate)
-    return par
+class EnvArrays(NamedTuple):
+    """One environment's arrays (the vector environment's: each with a leading environment axis)."""
+
+    action: np.ndarray  #: (2 or 3,) float64 finite action (aeromag_env.environment.spaces.ACTIONS)
+    run: np.ndarray  #: (N_RUN,) running values (RUN_*)
+    truth: np.ndarray  #: (≥ n, 3) true interference [nT]
+    obs: np.ndarray  #: (dim,) float32 observation (written)
+    outcome: np.ndarray  #: (N_OUT,) outcome of the step (OUT_*, written)
 
 
-def action_size(config: EnvConfig) -> int:
-    """Entries of one action: ``[a_q, a_r]``, or with ``split_q`` ``[a_q, a_r, a_qp]``."""
-    return 3 if config.split_q else 2
+class EnvSettings(NamedTuple):
+    """What every environment of one configuration shares."""
+
+    par: np.ndarray  #: (N_PAR,) parameters (PAR_*)
+    obs_at: np.ndarray  #: int64 column of each observation or -1 (spaces.observation_positions)
+    low: np.ndarray  #: (dim,) float32 lower bounds of the observation
+    high: np.ndarray  #: (dim,) float32 upper bounds
 
 
-def check_actions(actions: object, num_envs: int | None = None, size: int = 2) -> np.ndarray:
-    """The action of one environment as float64 (size,), or with ``num_envs`` the actions of a
-    vector environment (num_envs, size); a one-line ValueError when the size is wrong or a value
-    is not finite (values outside [-1, 1] are clipped later, not refused)."""
-    try:
-        a = np.asarray(actions, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"actions must be numbers in [-1, 1], got {actions!r}") from None
-    if num_envs is None:
-        if a.size != size or not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be {size} finite numbers in [-1, 1], got {actions!r}")
-        return a.reshape(size)
-    if a.shape != (num_envs, size):
-        raise ValueError(
-            f"actions must have shape ({num_envs}, {size}) (one action per environment), "
-            f"got shape {a.shape}"
-        )
-    finite = np.isfinite(a)
-    if not finite.all():
-        i = int(np.flatnonzero(~finite.all(axis=1))[0])
-        raise ValueError(f"actions must be finite; environment {i} got {a[i].tolist()}")
-    return a
+@njit(cache=True, inline="always")  # as arrays.row
+def _env_row(e: EnvArrays, i: int) -> EnvArrays:
+    """Environment i of stacked environment arrays (views of its rows)."""
+    return EnvArrays(e.action[i], e.run[i], e.truth[i], e.obs[i], e.outcome[i])
 
 
 @njit(cache=True)
@@ -236,35 +224,34 @@ def _log10_or_zero(v: float) -> float:
 
 
 @njit(cache=True)
-def _observe(
-    k1: int, n: int, run: np.ndarray, par: np.ndarray, ror: np.ndarray, qoq: np.ndarray,
-    innov: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray, ints: np.ndarray, r0: np.ndarray,
-    low: np.ndarray, high: np.ndarray, obs: np.ndarray,
-) -> None:  # fmt: skip
-    """Write the observation at the end of the window (float32, clipped to the bounds)."""
+def _observe(k1: int, n: int, env: EnvArrays, settings: EnvSettings, f: FilterArrays) -> None:
+    """Write the observation at the end of the window (float32, clipped to the bounds), each
+    at its column (``settings.obs_at``)."""
+    run, obs, par, at = env.run, env.obs, settings.par, settings.obs_at
+    ints, r0, rbuf = f.state.ints, f.state.r0, f.window.rbuf
     k = k1 - 1
-    obs[0] = _log10_or_zero(ror[k])
-    obs[1] = _log10_or_zero(qoq[k])
-    if par[PAR_EXTRAS] != 0.0:
-        obs[2] = run[RUN_LOG_Q] / par[PAR_LN10]
-        obs[3] = run[RUN_LOG_R] / par[PAR_LN10]
-        obs[4] = _whiteness(k1, ints[INT_WINDOW], innov)
-        obs[5] = k1 / n
-        short = _recent_ratio(int(par[PAR_K]), ints, rbuf, sbuf)
-        obs[6] = _log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
-        j = 7
-        if par[PAR_SPLIT_Q] != 0.0:
-            obs[j] = run[RUN_LOG_QP] / par[PAR_LN10]
-            j += 1
-        if par[PAR_POWER] != 0.0:  # over tr R(0): the noise level and a step, R aside
-            tr_r0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
-            obs[j] = _log10_or_zero(_recent_power(ints[INT_WINDOW], ints, rbuf)[0] / tr_r0)
-            obs[j + 1] = _log10_or_zero(_recent_power(int(par[PAR_K]), ints, rbuf)[1] / tr_r0)
-            j += 2
-        if par[PAR_STEP_STAT] != 0.0:
-            obs[j] = _log10_or_zero(_step_statistic(int(par[PAR_K]), ints, rbuf))
+    obs[OBS_LOG_ROR] = _log10_or_zero(f.outputs.ror[k])
+    obs[OBS_LOG_QOQ] = _log10_or_zero(f.outputs.qoq[k])
+    if at[OBS_LOG_Q_SCALE] >= 0:  # the extras
+        obs[OBS_LOG_Q_SCALE] = run[RUN_LOG_Q] / par[PAR_LN10]
+        obs[OBS_LOG_R_SCALE] = run[RUN_LOG_R] / par[PAR_LN10]
+        obs[OBS_WHITENESS] = _whiteness(k1, ints[INT_WINDOW], f.outputs.innov)
+        obs[OBS_PROGRESS] = k1 / n
+        short = _recent_ratio(int(par[PAR_K]), ints, rbuf, f.window.sbuf)
+        obs[OBS_LOG_RECENT_ROR] = _log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
+    if at[OBS_LOG_QP_SCALE] >= 0:
+        obs[at[OBS_LOG_QP_SCALE]] = run[RUN_LOG_QP] / par[PAR_LN10]
+    if at[OBS_LOG_INNOVATION_POWER] >= 0:  # over tr R(0): the noise level and a step, R aside
+        tr_r0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
+        power = _recent_power(ints[INT_WINDOW], ints, rbuf)[0]
+        obs[at[OBS_LOG_INNOVATION_POWER]] = _log10_or_zero(power / tr_r0)
+        mean_power = _recent_power(int(par[PAR_K]), ints, rbuf)[1]
+        obs[at[OBS_LOG_MEAN_INNOVATION_POWER]] = _log10_or_zero(mean_power / tr_r0)
+    if at[OBS_LOG_STEP_STATISTIC] >= 0:
+        statistic = _step_statistic(int(par[PAR_K]), ints, rbuf)
+        obs[at[OBS_LOG_STEP_STATISTIC]] = _log10_or_zero(statistic)
     for j in range(obs.shape[0]):
-        obs[j] = min(max(obs[j], low[j]), high[j])
+        obs[j] = min(max(obs[j], settings.low[j]), settings.high[j])
 
 
 @njit(cache=True)
@@ -280,42 +267,39 @@ def _reward(e: float, form: float) -> float:
 
 @njit(cache=True)
 def env_step(
-    a: np.ndarray, run: np.ndarray, env_par: np.ndarray, score_start: int, n: int,
-    truth: np.ndarray, low: np.ndarray, high: np.ndarray, obs: np.ndarray, out: np.ndarray,
-    mode: int, y: np.ndarray, t: np.ndarray, td: np.ndarray, valid: np.ndarray, d: np.ndarray,
-    z: np.ndarray, p: np.ndarray, qd: np.ndarray, rm: np.ndarray, z_good: np.ndarray,
-    p0: np.ndarray, q0: np.ndarray, r0: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray,
-    acc: np.ndarray, ints: np.ndarray, par: np.ndarray, est: np.ndarray, innov: np.ndarray,
-    ror: np.ndarray, qoq: np.ndarray, q_scale: np.ndarray, r_scale: np.ndarray,
-    states: np.ndarray,
+    mode: int, n: int, score_start: int, env_arrays: EnvArrays | Packed,
+    shared: EnvSettings | Packed, filter_arrays: FilterArrays | Packed,
 ) -> None:  # fmt: skip
-    """One environment step for the finite action ``a`` (2,) or, with ``split_q``, (3,).
+    """One environment step for the finite action ``env.action``.
 
-    ``run`` (N_RUN,) running values, ``env_par`` (N_PAR,) from :func:`parameters`,
-    ``score_start`` first scored sample, ``n`` flight length, ``truth`` (≥ n, 3) true
-    interference [nT], ``low``/``high``/``obs`` (dim,) float32 bounds and observation (written),
-    ``out`` (N_OUT,) outcome (written); then the filter's ``mode`` and arrays in the order of
-    :data:`aeromag_env.compensation.kalman.CORE_ARRAYS` (updated in place).
+    ``mode`` is the filter's method, ``n`` the flight length, ``score_start`` the first scored
+    sample; ``env_arrays`` this environment's arrays (the observation and outcome written),
+    ``shared`` the settings of its configuration, ``filter_arrays`` the filter's (updated in
+    place); each a NamedTuple or the same packed
+    (:func:`aeromag_env.compensation.arrays.packed`).
     """
-    e = env_par
-    s_q = _scale(a[0], RUN_LOG_Q, e[PAR_Q_LO], e[PAR_Q_HI], run, e)
-    s_r = _scale(a[1], RUN_LOG_R, e[PAR_R_LO], e[PAR_R_HI], run, e)
+    env, settings, f = EnvArrays(*env_arrays), EnvSettings(*shared), named(filter_arrays)
+    e, run, a, out = settings.par, env.run, env.action, env.outcome
+    qd, rm, ints = f.state.qd, f.state.rm, f.state.ints
+    s_q = _scale(a[ACT_Q], RUN_LOG_Q, e[PAR_Q_LO], e[PAR_Q_HI], run, e)
+    s_r = _scale(a[ACT_R], RUN_LOG_R, e[PAR_R_LO], e[PAR_R_HI], run, e)
     if e[PAR_SPLIT_Q] != 0.0:  # T_p's Q on its own, the coefficient blocks' by s_q
-        a_qp = a[2] if e[PAR_QP_GATE] == 0.0 else (1.0 if a[2] > 0.0 else -1.0)
-        qd[:N_PERMANENT] *= _scale(a_qp, RUN_LOG_QP, e[PAR_QP_LO], e[PAR_QP_HI], run, e)
-        qd[N_PERMANENT:] *= s_q
+        a_qp = a[ACT_QP] if e[PAR_QP_GATE] == 0.0 else (1.0 if a[ACT_QP] > 0.0 else -1.0)
+        s_qp = _scale(a_qp, RUN_LOG_QP, e[PAR_QP_LO], e[PAR_QP_HI], run, e)
+        qd[PERMANENT_START:INDUCED_START] *= s_qp
+        qd[INDUCED_START:] *= s_q
     else:
         qd *= s_q  # eq. 21: Q ← s_a Q, R ← s_r R
     rm *= s_r
     k0, divergences = ints[INT_K], ints[INT_DIV]
-    k1 = min(k0 + int(env_par[PAR_K]), n)
+    k1 = min(k0 + int(e[PAR_K]), n)
     if k1 > k0:
-        advance(mode, k0, k1, y, t, td, valid, d, z, p, qd, rm, z_good, p0, q0, r0, rbuf, sbuf,
-                acc, ints, par, est, innov, ror, qoq, q_scale, r_scale, states)  # fmt: skip
-    rmse = _window_error(k0, k1, truth, est, score_start, run)
+        advance(mode, k0, k1, f)
+    ror, qoq = f.outputs.ror, f.outputs.qoq
+    rmse = _window_error(k0, k1, env.truth, f.outputs.est, score_start, run)
     terminated = ints[INT_DIV] > divergences
-    reward = _reward(rmse / env_par[PAR_REWARD_NT], env_par[PAR_REWARD_FORM])
-    out[OUT_REWARD] = env_par[PAR_PENALTY] if terminated else reward
+    reward = _reward(rmse / e[PAR_REWARD_NT], e[PAR_REWARD_FORM])
+    out[OUT_REWARD] = e[PAR_PENALTY] if terminated else reward
     out[OUT_RMSE] = rmse
     out[OUT_ROR], out[OUT_QOQ] = ror[k1 - 1], qoq[k1 - 1]
     out[OUT_Q_SCALE], out[OUT_R_SCALE] = math.exp(run[RUN_LOG_Q]), math.exp(run[RUN_LOG_R])
@@ -324,43 +308,31 @@ def env_step(
     out[OUT_TRUNCATED] = 1.0 if k1 >= n and not terminated else 0.0
     n_err = run[RUN_N_ERR]
     out[OUT_EPISODE_RMSE] = math.sqrt(run[RUN_SQ_ERR] / n_err) if n_err > 0 else np.nan
-    _observe(k1, n, run, env_par, ror, qoq, innov, rbuf, sbuf, ints, r0, low, high, obs)
+    _observe(k1, n, env, settings, f)
 
 
 @njit(cache=True, nogil=True)
 def _env_step_range(
-    lo: int, hi: int, active: np.ndarray, actions: np.ndarray, run: np.ndarray,
-    env_par: np.ndarray, score_start: np.ndarray, n: np.ndarray, truth: np.ndarray,
-    low: np.ndarray, high: np.ndarray, obs: np.ndarray, out: np.ndarray, modes: np.ndarray,
-    y: np.ndarray, t: np.ndarray, td: np.ndarray, valid: np.ndarray, d: np.ndarray,
-    z: np.ndarray, p: np.ndarray, qd: np.ndarray, rm: np.ndarray, z_good: np.ndarray,
-    p0: np.ndarray, q0: np.ndarray, r0: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray,
-    acc: np.ndarray, ints: np.ndarray, par: np.ndarray, est: np.ndarray, innov: np.ndarray,
-    ror: np.ndarray, qoq: np.ndarray, q_scale: np.ndarray, r_scale: np.ndarray,
-    states: np.ndarray,
+    lo: int, hi: int, active: np.ndarray, modes: np.ndarray, n: np.ndarray,
+    score_start: np.ndarray, env_arrays: Packed, shared: Packed, filter_arrays: Packed,
 ) -> None:  # fmt: skip
     """Environments ``lo ≤ i < hi`` of :func:`env_step_batch`."""
+    envs, settings, filters = EnvArrays(*env_arrays), EnvSettings(*shared), named(filter_arrays)
     for i in range(lo, hi):
         if active[i]:
-            env_step(
-                actions[i], run[i], env_par, score_start[i], n[i], truth[i],
-                low, high, obs[i], out[i], modes[i], y[i], t[i], td[i], valid[i], d[i], z[i],
-                p[i], qd[i], rm[i], z_good[i], p0[i], q0[i], r0[i], rbuf[i], sbuf[i], acc[i],
-                ints[i], par[i], est[i], innov[i], ror[i], qoq[i], q_scale[i], r_scale[i],
-                states[i],
-            )  # fmt: skip
+            env = _env_row(envs, i)
+            env_step(modes[i], n[i], score_start[i], env, settings, row(filters, i))
 
 
 def env_step_batch(
-    active: np.ndarray, actions: np.ndarray, run: np.ndarray, env_par: np.ndarray,
-    score_start: np.ndarray, n: np.ndarray, truth: np.ndarray, low: np.ndarray,
-    high: np.ndarray, obs: np.ndarray, out: np.ndarray, modes: np.ndarray, *arrays: np.ndarray,
+    active: np.ndarray, modes: np.ndarray, n: np.ndarray, score_start: np.ndarray,
+    envs: EnvArrays, settings: EnvSettings, filters: FilterArrays,
 ) -> None:  # fmt: skip
     """:func:`env_step` for every environment i with ``active[i]`` (N,) bool, on all cores.
 
-    ``actions`` (N, 2 or 3) float64 finite; ``arrays`` the filters' arrays in the order of
-    :data:`aeromag_env.compensation.kalman.CORE_ARRAYS`; every array has a leading environment axis
-    except ``env_par``, ``low`` and ``high`` (shared).
+    ``modes``, ``n``, ``score_start`` (N,) int64 and the arrays of ``envs`` and ``filters`` have
+    a leading environment axis (the actions (N, 2 or 3) float64 finite); ``settings`` are
+    shared.
     """
-    run_chunks(_env_step_range, int(active.shape[0]), active, actions, run, env_par,
-               score_start, n, truth, low, high, obs, out, modes, *arrays)  # fmt: skip
+    run_chunks(_env_step_range, int(active.shape[0]), active, modes, n, score_start,
+               packed(envs), packed(settings), packed(filters))  # fmt: skip

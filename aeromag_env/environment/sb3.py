@@ -17,15 +17,21 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env.base_vec_env import (
-    VecEnv,
-    VecEnvIndices,
-    VecEnvObs,
-    VecEnvStepReturn,
-)
 
-from aeromag_env.environment import kernels
+try:  # the class below subclasses SB3's VecEnv, so SB3 is needed when this module is imported
+    from stable_baselines3.common.vec_env.base_vec_env import (
+        VecEnv,
+        VecEnvIndices,
+        VecEnvObs,
+        VecEnvStepReturn,
+    )
+except ImportError as err:  # pragma: no cover - depends on the installed extras
+    raise ImportError(
+        "aeromag_env.environment.sb3 needs stable-baselines3: pip install 'aeromag_env[rl]'"
+    ) from err
+
 from aeromag_env.environment.env import EnvConfig
+from aeromag_env.environment.spaces import action_size
 from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 
 
@@ -69,7 +75,7 @@ class AeroMagSB3VecEnv(VecEnv):
         self._upcoming: list[int | None] = (
             [next(s) for s in self._seed_streams] if self._seed_streams else [None] * num_envs
         )
-        self._actions = np.zeros((num_envs, kernels.action_size(self.venv.config)))
+        self._actions = np.zeros((num_envs, action_size(self.venv.config)))
         super().__init__(
             num_envs, self.venv.single_observation_space, self.venv.single_action_space
         )

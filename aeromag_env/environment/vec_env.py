@@ -15,7 +15,7 @@ from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K
 from aeromag_env.environment import kernels
-from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig
+from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig, step_settings
 from aeromag_env.environment.kernels import (
     OUT_EPISODE_RMSE,
     OUT_Q_SCALE,
@@ -27,9 +27,11 @@ from aeromag_env.environment.kernels import (
     OUT_ROR,
     OUT_TERMINATED,
     OUT_TRUNCATED,
+    EnvArrays,
 )
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
 from aeromag_env.environment.scenarios import check_scenario
+from aeromag_env.environment.spaces import action_size, check_actions
 
 #: Per-step info entries (as the single environment's ``info``) and their rows of the outcome.
 STEP_INFO = (("rmse_window_nt", OUT_RMSE), ("ror", OUT_ROR), ("qoq", OUT_QOQ),
@@ -120,9 +122,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self.single_observation_space = template.observation_space
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self._low = self.single_observation_space.low  # type: ignore[attr-defined]
-        self._high = self.single_observation_space.high  # type: ignore[attr-defined]
-        self._par = kernels.parameters(self.config)
+        self._settings = step_settings(self.config)
         n = self.num_envs
         self._rngs: list[np.random.Generator | None] = [None] * n
         self.scenarios = [self.config.scenario] * n
@@ -131,7 +131,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self._truth = np.zeros((n, 0, 3))
         self._run = np.zeros((n, kernels.N_RUN))
         self._score_start = np.zeros(n, np.int64)
-        self._obs = np.zeros((n, self._low.size), np.float32)
+        self._obs = np.zeros((n, self._settings.low.size), np.float32)
         self._out = np.zeros((n, kernels.N_OUT))
         self._ended = np.zeros(n, bool)
         self._prefetcher = FlightPrefetcher() if prefetch else None
@@ -212,11 +212,11 @@ class AeroMagCompensationVecEnv(VectorEnv):
         """Step the ``active`` environments (the others' outcome rows zeroed): rewards,
         terminated, truncated; sets ``_ended``."""
         filters = self._need_filters()
-        a = kernels.check_actions(actions, self.num_envs, kernels.action_size(self.config))
+        a = check_actions(actions, self.num_envs, action_size(self.config))
         self._out[~active] = 0.0
-        kernels.env_step_batch(active, a, self._run, self._par, self._score_start, filters.n,
-                                self._truth, self._low, self._high, self._obs, self._out,
-                                filters.mode, *filters.arrays())  # fmt: skip
+        envs = EnvArrays(a, self._run, self._truth, self._obs, self._out)
+        kernels.env_step_batch(active, filters.mode, filters.n, self._score_start, envs,
+                               self._settings, filters.arrays())  # fmt: skip
         out = self._out
         terminated, truncated = out[:, OUT_TERMINATED] > 0, out[:, OUT_TRUNCATED] > 0
         self._ended = terminated | truncated

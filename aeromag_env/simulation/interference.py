@@ -14,9 +14,18 @@ import numpy as np
 
 from aeromag_env.simulation.config import InterferenceConfig
 
-#: The 21-state layout, named once.
-STATE_SLICES = {"permanent": slice(0, 3), "induced": slice(3, 12), "eddy": slice(12, 21)}
-N_STATES = 21
+#: The 21-state layout, named once: the first index of each block and the state count (plain
+#: ints, which compiled code reads as constants). ``A`` and ``B`` are row-major 3×3 blocks, so
+#: ``A[i, j]`` is state ``INDUCED_START + 3 i + j``.
+PERMANENT_START, INDUCED_START, EDDY_START, N_STATES = 0, 3, 12, 21
+#: The blocks by name, as slices of the state vector.
+STATE_SLICES = {
+    "permanent": slice(PERMANENT_START, INDUCED_START),
+    "induced": slice(INDUCED_START, EDDY_START),
+    "eddy": slice(EDDY_START, N_STATES),
+}
+#: States per block (3, 9, 9), in the order of :data:`STATE_SLICES`.
+BLOCK_SIZES = tuple(s.stop - s.start for s in STATE_SLICES.values())
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,143 @@
+"""The base model of paper eq. 5: its 21 regressors, their span, and its coefficients.
+
+Decides what the base model can already explain: the 21 regressors ``[1, T, Ṫ]`` per axis
+(:func:`base_columns`), the projector off their span on the calibration rows (:class:`BaseSpan`,
+whose :meth:`~BaseSpan.identifiable_fraction` says how much of a candidate group the base model
+would absorb), and how the fitted coefficients read as ``T_p``, ``A`` and ``B``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aeromag_env.simulation.interference import STATE_SLICES
+
+
+def base_columns(t_b: np.ndarray, tdot_b: np.ndarray) -> np.ndarray:
+    """The 21 base regressors as vector columns (n, 3, 21), axis-major ``[1, T, Ṫ]`` per axis.
+
+    Parameters
+    ----------
+    t_b : numpy.ndarray
+        Model Earth field in body axes (n, 3) [nT].
+    tdot_b : numpy.ndarray
+        Its time derivative (n, 3) [nT/s].
+
+    Returns
+    -------
+    numpy.ndarray
+        Columns (n, 3, 21): axis i has ``[1, T, Ṫ]`` in columns ``7 i … 7 i + 6``, zeros elsewhere.
+    """
+    n = t_b.shape[0]
+    cols = np.zeros((n, 3, 3, 7))
+    rows = np.column_stack([np.ones(n), t_b, tdot_b])
+    for i in range(3):
+        cols[:, i, i, :] = rows
+    return cols.reshape(n, 3, 21)
+
+
+def base_state(beta: np.ndarray) -> np.ndarray:
+    """Axis-major base coefficients (21) → state ``[T_p, A row-major, B row-major]``.
+
+    Parameters
+    ----------
+    beta : numpy.ndarray
+        Coefficients whose first 21 are the base model's, axis-major as in :func:`base_columns`.
+
+    Returns
+    -------
+    numpy.ndarray
+        The state (21,): ``T_p`` (3), ``A`` (9, row-major), ``B`` (9, row-major).
+    """
+    b = np.asarray(beta[:21]).reshape(3, 7)
+    return np.r_[b[:, 0], b[:, 1:4].ravel(), b[:, 4:7].ravel()]
+
+
+def stack(x: np.ndarray) -> np.ndarray:
+    """Vector columns (m, 3, p) → axis-stacked rows (3m, p).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Vector columns (m, 3, p).
+
+    Returns
+    -------
+    numpy.ndarray
+        Rows (3m, p): all of axis 0, then axis 1, then axis 2.
+    """
+    return x.transpose(1, 0, 2).reshape(-1, x.shape[2])
+
+
+def orthonormal(x: np.ndarray, tol: float = 1e-7) -> np.ndarray:
+    """Orthonormal basis of the column space of ``x`` (rank by singular values > tol·max).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Columns (rows, p); each is scaled to unit norm before the SVD.
+    tol : float
+        Relative singular-value threshold of the rank.
+
+    Returns
+    -------
+    numpy.ndarray
+        Orthonormal columns (rows, rank).
+    """
+    if x.shape[1] == 0:
+        return x
+    u, s, _ = np.linalg.svd(x / np.maximum(np.linalg.norm(x, axis=0), 1e-300), full_matrices=False)
+    return u[:, s > tol * s[0]] if s.size and s[0] > 0 else u[:, :0]
+
+
+class BaseSpan:
+    """Projector off the un-whitened base regressors on the calibration rows.
+
+    Parameters
+    ----------
+    base : numpy.ndarray
+        The base regressors (n, 3, 21) of :func:`base_columns`.
+    rows : numpy.ndarray
+        Boolean mask (n,) of the rows the span is taken over.
+    """
+
+    def __init__(self, base: np.ndarray, rows: np.ndarray) -> None:
+        self.rows = rows
+        self.q = orthonormal(stack(base[rows]), tol=1e-10)
+
+    def perp(self, x: np.ndarray) -> np.ndarray:
+        """Axis-stacked part (3m, p) of columns ``x`` (n, 3, p) outside the span, on the rows."""
+        xs = stack(x[self.rows])
+        return xs - self.q @ (self.q.T @ xs)
+
+    def identifiable_fraction(self, group: np.ndarray) -> float:
+        """Share of the group's centred variance outside the base span, mean over its columns
+        (0 when the group does not vary)."""
+        g = group[self.rows]
+        gc = stack(g - g.mean(axis=0, keepdims=True))
+        norms = np.linalg.norm(gc, axis=0)
+        ok = norms > 1e-9 * max(float(np.linalg.norm(stack(g), axis=0).max()), 1e-300)
+        if not ok.any():
+            return 0.0
+        perp = self.perp(group[:, :, ok])
+        return float(np.mean(np.sum(perp**2, axis=0) / norms[ok] ** 2))
+
+
+def base_dict(state: np.ndarray) -> dict[str, list[float]]:
+    """The base state of :func:`base_state` as JSON-ready lists, by term.
+
+    Parameters
+    ----------
+    state : numpy.ndarray
+        ``[T_p, A row-major, B row-major]`` (21,).
+
+    Returns
+    -------
+    dict
+        ``permanent_nt`` (3), ``induced`` (9) and ``eddy_s`` (9).
+    """
+    return {
+        "permanent_nt": state[STATE_SLICES["permanent"]].tolist(),
+        "induced": state[STATE_SLICES["induced"]].tolist(),
+        "eddy_s": state[STATE_SLICES["eddy"]].tolist(),
+    }

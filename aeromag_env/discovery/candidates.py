@@ -1,0 +1,81 @@
+"""Candidate effects: which regressor groups of the effects library are tested, which are absorbed.
+
+Every effect of :mod:`aeromag_env.simulation.effects` builds its regressor groups from the
+channels present (one group per auxiliary channel for ``onboard_current``); an effect whose
+channels are missing is skipped, with its reason. A group whose part outside the base
+regressors' span is below :data:`ABSORBED_FRACTION` of its variance is *absorbed*
+(Frisch–Waugh–Lovell) and never tested or named; effects marked ``absorbed_by`` in the library
+(offset, scale, non-orthogonality, misalignment) are always such groups.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from aeromag_env.discovery.base_model import BaseSpan
+from aeromag_env.simulation.effects import EFFECTS, EffectContext, Group
+
+#: A group with less of its variance outside the base span than this is absorbed.
+ABSORBED_FRACTION = 1e-3
+
+
+@dataclass
+class Candidates:
+    """The effects library's groups for one flight, sorted by verdict.
+
+    Attributes
+    ----------
+    groups : list of Group
+        Groups to test (profiled families have one group per grid value).
+    fractions : list of float
+        Identifiable fraction of each group in ``groups`` (outside the base span).
+    skipped : list of dict
+        ``name`` and ``reason`` of effects the file lacks channels for.
+    absorbed : list of dict
+        ``name``, ``channel``, ``identifiable_fraction`` and ``absorbed_by`` of absorbed groups.
+    """
+
+    groups: list[Group] = field(default_factory=list)
+    fractions: list[float] = field(default_factory=list)
+    skipped: list[dict[str, str]] = field(default_factory=list)
+    absorbed: list[dict[str, Any]] = field(default_factory=list)
+
+
+def candidate_groups(ctx: EffectContext, span: BaseSpan) -> Candidates:
+    """Build every effect's groups from the channels present and set the absorbed ones apart.
+
+    Parameters
+    ----------
+    ctx : EffectContext
+        The flight's model field context (:attr:`PreparedFlight.ctx
+        <aeromag_env.discovery.preparation.PreparedFlight.ctx>`).
+    span : BaseSpan
+        The base regressors' span on the calibration rows.
+
+    Returns
+    -------
+    Candidates
+        Groups to test with their identifiable fractions, skipped effects, absorbed groups;
+        in the order of :data:`~aeromag_env.simulation.effects.EFFECTS`.
+    """
+    out = Candidates()
+    for name, eff in EFFECTS.items():
+        found, why = eff.groups(ctx)
+        if why:
+            out.skipped.append({"name": name, "reason": why})
+        for g in found:
+            frac = span.identifiable_fraction(g.columns)
+            if eff.absorbed_by or frac < ABSORBED_FRACTION:
+                out.absorbed.append(
+                    {
+                        "name": name,
+                        "channel": g.channel,
+                        "identifiable_fraction": frac,
+                        "absorbed_by": eff.absorbed_by or "the base model here",
+                    }
+                )
+            else:
+                out.groups.append(g)
+                out.fractions.append(frac)
+    return out

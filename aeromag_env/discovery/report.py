@@ -1,0 +1,246 @@
+"""The discovery report: named effects, every candidate's verdict, the selection record, data.
+
+Decides what ``report.json`` says: each named effect with its channel, evidence (and its field's
+RMS on the held-out part), fitted parameters, standard errors and physical reading; the verdict
+on every candidate family (added, retracted, not significant, absorbed); how the selection was
+made, step by step; the base model's coefficients before and after; and how the flight's samples
+were used.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from aeromag_env.discovery.base_model import base_dict, base_state
+from aeromag_env.discovery.candidates import Candidates
+from aeromag_env.discovery.evidence import MIN_DELTA_BIC, rounded
+from aeromag_env.discovery.gap import rms
+from aeromag_env.discovery.preparation import PreparedFlight
+from aeromag_env.discovery.selection import Selection
+from aeromag_env.flight.data import Flight
+from aeromag_env.simulation.effects import Group
+
+
+def build_report(
+    flight: Flight,
+    flux: str,
+    alpha: float,
+    data: PreparedFlight,
+    cands: Candidates,
+    sel: Selection,
+    missing: list[dict[str, Any]],
+    gap: dict[str, Any],
+    diagnostics: dict[str, Any],
+) -> dict[str, Any]:
+    """The JSON-ready report of :func:`~aeromag_env.discovery.workflow.discover`.
+
+    Parameters
+    ----------
+    flight, flux, alpha
+        The flight, its vector magnetometer and the family-wise level of the tests.
+    data : PreparedFlight
+        The prepared flight.
+    cands : Candidates
+        The candidate groups (as left by the selection), skipped effects and absorbed groups.
+    sel : Selection
+        The selected model.
+    missing, gap, diagnostics
+        The named effects (:func:`missing_effects`), the held-out gap
+        (:func:`~aeromag_env.discovery.gap.gap_record`) and the diagnostics
+        (:func:`~aeromag_env.discovery.diagnostics.diagnostics`).
+
+    Returns
+    -------
+    dict
+        ``missing_effects``, ``gap``, ``verdict``, ``candidates``, ``skipped``, ``selection``,
+        ``diagnostics``, ``base_model`` and ``data``.
+    """
+    groups = cands.groups
+    return {
+        "missing_effects": [
+            {k: e[k] for k in ("name", "channel", "evidence", "parameters")}
+            | {"standard_errors": e["standard_errors"], "physical": e["physical"]}
+            for e in missing
+        ],
+        "gap": gap,
+        "verdict": (
+            "nothing significant is missing"
+            if not missing
+            else "missing: " + ", ".join(groups[j - 1].family for j in sel.chosen[1:])
+        ),
+        "candidates": candidate_verdicts(cands, sel),
+        "skipped": cands.skipped,
+        "selection": _selection_record(alpha, groups, sel),
+        "diagnostics": diagnostics,
+        "base_model": {
+            "coefficients": base_dict(base_state(sel.beta_base)),
+            "augmented_coefficients": base_dict(base_state(sel.beta)),
+        },
+        "data": _data_record(flight, flux, data),
+    }
+
+
+def missing_effects(
+    data: PreparedFlight, groups: list[Group], sel: Selection
+) -> list[dict[str, Any]]:
+    """The named effects with their evidence, parameters, standard errors and physical reading.
+
+    Parameters
+    ----------
+    data : PreparedFlight
+        The prepared flight (the effect field's RMS is taken on its held-out part).
+    groups : list of Group
+        All candidate groups (as left by the selection).
+    sel : Selection
+        The selected model.
+
+    Returns
+    -------
+    list of dict
+        Per named effect, in the order selected: ``name``, ``channel``, ``evidence``,
+        ``parameters``, ``standard_errors`` and ``physical``.
+    """
+    missing = []
+    offset = 21
+    for j in sel.chosen[1:]:
+        g = groups[j - 1]
+        p = g.columns.shape[2]
+        b, se = sel.beta[offset : offset + p], np.sqrt(np.diag(sel.cov)[offset : offset + p])
+        offset += p
+        effect_field = np.einsum("kip,p->ki", g.columns, b)
+        missing.append(
+            {
+                "name": g.effect,
+                "channel": g.channel,
+                "evidence": {
+                    **rounded(sel.evidence[j]),
+                    "held_out_rms_nt": rms(effect_field[data.held_out]),
+                },
+                "parameters": g.to_parameters(b),
+                "standard_errors": dict(zip(g.labels, np.round(se, 12).tolist(), strict=True)),
+                "physical": physical(g, b, se),
+            }
+        )
+    return missing
+
+
+def candidate_verdicts(cands: Candidates, sel: Selection) -> list[dict[str, Any]]:
+    """Every candidate family's verdict (added, retracted, not significant), then the absorbed.
+
+    Parameters
+    ----------
+    cands : Candidates
+        The candidate groups (as left by the selection) and the absorbed groups.
+    sel : Selection
+        The selected model.
+
+    Returns
+    -------
+    list of dict
+        Per family (in the order of the groups): ``name``, ``channel``, ``regressors``,
+        ``profiled_values``, ``identifiable_fraction``, ``verdict`` and ``last_test``; then
+        each absorbed group with verdict ``absorbed``.
+    """
+    groups, fractions = cands.groups, cands.fractions
+    chosen, retracted = sel.chosen, sel.retracted
+    candidates = []
+    last = sel.steps[-1]["tests"] if sel.steps else {}
+    for fam in dict.fromkeys(g.family for g in groups):
+        members = [j for j, g in enumerate(groups) if g.family == fam]
+        pick = next((j for j in members if j + 1 in chosen or j + 1 in retracted), members[0])
+        g = groups[pick]
+        candidates.append(
+            {
+                "name": g.effect,
+                "channel": g.channel,
+                "regressors": len(g.labels),
+                "profiled_values": len(members) if len(members) > 1 else None,
+                "identifiable_fraction": fractions[pick],
+                "verdict": "added"
+                if pick + 1 in chosen
+                else "retracted"
+                if pick + 1 in retracted
+                else "not significant",
+                "last_test": next((t for k, t in last.items() if k == fam), None),
+            }
+        )
+    candidates += [{**a, "verdict": "absorbed"} for a in cands.absorbed]
+    return candidates
+
+
+def physical(g: Group, b: np.ndarray, se: np.ndarray) -> dict[str, Any]:
+    """Parameters in physical units with 95 % intervals, where the effect has a natural one.
+
+    Parameters
+    ----------
+    g : Group
+        The named group.
+    b, se : numpy.ndarray
+        Its fitted coefficients and their standard errors.
+
+    Returns
+    -------
+    dict
+        The lag and gain for ``sensor_lag``; coefficients with unit, intervals and magnitude
+        for channel- and altitude-following effects; otherwise the coefficients by label.
+    """
+    ci = lambda v, s: [float(v - 1.96 * s), float(v + 1.96 * s)]  # noqa: E731
+    if g.effect == "sensor_lag":
+        return {
+            "lag_s": g.profile,
+            "gain": float(b[0]),
+            "ci95": ci(float(b[0]), float(se[0])),
+            "shifted": g.labels[0],
+        }
+    if g.effect in ("onboard_current", "altitude_gradient") or (
+        g.effect == "permanent_field_drift" and g.channel
+    ):
+        unit = {
+            "onboard_current": "nT per channel unit",
+            "altitude_gradient": "nT/m (NED)",
+            "permanent_field_drift": "nT per channel unit",
+        }[g.effect]
+        return {
+            "coefficients": b.tolist(),
+            "unit": unit,
+            "ci95": [ci(v, s) for v, s in zip(b, se, strict=True)],
+            "magnitude": float(np.linalg.norm(b)),
+        }
+    return {"coefficients": dict(zip(g.labels, b.tolist(), strict=True))}
+
+
+def _selection_record(alpha: float, groups: list[Group], sel: Selection) -> dict[str, Any]:
+    """How the effects were selected: level, correction, criterion, steps, retractions."""
+    return {
+        "alpha": alpha,
+        "correction": "Holm over candidate groups at each step",
+        "criterion": (
+            "partial F-test on GLS-whitened residuals below the Holm threshold and "
+            f"ΔBIC > {MIN_DELTA_BIC:g}; best ΔBIC enters; backward: each named effect "
+            "must meet the same rule given all the others"
+        ),
+        "sensor_lag_model": (
+            "the whole modelled signal (Earth field, base aircraft field, other named "
+            "additive effects) shifted by the lag, so the lag's shift of the aircraft eddy "
+            "field is not left for eddy_time_constant"
+        ),
+        "steps": sel.steps,
+        "retracted": [groups[j - 1].family for j in sel.retracted],
+    }
+
+
+def _data_record(flight: Flight, flux: str, data: PreparedFlight) -> dict[str, Any]:
+    """How the flight's samples were used."""
+    return {
+        "samples": flight.n,
+        "usable": int(data.usable.sum()),
+        "calibration_samples": int(data.calibration.sum()),
+        "held_out_samples": int(data.held_out.sum()),
+        "held_out_scheme": data.scheme,
+        "time_gaps": data.n_gaps,
+        "nonfinite_samples_dropped": data.n_nonfinite,
+        "flux": flux,
+        "sample_interval_s": data.dt,
+    }

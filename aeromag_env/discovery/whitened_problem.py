@@ -1,0 +1,191 @@
+"""The whitened (GLS) least-squares problem on the calibration rows: fits and partial tests.
+
+Decides the numbers every verdict rests on: the noise model's Kalman innovations whiten the
+residual and every regressor (generalised least squares), the base regressors are projected
+out once (Frisch–Waugh–Lovell), and :meth:`WhitenedProblem.test` gives the residual sums for
+adding one candidate group to the chosen ones; :meth:`WhitenedProblem.fit` gives the GLS
+coefficients and their covariance, :meth:`WhitenedProblem.absorbable_share` how much of a slow
+FOGM a group could absorb.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aeromag_env.discovery.base_model import orthonormal, stack
+from aeromag_env.discovery.noise_model import NoiseModel, fogm_quadratic, whiten
+from aeromag_env.discovery.preparation import PreparedFlight
+
+
+class WhitenedProblem:
+    """The whitened, axis-stacked least-squares problem on the calibration rows.
+
+    After :meth:`set_noise`, the base regressors are projected out of the whitened data and of
+    every candidate once (Frisch–Waugh–Lovell); tests then work on those small residual problems.
+
+    Parameters
+    ----------
+    data : PreparedFlight
+        The prepared flight; its calibration rows are the problem's rows.
+    columns : list of numpy.ndarray
+        Regressor groups (n, 3, p) on all samples; index 0 is the base model, the others the
+        candidate groups (index ``j`` is candidate group ``j − 1``).
+    """
+
+    def __init__(self, data: PreparedFlight, columns: list[np.ndarray]) -> None:
+        self.data = data
+        self.idx = np.flatnonzero(data.calibration)
+        self.gap = np.r_[np.inf, np.diff(data.ctx.tt[self.idx])]
+        self.y = data.y[self.idx]
+        self.columns = [c[self.idx] for c in columns]  # each (m, 3, p); 0 is the base
+        self.noise: NoiseModel | None = None
+        self.white: list[np.ndarray] = []
+        self.yw = np.empty(0)
+        self.r0 = np.empty(0)
+        self.perp: list[np.ndarray] = []
+        self._spans: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = {}
+
+    def set_noise(self, noise: NoiseModel) -> None:
+        """Whiten the data and every group under ``noise`` and project the base out of them."""
+        self.noise = noise
+        self.yw = self._whiten_columns(self.y[:, :, None])[:, 0]
+        allc = self._whiten_columns(np.concatenate(self.columns, axis=2))
+        edges = np.cumsum([0] + [c.shape[2] for c in self.columns])
+        self.white = [allc[:, edges[j] : edges[j + 1]] for j in range(len(self.columns))]
+        self._q0 = orthonormal(self.white[0])
+        self.r0 = self._off_base(self.yw)
+        self.perp = [self._off_base(w) for w in self.white]
+        self.k0 = self._q0.shape[1]
+        self._spans = {}
+
+    def add(self, columns: np.ndarray) -> int:
+        """Append a candidate (n, 3, p) built after :meth:`set_noise`; returns its index."""
+        self.columns.append(columns[self.idx])
+        w = self._whiten_columns(self.columns[-1])
+        self.white.append(w)
+        self.perp.append(self._off_base(w))
+        return len(self.columns) - 1
+
+    def replace(self, index: int, columns: np.ndarray) -> None:
+        """Rebuild candidate ``index`` from new columns (n, 3, p), under the current noise."""
+        self.columns[index] = columns[self.idx]
+        self.white[index] = self._whiten_columns(self.columns[index])
+        self.perp[index] = self._off_base(self.white[index])
+        self._spans = {}
+
+    def _off_base(self, x: np.ndarray) -> np.ndarray:
+        return x - self._q0 @ (self._q0.T @ x)
+
+    def _whiten_columns(self, cols: np.ndarray) -> np.ndarray:
+        """Whitened, axis-stacked copy (3m, p) of calibration-row columns (m, 3, p)."""
+        noise = self.noise
+        assert noise is not None
+        m = self.idx.size
+        out = np.empty((3 * m, cols.shape[2]))
+        for i in range(3):
+            out[i * m : (i + 1) * m] = whiten(
+                cols[:, i, :],
+                self.gap,
+                noise.white_std_nt[i],
+                noise.fogm_std_nt[i],
+                noise.fogm_tau_s[i],
+            )
+        return out
+
+    def _span(self, chosen: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Orthonormal basis of the chosen effects (off the base) and the residual off it;
+        cached per noise model, since every candidate of a step is tested against it."""
+        key = tuple(chosen)
+        if key not in self._spans:
+            extra = [self.perp[j] for j in chosen if j != 0]
+            q = orthonormal(np.concatenate(extra, axis=1)) if extra else np.zeros((self.yw.size, 0))
+            self._spans[key] = (q, self.r0 - q @ (q.T @ self.r0))
+        return self._spans[key]
+
+    def whitened_residual(self, chosen: list[int]) -> np.ndarray:
+        """Whitened, axis-stacked residual (3m,) of the GLS fit of ``chosen`` (base first)."""
+        return self._span(chosen)[1]
+
+    def fit(self, chosen: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """GLS coefficients of ``chosen`` (base first) and their covariance."""
+        x = np.concatenate([self.white[j] for j in chosen], axis=1)
+        norm = np.maximum(np.linalg.norm(x, axis=0), 1e-300)
+        beta_s, *_ = np.linalg.lstsq(x / norm, self.yw, rcond=None)
+        beta = beta_s / norm
+        rss = float(np.sum((self.yw - x @ beta) ** 2))
+        dof = x.shape[0] - x.shape[1]
+        cov = np.linalg.pinv((x / norm).T @ (x / norm)) / np.outer(norm, norm) * (rss / dof)
+        return beta, cov
+
+    def residual(self, chosen: list[int], beta: np.ndarray) -> np.ndarray:
+        """Un-whitened calibration residual (m, 3) of ``chosen`` with ``beta``."""
+        x = np.concatenate([self.columns[j] for j in chosen], axis=2)
+        return self.y - np.einsum("kip,p->ki", x, beta)
+
+    def absorbable_share(self, chosen: list[int], candidate: int, tau_s: np.ndarray) -> np.ndarray:
+        """Per axis, the share of a FOGM's variance that ``candidate``'s columns outside the span
+        of ``chosen`` could absorb, for each row of correlation times ``tau_s`` (k, 3) → (k, 3).
+
+        Notes
+        -----
+        With ``q_j`` an orthonormal basis of the candidate's columns off the chosen ones
+        (un-whitened, axis-stacked) and ``e`` a unit FOGM on axis i, least squares removes
+        ``E‖P e‖² = Σ_j q_jiᵀ K_i q_ji`` of ``E‖e‖² = m``. Columns on the time scale of the
+        eddy or lag effects (T̈-like) absorb next to nothing of a slow FOGM; slow, flexible
+        groups (the external-field splines) absorb much of it.
+        """
+        x = stack(self.columns[candidate])
+        q0 = orthonormal(stack(np.concatenate([self.columns[j] for j in chosen], axis=2)))
+        xp = (x - q0 @ (q0.T @ x)) / np.maximum(np.linalg.norm(x, axis=0), 1e-300)
+        u, s, _ = np.linalg.svd(xp, full_matrices=False)
+        m = self.idx.size
+        q = [np.ascontiguousarray(u[i * m : (i + 1) * m, s > 1e-6]) for i in range(3)]
+        return np.array(
+            [[fogm_quadratic(q[i], self.gap, t).sum() / m for i, t in enumerate(row)]
+             for row in np.atleast_2d(tau_s)]
+        )  # fmt: skip
+
+    def test_columns(self, chosen: list[int], columns: np.ndarray) -> dict[str, float] | None:
+        """:meth:`test` for columns (n, 3, p) not in the problem."""
+        idx = self.add(columns)
+        try:
+            return self.test(chosen, idx)
+        finally:
+            del self.columns[idx], self.white[idx], self.perp[idx]
+
+    def test(self, chosen: list[int], candidate: int) -> dict[str, float] | None:
+        """Residual sums for adding ``candidate`` to ``chosen`` (None: nothing identifiable)."""
+        q, r = self._span(chosen)
+        g = self.perp[candidate]
+        g = g - q @ (q.T @ g)
+        scale = float(np.linalg.norm(self.white[candidate], axis=0).max())
+        u, s, _ = np.linalg.svd(g, full_matrices=False)
+        keep = s > 1e-6 * scale
+        p = int(keep.sum())
+        if p == 0:
+            return None
+        rss0 = float(r @ r)
+        drss = float(np.sum((u[:, keep].T @ r) ** 2))
+        resid_dof = r.size - self.k0 - q.shape[1] - p
+        return {"drss": drss, "rss0": rss0, "dof": p, "resid_dof": resid_dof, "rows": r.size}
+
+
+def ols(prob: WhitenedProblem, chosen: list[int]) -> np.ndarray:
+    """Ordinary (un-whitened) least-squares coefficients of ``chosen`` on the calibration rows.
+
+    Parameters
+    ----------
+    prob : WhitenedProblem
+        The problem (its noise model is not used).
+    chosen : list of int
+        Indices of the groups in the fit, base (0) first.
+
+    Returns
+    -------
+    numpy.ndarray
+        The coefficients, concatenated in the order of ``chosen``.
+    """
+    x = np.concatenate([prob.columns[j] for j in chosen], axis=2)
+    a = x.transpose(1, 0, 2).reshape(-1, x.shape[2])
+    beta, *_ = np.linalg.lstsq(a, prob.y.T.reshape(-1), rcond=None)
+    return np.asarray(beta)

@@ -19,6 +19,8 @@ REPORT_METRICS = {
     "fom_nt",
     "nonfinite_samples",
     "divergences",
+    "segments",
+    "flagged_samples",
 }
 
 
@@ -44,7 +46,7 @@ def test_every_method_runs_on_a_nominal_flight(nominal_file, tmp_path, capsys, m
     m = report["metrics"]
     assert m["divergences"] == 0 and m["nonfinite_samples"] == 0
     out = read_flight(tmp_path / "compensated.h5")
-    new = ["mag_1_c"] if method == "tl" else ["flux_a_c_x", "interf_est_z"]
+    new = ["aeromag_mag_1_c"] if method == "tl" else ["aeromag_flux_a_c_x", "aeromag_interf_est_z"]
     assert all(nm in out for nm in [*new, "flux_a_x", "ins_yaw"])  # input fields kept
     assert (tmp_path / "compensation.png").stat().st_size > 10_000
     assert _sha(nominal_file) == before  # the input is untouched
@@ -72,7 +74,17 @@ def test_calibration_window_fits_there_and_applies_everywhere(nominal_file, tmp_
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["settings"]["calibration_samples"] == 3001
     out = read_flight(tmp_path / "compensated.h5")
-    assert np.all(np.isfinite(out["interf_est_x"]))  # applied to the whole flight
+    assert np.all(np.isfinite(out["aeromag_interf_est_x"]))  # applied to the whole flight
+
+
+def test_a_filter_fitted_on_a_calibration_window_has_no_qoq_after_it(tmp_path):
+    box = simulated("nominal", 0, trajectory__pattern="calibration", trajectory__duration_s=900.0)
+    path = write_flight(box, tmp_path / "box.h5")
+    args = ["compensate", str(path), "--method", "kf", "--calibration-window", "0", "300"]
+    assert main([*args, "--out", str(tmp_path / "o")]) == 0  # crashed before issue 19
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert report["metrics"]["qoq"] is None  # the filter never updates in the second half
+    assert report["metrics"]["compensation_rmse_nt"] < 10.0  # [nT], as for the whole flight
 
 
 def test_nonfinite_samples_are_skipped_and_counted(tmp_path, capsys):
@@ -87,8 +99,28 @@ def test_nonfinite_samples_are_skipped_and_counted(tmp_path, capsys):
     assert report["metrics"]["nonfinite_samples"] == 10
     assert any("flux_a_y: 10 of" in p for p in report["input_problems"])
     with pytest.warns(FlightFileWarning, match="flux_a_y: 10 of"):
-        est = read_flight(tmp_path / "o" / "compensated.h5")["interf_est_x"]
+        est = read_flight(tmp_path / "o" / "compensated.h5")["aeromag_interf_est_x"]
     assert np.all(np.isfinite(est))  # the estimate continues through the gap
+
+
+def test_the_vendor_compensated_channel_is_kept(tmp_path):
+    f = simulated("nominal", 1)
+    vendor = f["mag_1_uc"] - f["truth_interf_mag_1"] + 0.5  # a vendor's own compensation
+    path = write_flight(Flight({**f.fields, "mag_1_c": vendor}, f.attrs), tmp_path / "v.h5")
+    assert main(["compensate", str(path), "--method", "tl", "--out", str(tmp_path / "o")]) == 0
+    out = read_flight(tmp_path / "o" / "compensated.h5")
+    np.testing.assert_array_equal(out["mag_1_c"], vendor)  # untouched
+    assert np.nanstd(out["aeromag_mag_1_c"] - vendor) < 0.1  # ours is a channel of its own [nT]
+
+
+def test_an_output_name_already_in_the_input_is_refused(tmp_path, capsys):
+    f = simulated("nominal", 1)
+    fields = {**f.fields, "aeromag_mag_1_c": f["mag_1_uc"]}
+    path = write_flight(Flight(fields, f.attrs), tmp_path / "again.h5")
+    assert main(["compensate", str(path), "--method", "tl", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "aeromag_mag_1_c" in err and "refusing to replace" in err and err.count("\n") == 1
+    assert not (tmp_path / "o" / "compensated.h5").exists()
 
 
 @pytest.mark.parametrize(

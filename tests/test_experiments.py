@@ -1,3 +1,4 @@
+import numpy as np
 import pytest
 
 from experiments.compare_methods import main as compare_main
@@ -54,3 +55,26 @@ def test_import_time_quick(capsys):
     rows = [line for line in out.splitlines() if line.endswith(" ms")]
     assert [r[:45].strip() for r in rows] == list(STATEMENTS)
     assert all(float(r.split()[-2]) > 0 for r in rows)
+
+
+def test_own_flight_file_walkthrough(tmp_path):
+    """The README's raw-XYZ walkthrough: every fault it plants is reported, the axis-swapped
+    fluxgate is found, TL is fitted on the detected box and beats the vendor's channel, and the
+    vendor's field is kept."""
+    from aeromag_env.flight.files import read_flight
+    from experiments.own_flight_file import walkthrough
+
+    result = walkthrough(tmp_path)
+    info = result["printed"]["info"]["printed"]
+    for words in ("1 time gap(s)", "mag_1_uc: 1 spike(s)", "ins_pitch: 3 of",
+                  "119.9° from the body axes", "UNCOMPMAG1 → mag_1_uc"):  # fmt: skip
+        assert words in info, words
+    tl, kf = result["reports"]["tl"], result["reports"]["kf"]
+    assert all(step["exit"] == 0 for step in result["printed"].values())
+    assert tl["selection"]["calibration_line"]["line"] == 1
+    assert tl["held_out"]["improvement_ratio"] > tl["vendor_comparison"]["improvement_ratio_vendor"]
+    assert kf["mount"]["applied"] and kf["metrics"]["nonfinite_samples"] == 3
+    written = read_flight(tmp_path / "tl" / "compensated.h5")
+    raw = read_flight(tmp_path / "survey_raw.xyz")
+    np.testing.assert_array_equal(written["mag_1_c"], raw["mag_1_c"])
+    assert np.isnan(written["aeromag_mag_1_c"]).sum() == 1  # the spike's sample, nothing else

@@ -170,7 +170,7 @@ def test_date_from_attribute_or_year_and_doy(tmp_path: Path) -> None:
         (None, ".h5", ["not found"]),
         (b"", ".h5", ["empty"]),
         (b"", ".csv", ["empty"]),
-        (b"tt,lat\n1,2\n", ".h5", ["not an HDF5 file"]),
+        (b"\x00\x01binary\x02", ".h5", ["unknown content", "not HDF5"]),
         (b"\x89HDF\r\n\x1a\n" + b"\x00" * 64, ".h5", ["cannot read as HDF5"]),
         (b"\xff\xfe\x00\x01garbage", ".csv", ["not UTF-8"]),
         (b"tt,lat\n", ".csv", ["no samples"]),
@@ -179,7 +179,8 @@ def test_date_from_attribute_or_year_and_doy(tmp_path: Path) -> None:
         (b"tt,tt\n1,2\n", ".csv", ["duplicate", "tt"]),
         (b"label\nabc\n", ".csv", ["no numeric"]),
         (b"tt;lat\n1;2\n", ".csv", ["separated by commas"]),
-        (b"tt,lat\n1,2\n", ".txt", ["unsupported", ".txt"]),
+        (b"\x00\x01binary\x02", ".txt", ["unknown content", "not a MAT-file"]),
+        (b"tt lat\n1 2\n", ".txt", ["neither CSV", "nor Geosoft XYZ"]),
     ],
 )
 def test_unreadable_files_give_one_line_errors(

@@ -80,6 +80,7 @@ def test_info_reports_both_faults(clean: Flight, tmp_path) -> None:
     assert report.usable
     assert "continuous segments: 2 (1 time gap(s))" in text and "spikes: 1" in text
     assert any("30.1 s at t = 599.9 s" in p for p in report.problems)
-    spike = "mag_1_uc: 1 spike(s) (t = 500 s…), not removed"
+    assert any("compensated as 2 continuous segments" in p for p in report.problems)
+    spike = "mag_1_uc: 1 spike(s) (t = 500 s…), flagged: left out wherever mag_1_uc is used"
     assert any(p.startswith(spike) for p in report.problems)
     assert report.to_dict()["faults"]["spikes"]["mag_1_uc"]["times_s"] == [500.0]

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from aeromag_env.errors import AeromagError, ConfigError
 from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.config import SimulationConfig, preset, with_overrides
 
-FLIGHT_SUFFIXES = (".h5", ".hdf5", ".csv")
+FLIGHT_SUFFIXES = (".h5", ".hdf5", ".csv", ".xyz", ".mat")
 
 
 def simulation_config(args: argparse.Namespace) -> SimulationConfig:
@@ -150,7 +151,8 @@ def cmd_discover(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"discover: {msg}", file=sys.stderr, flush=True)
 
-    report = run_discover(Path(args.file), out, args.flux, window, say)
+    report = run_discover(Path(args.file), out, args.flux, window, say, mount=args.mount,
+                          selection=selection_options(args))  # fmt: skip
     gap = report["gap"]
     print(
         f"{report['verdict']}; held-out gap {gap['rms_before_nt']:.3g} → "
@@ -158,6 +160,30 @@ def cmd_discover(args: argparse.Namespace) -> int:
         "report.md, model_config.json, residual.png, diagnostics.png"
     )
     return 0
+
+
+def selection_options(args: argparse.Namespace) -> dict[str, Any]:
+    """``--line``, ``--segment`` and ``--calibration-line`` parsed (one-line errors), as keyword
+    arguments of the requests: ``lines``, ``segment_s`` and ``calibration_line``."""
+    from aeromag_env.flight.selection import parse_lines, parse_segment
+
+    out: dict[str, Any] = {
+        "lines": parse_lines(args.line) if args.line is not None else None,
+        "segment_s": parse_segment(args.segment) if args.segment is not None else None,
+    }
+    line = getattr(args, "calibration_line", None)  # info has no --calibration-line
+    if line is not None and line != "auto":
+        try:
+            value = float(line)
+        except ValueError:
+            value = float("nan")
+        if not np.isfinite(value):
+            raise AeromagError(
+                f"--calibration-line takes one line id (or none: auto), got {line!r}"
+            )
+        line = f"{value:g}"
+    out["calibration_line"] = line
+    return out
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -175,7 +201,31 @@ def cmd_info(args: argparse.Namespace) -> int:
     """
     from aeromag_env.flight.info import main_info
 
-    return main_info(args.file, as_json=args.json)
+    sel = selection_options(args)
+    return main_info(args.file, args.json, sel["lines"], sel["segment_s"])
+
+
+def cmd_convert(args: argparse.Namespace) -> int:
+    """``aeromag convert``: read a flight file in any format and write it in another.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``input`` and ``output`` paths.
+
+    Returns
+    -------
+    int
+        Exit status (0); the reader's warnings go to stderr, one line each; bad input raises
+        :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from aeromag_env.flight.files import convert_flight
+
+    flight, problems = convert_flight(args.input, args.output)
+    for problem in problems:
+        print(f"aeromag convert: warning: {problem}", file=sys.stderr)
+    print(f"wrote {args.output}: {flight.n} samples, {len(flight.names)} fields")
+    return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -244,6 +294,7 @@ def cmd_compensate(args: argparse.Namespace) -> int:
         scalar=args.scalar, tl_bandpass_hz=tl_bandpass(args.tl_bandpass), tl_trim=args.tl_trim,
         tl_ridge=args.tl_ridge, calibration_window_s=tuple(args.calibration_window) if
         args.calibration_window else None, filter_preset=args.filter_preset, r_std_nt=args.r_std_nt,
+        mount=args.mount, **selection_options(args),
     )  # fmt: skip
     report = run_compensate(req)
     print(summary_line(report, req.out))

@@ -1,8 +1,15 @@
 """``aeromag compensate``: read a flight, compensate it with one method, write the results.
 
 Outputs in the folder ``out``: ``compensated.h5`` (the input's fields plus the compensated
-ones), ``report.json`` (``method``, ``settings``, ``coefficients``, ``metrics``) and
+ones), ``report.json`` (``method``, ``settings``, ``coefficients``, ``metrics``, the provenance
+blocks of :func:`aeromag_env.cli.provenance.provenance` — input hash and format, channels, mount,
+segments, flagged samples, flight date, Earth model — and the real-data accuracy blocks
+``headline`` and, when the file has the vendor's compensated channel, ``vendor_comparison``) and
 ``compensation.png``. Every file is written atomically; the input is never overwritten.
+
+The fluxgate, scalar and altitude channels are chosen by :mod:`aeromag_env.flight.channels`
+(``--flux``/``--scalar`` ``auto`` by default) and the fluxgate's mount by
+:mod:`aeromag_env.flight.mount_choice` (``--mount auto`` by default).
 """
 
 from __future__ import annotations
@@ -15,20 +22,32 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.atomic import write_text
+from aeromag_env.cli.provenance import (
+    Inputs,
+    Warn,
+    choose_inputs,
+    provenance,
+    warn_stderr,
+)
 from aeromag_env.compensation.compensate import (
     FILTER_METHODS,
     Compensation,
     compensate_scalar,
     compensate_vector,
+    held_out_rmse,
     score,
 )
 from aeromag_env.compensation.model import FilterConfig, paper_filter_config
+from aeromag_env.compensation.real_metrics import headline, span_figures, vendor_comparison
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.files import load_flight, write_flight
+from aeromag_env.flight.selection import select
 
-REPORT_VERSION = 1
+#: 2: provenance (input_sha256, input_format, channels, mount, segments, flagged_samples,
+#: flight_date, earth_model) and the headline / vendor_comparison blocks.
+REPORT_VERSION = 2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -38,12 +57,16 @@ class CompensateRequest:
     path: Path
     out: Path
     method: str
-    flux: str = "flux_a"
-    scalar: str = "mag_1_uc"
+    flux: str = "auto"
+    scalar: str = "auto"
+    mount: str = "auto"
     tl_bandpass_hz: tuple[float, float] | None = (0.1, 0.9)
     tl_trim: int = 20
     tl_ridge: float = 0.0
     calibration_window_s: tuple[float, float] | None = None
+    calibration_line: str | None = None  # "auto" or a line id
+    lines: tuple[float, ...] | None = None
+    segment_s: tuple[float, float] | None = None
     filter_preset: str = "default"
     r_std_nt: float | None = None
 
@@ -65,10 +88,15 @@ class CompensateRequest:
             raise AeromagError(f"--r-std-nt must be > 0, got {self.r_std_nt}")
 
     def needs(self) -> tuple[str, ...]:
-        """Fields the method reads (``tl`` needs only time, the fluxgate and the scalar)."""
+        """Fields the method reads besides its magnetometers (chosen after reading: ``tl``
+        needs only time, the fluxgate and the scalar)."""
         if self.method == "tl":
-            return ("tt", self.flux, self.scalar)
-        return ("tt", self.flux, "position", "attitude", "date")
+            return ("tt",)
+        return ("tt", "position", "attitude", "date")
+
+    def required_channels(self) -> tuple[str, ...]:
+        """Channel kinds (:data:`aeromag_env.flight.channels.KINDS`) the method needs."""
+        return ("fluxgate", "scalar") if self.method == "tl" else ("fluxgate", "altitude")
 
     def filter_config(self) -> FilterConfig:
         """The filter settings: the package defaults or the paper's §4 setting."""
@@ -78,18 +106,30 @@ class CompensateRequest:
         return cfg
 
 
-def run_compensate(req: CompensateRequest) -> dict[str, Any]:
-    """Do the work of ``aeromag compensate``; return the report (also written to disk)."""
+def run_compensate(req: CompensateRequest, warn: Warn = warn_stderr) -> dict[str, Any]:
+    """Do the work of ``aeromag compensate``; return the report (also written to disk).
+
+    Warnings about the channels and the mount go to ``warn``, one line each (stderr)."""
     req.check()
     flight, problems = load_flight(req.path, needs=req.needs())
-    calibration = _calibration_mask(flight, req.calibration_window_s)
+    # channels and mount from the whole flight (the mount is the installation's, and a single
+    # line may turn too little to show it), then the selected part
+    inputs = choose_inputs(flight, req.path, req.flux, req.scalar, req.required_channels(),
+                           req.mount, mount_matters=req.method != "tl", warn=warn)  # fmt: skip
+    chosen = select(inputs.work, req.lines, req.segment_s, req.calibration_line,
+                    req.calibration_window_s)  # fmt: skip
+    work, flux, calibration = chosen.flight, inputs.flux_name, chosen.calibration
     if req.method == "tl":
         tl = TollesLawson(bandpass_hz=req.tl_bandpass_hz, trim=req.tl_trim, ridge=req.tl_ridge)
-        comp = compensate_scalar(flight, req.flux, req.scalar, tl, calibration)
+        scalar = inputs.scalar_name
+        assert scalar is not None  # a required channel of tl
+        comp = compensate_scalar(work, flux, scalar, tl, calibration)
     else:
         cfg = req.filter_config() if req.method in FILTER_METHODS else None
-        comp = compensate_vector(flight, req.method, req.flux, cfg, calibration)
-    metrics_block = score(flight, comp)
+        mount = inputs.mount.mount if inputs.mount else None
+        comp = compensate_vector(work, req.method, flux, cfg, calibration, mount=mount)
+    _check_output_names(flight, comp)
+    metrics_block = score(work, comp)
     report = {
         "report_version": REPORT_VERSION,
         "input": str(req.path),
@@ -99,34 +139,73 @@ def run_compensate(req: CompensateRequest) -> dict[str, Any]:
         "metrics": metrics_block,
         "nonfinite_policy": _nonfinite_policy(comp),
         "input_problems": problems,
+        "selection": chosen.report,
+        **_provenance_blocks(req.path, work, inputs, comp, metrics_block),
+        "held_out": _held_out(work, comp, calibration),
     }
-    out_flight = Flight(
-        {**flight.fields, **comp.fields}, {**flight.attrs, "compensation": comp.method}
-    )
+    kept = {name: values[chosen.keep] for name, values in flight.fields.items()}
+    out_flight = Flight({**kept, **comp.fields}, {**flight.attrs, "compensation": comp.method})
     write_flight(out_flight, req.out / "compensated.h5", inputs=[req.path])
     write_text(req.out / "report.json", json.dumps(_jsonable(report), indent=2), inputs=[req.path])
     from aeromag_env.compensation.plots import plot_compensation
 
-    plot_compensation(flight, comp, metrics_block, req.out / "compensation.png")
+    plot_compensation(work, comp, metrics_block, req.out / "compensation.png")
     return report
 
 
-def _calibration_mask(flight: Flight, window: tuple[float, float] | None) -> np.ndarray | None:
-    if window is None:
+def _provenance_blocks(
+    path: Path, flight: Flight, inputs: Inputs, comp: Compensation, metrics_block: dict[str, Any]
+) -> dict[str, Any]:
+    """Provenance, ``headline`` and ``vendor_comparison`` (when the file has the vendor's
+    compensated scalar); ``segments`` / ``flagged_samples`` only if the metrics lack them."""
+    blocks = provenance(path, flight, inputs, earth_model_used=comp.model_total is not None)
+    for key in ("segments", "flagged_samples"):
+        if key in metrics_block:
+            del blocks[key]
+    ours = (inputs.scalar_name if comp.method == "tl" else None) or inputs.flux_name
+    blocks["headline"] = headline(
+        flight, comp.total_before, comp.total_after, metrics_block.get("fom_nt")
+    )
+    blocks["vendor_comparison"] = (
+        vendor_comparison(flight, inputs.scalar_name, comp.total_before, comp.total_after, ours)
+        if inputs.scalar_name
+        else None
+    )
+    return blocks
+
+
+def _held_out(
+    flight: Flight, comp: Compensation, calibration: np.ndarray | None
+) -> dict[str, Any] | None:
+    """With a calibration part, the figures of the samples the fit did not see (the industry's
+    check: fitted on the box, judged on the lines): band-passed stds and IR, and the RMSE
+    against the truth on simulated files."""
+    if calibration is None:
         return None
-    mask = (flight.tt >= window[0]) & (flight.tt <= window[1])
-    if mask.sum() < 100:
+    rest = ~calibration
+    return {
+        "span": "outside the calibration part",
+        **span_figures(flight, comp.total_before, comp.total_after, rest),
+        "compensation_rmse_nt": held_out_rmse(flight, comp, rest),
+    }
+
+
+def _check_output_names(flight: Flight, comp: Compensation) -> None:
+    """One-line error when an output channel would replace a field of the input file."""
+    clash = [nm for nm in comp.fields if nm in flight]
+    if clash:
         raise AeromagError(
-            f"--calibration-window {window[0]:g} {window[1]:g} holds {int(mask.sum())} samples "
-            f"(need ≥ 100); the flight spans {flight.tt[0]:g}–{flight.tt[-1]:g} s"
+            f"the input already has field(s) {', '.join(clash)}, which compensate writes; "
+            "refusing to replace an input field (rename or drop them in the input first)"
         )
-    return mask
 
 
 def _nonfinite_policy(comp: Compensation) -> str:
+    flagged = "flagged samples (a non-finite input, or a spike in the magnetometer used) are"
+    rest = "outputs there are NaN; the rate, band-passes and filters restart at each time gap"
     if comp.method in FILTER_METHODS:
-        return "non-finite samples are skipped by the filter (predict only); outputs there are NaN"
-    return "non-finite samples are left out of the fit; outputs there are NaN"
+        return f"{flagged} skipped by the filter (predict only); {rest}"
+    return f"{flagged} left out of the fit; {rest}"
 
 
 def _jsonable(obj: Any) -> Any:
@@ -150,8 +229,21 @@ def summary_line(report: dict[str, Any], out: Path) -> str:
                        ("fom_nt", "FOM")):  # fmt: skip
         if m.get(key) is not None:
             parts.append(f"{label} {m[key]:.3g}" + (" nT" if key != "improvement_ratio" else ""))
+    head = report.get("headline") or {}
+    if m.get("fom_nt") is None and head.get("fom_nt") is not None:
+        parts.append(f"FOM {head['fom_nt']:.3g} nT (box detected from the attitude)")
+    held = report.get("held_out") or {}
+    if held.get("improvement_ratio") is not None:
+        parts.append(f"IR {held['improvement_ratio']:.3g} outside the calibration part")
+    vendor = report.get("vendor_comparison") or {}
+    if vendor.get("improvement_ratio_vendor") is not None:
+        parts.append(f"vendor's {vendor['vendor_channel']} IR "
+                     f"{vendor['improvement_ratio_vendor']:.3g}")  # fmt: skip
     if m["nonfinite_samples"]:
         parts.append(f"{m['nonfinite_samples']} non-finite samples ({report['nonfinite_policy']})")
     if m["divergences"]:
         parts.append(f"{m['divergences']} divergences detected and recovered")
+    if report["input_problems"]:
+        parts.append(f"{len(report['input_problems'])} input warning(s), listed in report.json "
+                     "(aeromag info explains them)")  # fmt: skip
     return "; ".join(parts)

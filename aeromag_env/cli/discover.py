@@ -18,26 +18,51 @@ import numpy as np
 
 from aeromag_env.atomic import atomic_path, write_text
 from aeromag_env.cli.compensate import _jsonable
+from aeromag_env.cli.provenance import Warn, choose_inputs, provenance, warn_stderr
 from aeromag_env.configs import to_json
 from aeromag_env.discovery.workflow import Discovery, discover
 from aeromag_env.flight.files import load_flight
+from aeromag_env.flight.mount_choice import in_body_axes
+from aeromag_env.flight.selection import select
 
-REPORT_VERSION = 1
+#: 2: the provenance blocks of :func:`aeromag_env.cli.provenance.provenance`.
+REPORT_VERSION = 2
 
 
 def run_discover(
     path: Path,
     out: Path,
-    flux: str = "flux_a",
+    flux: str = "auto",
     calibration_window: tuple[float, float] | None = None,
     progress: Callable[[str], None] | None = None,
+    mount: str = "auto",
+    warn: Warn = warn_stderr,
+    selection: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Do the work of ``aeromag discover``; return the report (also written to disk)."""
-    flight, problems = load_flight(path, needs=("tt", flux, "position", "attitude", "date"))
+    """Do the work of ``aeromag discover``; return the report (also written to disk).
+
+    The fluxgate (``flux``, ``auto`` by default) and its mount (``mount``: ``auto``,
+    ``identity`` or a JSON file) are chosen as for ``compensate``; an applied mount rotates the
+    fluxgate into body axes before the workflow reads it. Warnings go to ``warn``.
+    ``selection`` (``lines``, ``segment_s``, ``calibration_line``) picks the part of the flight
+    (:func:`aeromag_env.flight.selection.select`); a calibration line is fitted on as a
+    calibration window from its first to its last sample.
+    """
+    flight, problems = load_flight(path, needs=("tt", "position", "attitude", "date"))
     flight.attrs.setdefault("path", str(path))
-    result = discover(flight, flux=flux, calibration_window=calibration_window, progress=progress)
+    inputs = choose_inputs(flight, path, flux, require=("fluxgate", "altitude"), mount=mount,
+                           warn=warn, kinds=("fluxgate", "altitude"))  # fmt: skip
+    assert inputs.mount is not None  # a fluxgate is required
+    chosen = select(inputs.work, calibration_window=calibration_window, **(selection or {}))
+    if chosen.calibration is not None and "calibration_line" in chosen.report:
+        tt = chosen.flight.tt[chosen.calibration]
+        calibration_window = (float(tt[0]), float(tt[-1]))
+    work = in_body_axes(chosen.flight, inputs.mount)
+    result = discover(work, flux=inputs.flux_name, calibration_window=calibration_window,
+                      progress=progress)  # fmt: skip
     report = {"report_version": REPORT_VERSION, "input": str(path), **result.report,
-              "input_problems": problems}  # fmt: skip
+              "input_problems": problems, "selection": chosen.report,
+              **provenance(path, inputs.work, inputs, earth_model_used=True)}  # fmt: skip
     report = _jsonable(report)
     write_text(out / "report.json", json.dumps(report, indent=2), inputs=[path])
     write_text(out / "report.md", markdown(report), inputs=[path])

@@ -10,6 +10,7 @@ from typing import NoReturn
 from aeromag_env.cli.commands import (
     cmd_bench,
     cmd_compensate,
+    cmd_convert,
     cmd_demo,
     cmd_discover,
     cmd_evaluate,
@@ -49,7 +50,9 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--duration-s", type=float, help="flight duration [s] (default: the pattern's own)"
     )
-    p.add_argument("--out", required=True, help="output flight file (.h5 or .csv)")
+    p.add_argument(
+        "--out", required=True, help="output flight file (.h5, .hdf5, .csv, .xyz or .mat)"
+    )
     p.add_argument(
         "--replay",
         metavar="FILE",
@@ -69,9 +72,16 @@ def _add_discover(sub: argparse._SubParsersAction) -> None:
         "effects library (GLS F-tests, Holm-corrected), add them and show the gap on held-out "
         "data. Writes report.json, report.md, model_config.json, residual.png, diagnostics.png.",
     )
-    p.add_argument("file", help="flight file (.h5 or .csv), real or simulated")
+    p.add_argument(
+        "file", help="flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat), real or simulated"
+    )
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--flux", default="flux_a", help="vector magnetometer (default flux_a)")
+    p.add_argument(
+        "--flux",
+        default="auto",
+        help="vector magnetometer id, or auto: the first fluxgate with clean data (default auto)",
+    )
+    _add_mount_option(p)
     p.add_argument(
         "--calibration-window",
         nargs=2,
@@ -80,8 +90,43 @@ def _add_discover(sub: argparse._SubParsersAction) -> None:
         help="fit on this time window [s] and score the rest (default: interleaved 60-s "
         "blocks, every third held out)",
     )
+    _add_selection_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_discover)
+
+
+def _add_selection_options(p: argparse.ArgumentParser, calibration: bool = True) -> None:
+    """``--line``, ``--segment`` and (``calibration``) ``--calibration-line`` (info, compensate,
+    discover): :func:`aeromag_env.flight.selection.select`."""
+    p.add_argument(
+        "--line",
+        metavar="N[,M…]",
+        help="use only these flight lines (ids of the 'line' field, comma-separated)",
+    )
+    p.add_argument("--segment", metavar="T0:T1", help="use only the samples with T0 ≤ tt ≤ T1 [s]")
+    if calibration:
+        p.add_argument(
+            "--calibration-line",
+            nargs="?",
+            const="auto",
+            metavar="N",
+            help="fit on the calibration line and judge on the rest, as the industry does: "
+            "line N, or without N the line that holds the labelled manoeuvres or, unlabelled, "
+            "the one flown with roll/pitch swings on several headings (the calibration box)",
+        )
+
+
+def _add_mount_option(p: argparse.ArgumentParser) -> None:
+    """``--mount auto|identity|FILE`` (compensate, discover)."""
+    p.add_argument(
+        "--mount",
+        default="auto",
+        metavar="auto|identity|FILE",
+        help="fluxgate mount (sensor → body rotation): auto estimates it from the data (IGRF, "
+        "attitude) and applies it when over 1° from the body axes; identity takes the sensor "
+        'axes for body axes; FILE is JSON, e.g. {"flux_a": {"roll_deg": 0, "pitch_deg": 0, '
+        '"yaw_deg": 90}} or {"flux_a": {"rotation": [[…], […], […]]}} (default auto)',
+    )
 
 
 def _add_info(sub: argparse._SubParsersAction) -> None:
@@ -90,8 +135,9 @@ def _add_info(sub: argparse._SubParsersAction) -> None:
         help="validate and summarise a flight file",
         description="Validate a flight file and summarise it; exits 2 if it is unusable.",
     )
-    p.add_argument("file", help="flight file (.h5 or .csv)")
+    p.add_argument("file", help="flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _add_selection_options(p, calibration=False)
     p.set_defaults(func=cmd_info)
 
 
@@ -116,13 +162,21 @@ def _add_compensate(sub: argparse._SubParsersAction) -> None:
         description="Estimate and remove the aircraft's interference; write "
         "compensated.h5, report.json and compensation.png to --out.",
     )
-    p.add_argument("file", help="flight file (.h5 or .csv)")
+    p.add_argument("file", help="flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat)")
     p.add_argument("--method", required=True, choices=METHODS, help="compensation method")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--flux", default="flux_a", help="vector magnetometer id (default flux_a)")
     p.add_argument(
-        "--scalar", default="mag_1_uc", help="scalar magnetometer for tl (default mag_1_uc)"
+        "--flux",
+        default="auto",
+        help="vector magnetometer id, or auto: the first fluxgate with clean data (default auto)",
     )
+    p.add_argument(
+        "--scalar",
+        default="auto",
+        help="scalar magnetometer (tl, and the comparison with the vendor's compensated field), "
+        "or auto: the first mag_N_uc with clean data (default auto)",
+    )
+    _add_mount_option(p)
     p.add_argument(
         "--tl-bandpass",
         nargs="+",
@@ -139,6 +193,7 @@ def _add_compensate(sub: argparse._SubParsersAction) -> None:
         metavar=("T0", "T1"),
         help="fit on T0 ≤ tt ≤ T1 [s] only, apply everywhere",
     )
+    _add_selection_options(p)
     p.add_argument(
         "--filter-preset",
         choices=("default", "paper"),
@@ -221,6 +276,20 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_bench)
 
 
+def _add_convert(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "convert",
+        help="convert a flight file between HDF5, CSV, Geosoft XYZ and MATLAB .mat",
+        description="Read a flight file (format found from its content: HDF5, CSV, Geosoft "
+        "XYZ, MAT v5 or v7.3), rename the fields that have an alias to the SGL 2020 names and "
+        "write it in the format of the output's suffix (.h5/.hdf5, .csv, .xyz, .mat = MAT v5). "
+        "The input is never overwritten; the output is written atomically.",
+    )
+    p.add_argument("input", help="flight file to read")
+    p.add_argument("output", help="file to write (.h5, .hdf5, .csv, .xyz or .mat)")
+    p.set_defaults(func=cmd_convert)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full ``aeromag`` parser.
 
@@ -235,7 +304,7 @@ def build_parser() -> argparse.ArgumentParser:
         dest="command", required=True, metavar="COMMAND", parser_class=_Parser
     )
     adders = (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_evaluate, _add_train,
-              _add_discover, _add_demo,
+              _add_discover, _add_demo, _add_convert,
               _add_bench)  # fmt: skip
     for add in adders:
         add(sub)

@@ -6,8 +6,16 @@ the file's positions and date, plus the ``diurnal`` channel along the main-field
 present, rotated into body axes with the file's attitude. The scalar method ``tl`` fits the
 Tolles–Lawson model to a scalar magnetometer using the fluxgate's direction cosines.
 
-Non-finite samples: the filters skip them (predict only) and count them; ``lsq`` and ``tl`` leave
-them out of the fit; outputs at those samples are NaN only where an input needed there is NaN.
+Gaps, spikes and missing values (:mod:`aeromag_env.compensation.samples` decides, in one place):
+the Earth-field rate, the band-passes and the design's differences run on each continuous segment
+(and each run of finite samples) on its own; flagged samples — a non-finite input the method needs
+(fluxgate, attitude, position; scalar for ``tl``), or a spike in the fluxgate or scalar used — are
+skipped by the filters' update (predict only) and left out of the ``lsq`` and ``tl`` fits, and
+their compensated output is NaN. The interference estimate is NaN only where the model field it
+is built from is unknown (non-finite attitude or position).
+
+Our channels are named :data:`OUTPUT_PREFIX` + what they are (:func:`output_names`), a prefix no
+vendor uses, so they never replace an input field such as the vendor's ``mag_1_c``.
 """
 
 from __future__ import annotations
@@ -18,10 +26,10 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.compensation import metrics
-from aeromag_env.compensation.dsp import is_all_pass
 from aeromag_env.compensation.kalman import run_filter
 from aeromag_env.compensation.least_squares import fit_vector_lsq
 from aeromag_env.compensation.model import FilterConfig, interference_from_states
+from aeromag_env.compensation.samples import Samples, flight_samples, vector_inputs, within
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.configs import to_dict
 from aeromag_env.errors import AeromagError
@@ -32,6 +40,18 @@ from aeromag_env.simulation.interference import VectorCoefficients
 
 FILTER_METHODS = ("kf", "fakf", "rls", "sage-husa", "ding")
 METHODS = (*FILTER_METHODS, "lsq", "tl")
+#: Prefix of every channel a compensator writes [-]: ``aeromag_flux_a_c_x``, ``aeromag_mag_1_c``.
+OUTPUT_PREFIX = "aeromag_"
+#: The vector methods' interference estimate, ``aeromag_interf_est_x/y/z`` [nT].
+INTERFERENCE = f"{OUTPUT_PREFIX}interf_est"
+
+
+def output_names(method: str, flux: str = "flux_a", scalar: str = "mag_1_uc") -> tuple[str, ...]:
+    """The channels ``method`` writes: the compensated fluxgate and the interference estimate
+    (vector methods), or the compensated scalar (``tl``), each with :data:`OUTPUT_PREFIX`."""
+    if method == "tl":
+        return (f"{OUTPUT_PREFIX}{scalar.removesuffix('_uc')}_c",)
+    return (*vector_names(f"{OUTPUT_PREFIX}{flux}_c"), *vector_names(INTERFERENCE))
 
 
 @dataclass
@@ -43,11 +63,12 @@ class Compensation:
     method : str
     settings : dict (JSON-ready)
     coefficients : dict (JSON-ready): T_p, A, B (vector) or the 18 TL terms
-    fields : dict[str, ndarray] — new channels (``flux_a_c_*``, ``interf_est_*`` or ``mag_1_c``…)
+    fields : dict[str, ndarray] — new channels, named by :func:`output_names`
     total_before, total_after : (n,) uncompensated and compensated total field [nT]
     model_total : (n,) model Earth total field [nT], or None when the file has no position/date
     series : dict[str, ndarray] — filter diagnostics (ROR, QOQ, Q and R scales)
     divergences, nonfinite : int
+    samples : the segments and flagged samples the method worked with
     """
 
     method: str
@@ -60,6 +81,7 @@ class Compensation:
     series: dict[str, np.ndarray] = field(default_factory=dict)
     divergences: int = 0
     nonfinite: int = 0
+    samples: Samples | None = None
 
 
 def compensate_vector(
@@ -77,32 +99,15 @@ def compensate_vector(
     """
     cfg = replace(filter_cfg or FilterConfig(), method=method) if method != "lsq" else filter_cfg
     scheme = "central" if method == "lsq" else (cfg.rate_scheme if cfg else "backward")
-    t_b, tdot_b = earth_model(flight, scheme)
+    samples = flight_samples(flight, vector_inputs(flight, flux), [flux])
+    t_b, tdot_b = earth_model(flight, scheme, samples.segments)
     meas = flight.vector(flux) if mount is None else mount.to_body(flight.vector(flux))
-    y = meas - t_b
-    series: dict[str, np.ndarray] = {}
-    divergences = 0
-    if method == "lsq":
-        fit = fit_vector_lsq(y, t_b, tdot_b, mask=calibration)
-        state, est = fit.state, fit.predict(t_b, tdot_b)
-        settings: dict[str, Any] = {"rate_scheme": scheme}
-    else:
-        assert cfg is not None
-        y_fit = y if calibration is None else np.where(calibration[:, None], y, np.nan)
-        res = run_filter(cfg, y_fit, t_b, tdot_b, store_states=False)
-        state = res.final_state
-        est = (
-            res.interference
-            if calibration is None
-            else interference_from_states(state, t_b, tdot_b)
-        )
-        series = {"ror": res.ror, "qoq": res.qoq, "q_scale": res.q_scale, "r_scale": res.r_scale}
-        divergences = res.divergences
-        settings = to_dict(cfg)
-    after = meas - est
-    fields = dict(zip(vector_names(f"{flux}_c"), after.T, strict=True))
-    fields.update(zip(vector_names("interf_est"), est.T, strict=True))
-    nonfinite = int(np.sum(~np.all(np.isfinite(y) & np.isfinite(tdot_b), axis=1)))
+    y = np.where(samples.valid[:, None], meas - t_b, np.nan)  # flagged: predict only / no fit
+    state, est, series, divergences, settings = _estimate(method, cfg, y, t_b, tdot_b, calibration)
+    known = np.all(np.isfinite(t_b) & np.isfinite(tdot_b), axis=1)  # the model field is known
+    est = np.where(known[:, None], est, np.nan)
+    after = np.where(samples.valid[:, None], meas - est, np.nan)
+    names = output_names(method, flux)
     return Compensation(
         method=method,
         settings={
@@ -112,37 +117,61 @@ def compensate_vector(
             **({} if mount is None else {"mount": mount.to_dict()}),
         },
         coefficients=VectorCoefficients.from_state(state).to_dict(),
-        fields=fields,
+        fields=dict(zip(names, [*after.T, *est.T], strict=True)),
         total_before=np.linalg.norm(meas, axis=1),
         total_after=np.linalg.norm(after, axis=1),
         model_total=np.linalg.norm(t_b, axis=1),
         series=series,
         divergences=divergences,
-        nonfinite=nonfinite,
+        nonfinite=samples.n_nonfinite,
+        samples=samples,
     )
+
+
+def _estimate(
+    method: str,
+    cfg: FilterConfig | None,
+    y: np.ndarray,
+    t_b: np.ndarray,
+    tdot_b: np.ndarray,
+    calibration: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], int, dict[str, Any]]:
+    """Final state (21,), interference estimate (n, 3) [nT], filter series, divergences and
+    settings of a vector method on ``y = T_m − T`` (NaN rows: skipped / left out)."""
+    if method == "lsq":
+        fit = fit_vector_lsq(y, t_b, tdot_b, mask=calibration)
+        return fit.state, fit.predict(t_b, tdot_b), {}, 0, {"rate_scheme": "central"}
+    assert cfg is not None
+    y_fit = y if calibration is None else np.where(calibration[:, None], y, np.nan)
+    res = run_filter(cfg, y_fit, t_b, tdot_b, store_states=False)
+    est = (
+        res.interference
+        if calibration is None
+        else interference_from_states(res.final_state, t_b, tdot_b)
+    )
+    series = {"ror": res.ror, "qoq": res.qoq, "q_scale": res.q_scale, "r_scale": res.r_scale}
+    return res.final_state, est, series, res.divergences, to_dict(cfg)
 
 
 def compensate_scalar(
     flight: Flight, flux: str, scalar: str, tl: TollesLawson, calibration: np.ndarray | None = None
 ) -> Compensation:
-    """Tolles–Lawson fit of ``scalar`` with the direction cosines of ``flux`` (MagNav style)."""
+    """Tolles–Lawson fit of ``scalar`` with the direction cosines of ``flux`` (MagNav style).
+
+    The design and the band-pass run on each run of valid samples (both channels finite, no
+    spike in either) inside each continuous segment, trimmed per run; the correction is built
+    on each run of valid fluxgate samples; the output is NaN where either channel is flagged.
+    """
     vec, mag = flight.vector(flux), flight[scalar]
-    use = np.all(np.isfinite(vec), axis=1) & np.isfinite(mag)
-    if calibration is not None:
-        use &= calibration
-    k = np.flatnonzero(use)
-    filtering = tl.bandpass_hz is not None and not is_all_pass(
-        flight.sample_rate_hz, *tl.bandpass_hz
-    )
-    if k.size == 0 or (filtering and k.size != k[-1] - k[0] + 1):
-        raise AeromagError(
-            f"tl: {scalar}/{flux} have non-finite samples inside the fit span; the band-pass "
-            "filter needs a contiguous span (use --calibration-window or --tl-bandpass none)"
-        )
-    tl.fit(vec[k[0] : k[-1] + 1], mag[k[0] : k[-1] + 1], flight.sample_rate_hz)
-    correction = tl.predict(np.where(np.isfinite(vec), vec, np.nan))
-    after = mag - correction
-    name = scalar.removesuffix("_uc") + "_c"
+    samples = flight_samples(flight, [flux, scalar], [flux, scalar])
+    use = samples.valid if calibration is None else samples.valid & calibration
+    fit_runs = samples.runs(use)
+    if not fit_runs:
+        raise AeromagError(f"tl: {scalar}/{flux} have no valid sample to fit")
+    tl.fit(vec, mag, flight.sample_rate_hz, runs=fit_runs)
+    flux_ok = ~(samples.nonfinite[flux] | samples.spikes[flux])
+    correction = tl.predict(vec, runs=samples.runs(flux_ok))
+    after = np.where(samples.valid, mag - correction, np.nan)
     return Compensation(
         method="tl",
         settings={
@@ -155,11 +184,12 @@ def compensate_scalar(
             "calibration_samples": _count(calibration),
         },
         coefficients={"tolles_lawson": tl.coef_.tolist(), "residual_std_nt": tl.residual_std_nt_},
-        fields={name: after},
+        fields={output_names("tl", flux, scalar)[0]: after},
         total_before=mag,
         total_after=after,
         model_total=_model_total(flight),
-        nonfinite=int(np.sum(~use)) if calibration is None else int(np.sum(~np.isfinite(mag))),
+        nonfinite=samples.n_nonfinite,
+        samples=samples,
     )
 
 
@@ -182,13 +212,17 @@ def score(flight: Flight, comp: Compensation) -> dict[str, Any]:
     ``compensation_rmse_nt`` (simulated files), ``residual_std_nt`` and ``improvement_ratio``
     over the second half of the flight; ``fom_nt`` on the last complete compensation box
     (windows ``12b + 1 … 12b + 12``; a one-box flight includes the filters' convergence).
-    ``compensation_rmse_all_nt`` covers all samples.
+    ``compensation_rmse_all_nt`` covers all samples. Band-passes run on each continuous segment
+    and flagged (NaN) samples are left out; ``segments`` and ``flagged_samples`` say what those
+    were (:meth:`aeromag_env.compensation.samples.Samples.report`).
     """
     n, fs = flight.n, flight.sample_rate_hz
+    samples = comp.samples or flight_samples(flight, [], [])
     truth, est = _truth_and_estimate(flight, comp)
     half = slice(n // 2, n)
     second_half = np.arange(n) >= n // 2
     line = flight.fields.get("line")
+    band_args = (fs, (0.1, 0.9), within(samples.segments, n // 2, n))
     out: dict[str, Any] = {
         "compensation_rmse_nt": None,
         "compensation_rmse_all_nt": None,
@@ -196,13 +230,14 @@ def score(flight: Flight, comp: Compensation) -> dict[str, Any]:
             _residual(comp)[half], None if line is None else line[half]
         ),
         "improvement_ratio": _safe(
-            metrics.improvement_ratio, comp.total_before[half], comp.total_after[half], fs
+            metrics.improvement_ratio, comp.total_before[half], comp.total_after[half], *band_args
         ),
         "fom_nt": None,
         "fom_uncompensated_nt": None,
         "fom_windows": None,
         "nonfinite_samples": comp.nonfinite,
         "divergences": comp.divergences,
+        **samples.report(),
     }
     if truth is not None:
         out["compensation_rmse_nt"] = metrics.compensation_rmse(truth, est, second_half)
@@ -210,14 +245,23 @@ def score(flight: Flight, comp: Compensation) -> dict[str, Any]:
     box = _last_complete_box(flight)
     if box is not None:
         windows = range(12 * box + 1, 12 * box + 13)
-        fom_args = (flight.tt, flight["maneuver"], fs, 0.05, windows)
+        fom_args = (flight.tt, flight["maneuver"], fs, 0.05, windows, samples.segments)
         out["fom_nt"] = _safe(metrics.figure_of_merit, comp.total_after, *fom_args)
         out["fom_uncompensated_nt"] = _safe(metrics.figure_of_merit, comp.total_before, *fom_args)
         out["fom_windows"] = [windows.start, windows.stop - 1]
     for key in ("ror", "qoq"):
-        if key in comp.series:
-            out[key] = metrics.ratio_statistics(comp.series[key], second_half)
+        if key in comp.series:  # null when the filter never updated there (calibration window)
+            out[key] = _safe_dict(metrics.ratio_statistics, comp.series[key], second_half)
     return out
+
+
+def held_out_rmse(flight: Flight, comp: Compensation, mask: np.ndarray) -> float | None:
+    """RMSE of the interference estimate against the simulator's truth over ``mask`` (the
+    samples a fit did not see) [nT]; None without truth or samples."""
+    truth, est = _truth_and_estimate(flight, comp)
+    if truth is None or not mask.any():
+        return None
+    return _safe(metrics.compensation_rmse, truth, est, mask)
 
 
 def _last_complete_box(flight: Flight) -> int | None:
@@ -238,12 +282,14 @@ def _truth_and_estimate(flight: Flight, comp: Compensation) -> tuple[np.ndarray 
         est = comp.total_before - comp.total_after
         if key not in flight:
             return None, est
-        # a band-passed TL fit cannot see the mean: score the interference with means removed
-        truth = flight[key]
+        # a band-passed TL fit cannot see the mean: score the interference with means removed,
+        # over the samples both have
+        both = np.isfinite(flight[key]) & np.isfinite(est)
+        truth, est = np.where(both, flight[key], np.nan), np.where(both, est, np.nan)
         if comp.settings["remove_mean"]:
             return truth - np.nanmean(truth), est - np.nanmean(est)
         return truth, est
-    est = np.column_stack([comp.fields[nm] for nm in vector_names("interf_est")])
+    est = np.column_stack([comp.fields[nm] for nm in vector_names(INTERFERENCE)])
     return (flight.vector("truth_interf") if "truth_interf_x" in flight else None), est
 
 
@@ -252,6 +298,14 @@ def _residual(comp: Compensation) -> np.ndarray:
     if comp.model_total is not None:
         return comp.total_after - comp.model_total
     return comp.total_after - np.nanmean(comp.total_after)
+
+
+def _safe_dict(fn: Any, *args: Any) -> dict[str, float] | None:
+    """:func:`_safe` for a metric that is a dict of figures."""
+    try:
+        return dict(fn(*args))
+    except AeromagError:
+        return None
 
 
 def _safe(fn: Any, *args: Any) -> float | None:

@@ -12,7 +12,8 @@ Conventions shared with MagNav.jl:
 
 Filters cannot skip gaps. :func:`bandpass` rejects non-finite samples (the caller decides whether
 to fill, cut or skip them); :func:`bandpass_finite` filters each contiguous finite run of a series
-on its own and leaves the gaps as NaN.
+on its own and leaves the gaps as NaN; given the flight's continuous segments, it never filters
+across a time gap either.
 """
 
 from __future__ import annotations
@@ -77,7 +78,12 @@ def lowpass(x: np.ndarray, fs_hz: float, cutoff_hz: float, order: int = 4) -> np
 
 
 def bandpass_finite(
-    x: np.ndarray, fs_hz: float, low_hz: float, high_hz: float, order: int = 4
+    x: np.ndarray,
+    fs_hz: float,
+    low_hz: float,
+    high_hz: float,
+    order: int = 4,
+    segments: list[slice] | None = None,
 ) -> np.ndarray:
     """:func:`bandpass` applied to each contiguous run of finite samples of a 1-D series.
 
@@ -86,6 +92,8 @@ def bandpass_finite(
     x : ndarray, shape (n,)
     fs_hz, low_hz, high_hz, order
         As in :func:`bandpass`.
+    segments : list of slice, optional
+        Continuous parts of the series (between time gaps): a run never spans two. None: one.
 
     Returns
     -------
@@ -98,7 +106,10 @@ def bandpass_finite(
     sos = _design(fs_hz, low_hz, high_hz, order)
     need = 1 if sos is None else min_length(sos)
     out = np.full(x.shape, np.nan)
-    for run in finite_runs(np.isfinite(x)):
+    finite = np.isfinite(x)
+    parts = [slice(0, x.size)] if segments is None else segments
+    for run in (slice(p.start + r.start, p.start + r.stop) for p in parts
+                for r in finite_runs(finite[p])):  # fmt: skip
         if run.stop - run.start >= need:
             out[run] = bandpass(x[run], fs_hz, low_hz, high_hz, order)
     return out
@@ -114,6 +125,12 @@ def finite_runs(ok: np.ndarray) -> list[slice]:
     edges = np.diff(np.concatenate([[0], np.asarray(ok, dtype=np.int8), [0]]))
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     return [slice(int(a), int(b)) for a, b in zip(starts, stops, strict=True)]
+
+
+def bandpass_min_length(fs_hz: float, low_hz: float, high_hz: float, order: int = 4) -> int:
+    """Fewest samples :func:`bandpass` accepts with these settings (1 when it does not filter)."""
+    sos = _design(fs_hz, low_hz, high_hz, order)
+    return 1 if sos is None else min_length(sos)
 
 
 def min_length(sos: np.ndarray) -> int:

@@ -11,8 +11,9 @@
 
 Non-finite samples (NaN, ±inf) are ignored: statistics use the finite samples only, and filters
 run on each contiguous finite run separately
-(:func:`aeromag_env.compensation.dsp.bandpass_finite`). The one exception is a gap inside an FOM
-maneuver window, which raises (see :func:`fom_terms`). A metric left with no usable sample raises a
+(:func:`aeromag_env.compensation.dsp.bandpass_finite`), and never across a time gap when the
+flight's continuous ``segments`` are given. The one exception is a gap inside an FOM maneuver
+window, which raises (see :func:`fom_terms`). A metric left with no usable sample raises a
 one-line :class:`AeromagError`.
 """
 
@@ -92,6 +93,7 @@ def improvement_ratio(
     after: np.ndarray,
     fs_hz: float,
     band_hz: tuple[float, float] | None = (0.1, 0.9),
+    segments: list[slice] | None = None,
 ) -> float:
     """Improvement ratio ``std(bandpass(before)) / std(bandpass(after))`` [-].
 
@@ -104,6 +106,8 @@ def improvement_ratio(
     band_hz : (float, float) or None
         Zero-phase 4-pole Butterworth pass band [Hz] (MagNav conventions for the edges); None
         compares the plain standard deviations.
+    segments : list of slice, optional
+        Continuous parts of the series (between time gaps), filtered apart. None: one.
 
     Returns
     -------
@@ -115,7 +119,7 @@ def improvement_ratio(
     ok = np.isfinite(before) & np.isfinite(after)
     b, a = np.where(ok, before, np.nan), np.where(ok, after, np.nan)
     if band_hz is not None:
-        b, a = (bandpass_finite(s, fs_hz, *band_hz) for s in (b, a))
+        b, a = (bandpass_finite(s, fs_hz, *band_hz, segments=segments) for s in (b, a))
     ok = np.isfinite(b) & np.isfinite(a)
     _require(ok, "improvement_ratio (after filtering)")
     std_after = float(np.std(a[ok]))
@@ -129,6 +133,7 @@ def fom_terms(
     fs_hz: float,
     highpass_hz: float = 0.05,
     windows: Iterable[int] = FOM_WINDOWS,
+    segments: list[slice] | None = None,
 ) -> dict[int, float]:
     """Peak-to-peak amplitude of the high-passed field in each maneuver window [nT].
 
@@ -146,6 +151,8 @@ def fom_terms(
         Zero-phase 4-pole Butterworth high-pass cutoff [Hz]: removes heading and geology trends.
     windows : iterable of int
         Window ids to use (the 12 of a compensation box by default).
+    segments : list of slice, optional
+        Continuous parts of the flight (between time gaps), high-passed apart. None: one.
 
     Returns
     -------
@@ -156,7 +163,7 @@ def fom_terms(
     would inflate its peak-to-peak). Windows within ~``1 / highpass_hz`` of a gap or an end
     see such transients too: keep straight flight around the maneuvers.
     """
-    hp = _highpassed(total_field, tt, fs_hz, highpass_hz)
+    hp = _highpassed(total_field, tt, fs_hz, highpass_hz, segments)
     ids = np.nan_to_num(_series(maneuver, "maneuver", hp.size)).astype(int)
     wanted = sorted(set(windows))
     _check_windows(hp, ids, wanted)
@@ -170,6 +177,7 @@ def figure_of_merit(
     fs_hz: float,
     highpass_hz: float = 0.05,
     windows: Iterable[int] = FOM_WINDOWS,
+    segments: list[slice] | None = None,
 ) -> float:
     """Figure of merit: the sum of :func:`fom_terms` over the windows [nT].
 
@@ -177,7 +185,8 @@ def figure_of_merit(
     of the 12 signatures of the compensation box (roll 10°, pitch 5°, yaw 5° at four headings);
     a good installation reaches 1–2 nT or less. Arguments as in :func:`fom_terms`.
     """
-    return float(sum(fom_terms(total_field, tt, maneuver, fs_hz, highpass_hz, windows).values()))
+    terms = fom_terms(total_field, tt, maneuver, fs_hz, highpass_hz, windows, segments)
+    return float(sum(terms.values()))
 
 
 def ratio_statistics(
@@ -218,7 +227,9 @@ def ratio_statistics(
     }
 
 
-def _highpassed(x: np.ndarray, tt: np.ndarray, fs_hz: float, cutoff_hz: float) -> np.ndarray:
+def _highpassed(
+    x: np.ndarray, tt: np.ndarray, fs_hz: float, cutoff_hz: float, segments: list[slice] | None
+) -> np.ndarray:
     """High-pass each finite run of ``x`` after checking ``tt`` against ``fs_hz``."""
     x = _series(x, "total_field")
     tt = _series(tt, "tt", x.size)
@@ -227,7 +238,7 @@ def _highpassed(x: np.ndarray, tt: np.ndarray, fs_hz: float, cutoff_hz: float) -
         if not (dt > 0 and abs(dt * fs_hz - 1.0) <= 0.01):
             raise AeromagError(f"tt has a median interval of {dt} s, but fs_hz = {fs_hz} Hz")
     check_cutoff(fs_hz, cutoff_hz)
-    return bandpass_finite(x, fs_hz, cutoff_hz, fs_hz / 2.0)
+    return bandpass_finite(x, fs_hz, cutoff_hz, fs_hz / 2.0, segments=segments)
 
 
 def _check_windows(hp: np.ndarray, ids: np.ndarray, wanted: list[int]) -> None:

@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.atomic import atomic_path
-from aeromag_env.flight.data import Flight
+from aeromag_env.compensation.compensate import INTERFERENCE
+from aeromag_env.flight.data import Flight, vector_names
 from aeromag_env.flight.plot import pyplot, shade_maneuvers
 
 
@@ -28,7 +29,7 @@ def plot_compensation(flight: Flight, comp: Any, metrics: dict, path: str | os.P
     ax.legend(loc="upper right")
     ax = axes[1]
     if comp.method != "tl" and "truth_interf_x" in flight:
-        est = np.column_stack([comp.fields[f"interf_est_{a}"] for a in "xyz"])
+        est = np.column_stack([comp.fields[nm] for nm in vector_names(INTERFERENCE)])
         err = flight.vector("truth_interf") - est
         for a, v in zip("xyz", err.T, strict=True):
             ax.plot(flight.tt, v, lw=0.6, label=f"error {a}")

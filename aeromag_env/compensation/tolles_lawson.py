@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aeromag_env.compensation.dsp import bandpass, is_all_pass
+from aeromag_env.compensation.dsp import bandpass, bandpass_min_length, is_all_pass
 from aeromag_env.errors import AeromagError, ConfigError
 from aeromag_env.simulation.tolles_lawson_terms import design_matrix
 from aeromag_env.units import BT_SCALE_NT
@@ -72,6 +72,13 @@ class TollesLawson:
     them; cut the flight into finite parts first); without one, the rows with any non-finite
     value (in the design, which spreads a flux gap to its neighbours through the central
     difference, or in the target) are dropped.
+
+    Runs: given ``runs`` (the continuous runs of valid samples, e.g.
+    :meth:`aeromag_env.compensation.samples.Samples.runs`), :meth:`fit` builds the design (its
+    eddy terms difference neighbouring samples), band-passes it and the target, and trims
+    ``trim`` samples from each end *per run*, then solves on the concatenation; runs too short
+    to filter and trim are left out. :meth:`predict` builds the design per run and is NaN outside
+    the runs. One run spanning the whole series is the plain fit.
     """
 
     coef_: np.ndarray
@@ -109,6 +116,7 @@ class TollesLawson:
         scalar: np.ndarray,
         fs_hz: float,
         earth_total: np.ndarray | None = None,
+        runs: list[slice] | None = None,
     ) -> TollesLawson:
         """Fit the coefficients.
 
@@ -123,13 +131,17 @@ class TollesLawson:
         earth_total : ndarray, shape (n,), optional
             Known ambient total field [nT] (e.g. IGRF + diurnal, or the simulator's truth);
             the target is ``scalar − earth_total`` when given, else ``scalar``.
+        runs : list of slice, optional
+            Runs of valid samples to fit, each prepared on its own (class notes). None: all.
 
         Returns
         -------
         self
         """
-        a, y = self._design_and_target(flux, scalar, earth_total)
-        a, y = self._prepare(a, y, fs_hz)
+        if runs is None:
+            a, y = self._prepare(*self._design_and_target(flux, scalar, earth_total), fs_hz)
+        else:
+            a, y = self._prepare_runs(flux, scalar, earth_total, fs_hz, runs)
         if a.shape[0] <= a.shape[1]:
             raise AeromagError(
                 f"Tolles–Lawson fit needs more than {a.shape[1]} samples, got {a.shape[0]}"
@@ -142,14 +154,20 @@ class TollesLawson:
         self.remove_mean_ = bool(0 < low < fs_hz / 2)
         return self
 
-    def predict(self, flux: np.ndarray) -> np.ndarray:
+    def predict(self, flux: np.ndarray, runs: list[slice] | None = None) -> np.ndarray:
         """Scalar interference [nT], shape (n,): unfiltered design × ``coef_``.
 
+        With ``runs``, the design is built on each run and the result is NaN outside them.
         With :attr:`remove_mean_` the mean over the finite samples is removed.
         """
         if not hasattr(self, "coef_"):
             raise AeromagError("TollesLawson is not fitted; call fit() first")
-        interf = self._design(flux) @ self.coef_
+        if runs is None:
+            interf = self._design(flux) @ self.coef_
+        else:
+            interf = np.full(len(flux), np.nan)
+            for run in runs:
+                interf[run] = self._design(flux[run]) @ self.coef_
         finite = np.isfinite(interf)
         if self.remove_mean_ and np.any(finite):
             interf = interf - np.mean(interf[finite])
@@ -179,6 +197,37 @@ class TollesLawson:
                 f"scalar (and earth_total) must have shape ({a.shape[0]},) like flux, got {y.shape}"
             )
         return a, y
+
+    def _prepare_runs(
+        self,
+        flux: np.ndarray,
+        scalar: np.ndarray,
+        earth_total: np.ndarray | None,
+        fs_hz: float,
+        runs: list[slice],
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Design and target prepared (:meth:`_prepare`) run by run, then concatenated."""
+        if len(runs) == 1:  # no concatenation: the plain fit's arrays, bit for bit
+            run = runs[0]
+            total = None if earth_total is None else earth_total[run]
+            return self._prepare(*self._design_and_target(flux[run], scalar[run], total), fs_hz)
+        parts = []
+        for run in runs:
+            total = None if earth_total is None else earth_total[run]
+            a, y = self._design_and_target(flux[run], scalar[run], total)
+            if self._long_enough(a.shape[0], fs_hz):
+                parts.append(self._prepare(a, y, fs_hz))
+        if not parts:
+            return np.empty((0, 18 + self.bias)), np.empty(0)
+        return np.vstack([a for a, _ in parts]), np.concatenate([y for _, y in parts])
+
+    def _long_enough(self, n: int, fs_hz: float) -> bool:
+        """Whether a run of ``n`` samples survives the filter's padding and the trim."""
+        band = self.bandpass_hz
+        if band is None or is_all_pass(fs_hz, *band):
+            return n > 0
+        low, high = band
+        return n > 2 * self.trim and n >= bandpass_min_length(fs_hz, low, high)
 
     def _prepare(self, a: np.ndarray, y: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
         """Filter and trim (with a band), or drop non-finite rows (without one)."""

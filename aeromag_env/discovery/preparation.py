@@ -3,7 +3,11 @@
 Decides the measured-minus-model-Earth-field series the workflow fits (the model Earth field
 ``T``: IGRF-14 along the track, rotated by the file's attitude), which samples are usable
 (non-finite samples and samples next to a time gap are dropped), and the split into the
-calibration part the models are fitted on and the held-out part the gap is scored on. Input
+calibration part the models are fitted on and the held-out part the gap is scored on. Samples
+where the model field is unknown (non-finite attitude or position) are filled by interpolation
+for the regressors only and, with the :data:`GAP_GUARD_SAMPLES` next to them (their derivatives
+reach them), left out; fluxgate spikes are left out too
+(:func:`aeromag_env.compensation.samples.flight_samples`). Input
 the workflow cannot use (no attitude, no fluxgate, no position or date, too little calibration
 or held-out data) is a one-line :class:`~aeromag_env.errors.AeromagError`.
 
@@ -19,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aeromag_env.compensation.samples import flight_samples
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.data import ATTITUDE_NAMES, Flight, vector_names
 from aeromag_env.simulation.effects import EffectContext
@@ -101,12 +106,13 @@ def prepare(
     step = np.diff(tt)
     dt = float(np.median(step))
     gap_after = np.flatnonzero(step > 1.5 * dt)  # a gap between sample k and k + 1
-    c_nb, t_b, tdot, t2dot = _body_field(flight, tt, t_n)
+    c_nb, t_b, tdot, t2dot, unknown = _body_field(flight, tt, t_n)
     alt_name = flight.altitude_name()
     alt = flight[alt_name] if alt_name else np.full(flight.n, np.nan)
     y = flight.vector(flux) - t_b
-    usable = np.all(np.isfinite(y) & np.isfinite(tdot) & np.isfinite(t2dot), axis=1)
+    usable = np.all(np.isfinite(y) & np.isfinite(tdot) & np.isfinite(t2dot), axis=1) & ~unknown
     n_nonfinite = int(np.sum(~usable))
+    usable &= flight_samples(flight, [flux], [flux]).valid  # fluxgate spikes
     _drop_gap_neighbours(usable, gap_after)
     calibration, scheme = _calibration_part(tt, usable, calibration_window)
     held_out = usable & ~calibration
@@ -146,15 +152,36 @@ def _earth_field_ned(flight: Flight) -> np.ndarray:
 
 def _body_field(
     flight: Flight, tt: np.ndarray, t_n: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Attitude DCM, and the model Earth field in body axes with its first two derivatives."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Attitude DCM, the model Earth field in body axes with its first two derivatives, and the
+    (n,) mask of samples where that field is unknown or its derivatives reach an unknown one.
+
+    Unknown samples (non-finite attitude or position) are filled by linear interpolation in
+    time, so that every regressor is finite; they are never used.
+    """
     from aeromag_env.geo.frames import dcm_from_euler, nav_to_body, time_derivative
 
     c_nb = dcm_from_euler(*flight.attitude_rad())
     t_b = nav_to_body(c_nb, t_n)
+    unknown = ~np.all(np.isfinite(t_b), axis=1)
+    if unknown.any():
+        c_nb = _filled(c_nb, tt, ~np.all(np.isfinite(c_nb), axis=(1, 2)))
+        t_b = _filled(t_b, tt, unknown)
+        near = np.convolve(unknown, np.ones(2 * GAP_GUARD_SAMPLES + 1), mode="same")
+        unknown = near > 0
     tdot = time_derivative(t_b, tt, "central")
     t2dot = time_derivative(tdot, tt, "central")
-    return c_nb, t_b, tdot, t2dot
+    return c_nb, t_b, tdot, t2dot, unknown
+
+
+def _filled(x: np.ndarray, tt: np.ndarray, bad: np.ndarray) -> np.ndarray:
+    """``x`` (n, ...) with the rows ``bad`` interpolated linearly in time from the others."""
+    if np.count_nonzero(~bad) < 2:
+        raise AeromagError("discovery needs finite attitude and position on at least 2 samples")
+    flat = x.reshape(len(x), -1).copy()
+    for j in range(flat.shape[1]):
+        flat[bad, j] = np.interp(tt[bad], tt[~bad], flat[~bad, j])
+    return flat.reshape(x.shape)
 
 
 def _drop_gap_neighbours(usable: np.ndarray, gap_after: np.ndarray) -> None:

@@ -1,6 +1,10 @@
 """Flight files: the in-memory flight, the readers and writers, and the checks on what they read.
 
 :mod:`.data` (the :class:`~aeromag_env.flight.data.Flight` of named channels), :mod:`.files`
-(HDF5 and CSV in the flat MagNav/SGL layout), :mod:`.validation` (what a tool can trust),
-:mod:`.info` (``aeromag info``) and :mod:`.plot` (the flight figure and the door to matplotlib).
+(read, write and convert; the format found from the content) over :mod:`.formats` (HDF5, CSV,
+Geosoft XYZ, MATLAB .mat) and :mod:`.aliases` (other names for our fields, in one table),
+:mod:`.validation` (what a tool can trust), :mod:`.quality` (time gaps and spikes),
+:mod:`.mounting` (the fluxgate's mount), :mod:`.selection` (lines, segments, the calibration
+line), :mod:`.info` (``aeromag info``) and :mod:`.plot` (the flight figure and the door to
+matplotlib).
 """

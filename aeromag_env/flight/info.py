@@ -10,14 +10,20 @@ from __future__ import annotations
 import json
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from aeromag_env.errors import FlightFileError
+from aeromag_env.errors import AeromagError, FlightFileError
+from aeromag_env.flight.channels import choose_channels
 from aeromag_env.flight.data import ALTITUDE_NAMES, ATTITUDE_NAMES, AUX_PREFIXES, Flight
 from aeromag_env.flight.files import file_format, load_flight
+from aeromag_env.flight.formats.detect import LABELS, detect_format
+from aeromag_env.flight.mount_choice import choose_mount, estimate_inputs_missing
+from aeromag_env.flight.mounting import Mount
 from aeromag_env.flight.quality import fault_report
+from aeromag_env.flight.selection import select
 from aeromag_env.flight.validation import (
     PathLike,
     format_nonfinite,
@@ -51,7 +57,10 @@ class InfoReport:
     summary : dict
         The same content as plain JSON-serialisable data (path, format, samples, duration_s,
         sample_rate_hz, date, attributes, fields by group, maneuver_windows, flight_line_count,
-        flight_lines, nonfinite, faults: time gaps and spikes, :mod:`aeromag_env.flight.quality`).
+        flight_lines, nonfinite, faults: time gaps and spikes, :mod:`aeromag_env.flight.quality`;
+        channels: the scalar, fluxgate and altitude ``compensate`` would choose and why,
+        :mod:`aeromag_env.flight.channels`; mounts: each fluxgate's mount estimated from the data,
+        :mod:`aeromag_env.flight.mount_choice`).
     """
 
     lines: list[str]
@@ -64,12 +73,20 @@ class InfoReport:
         return {"usable": self.usable, "problems": list(self.problems), **self.summary}
 
 
-def describe(path: PathLike) -> InfoReport:
-    """Summarise a flight file (HDF5 or CSV); never raises for a bad file.
+def describe(
+    path: PathLike,
+    lines: tuple[float, ...] | None = None,
+    segment: tuple[float, float] | None = None,
+) -> InfoReport:
+    """Summarise a flight file (any format of :mod:`aeromag_env.flight.files`); never raises for
+    a bad file.
 
     Parameters
     ----------
     path : str or PathLike
+    lines, segment : summarise only these flight lines and ``(T0, T1)`` [s]
+        (:func:`aeromag_env.flight.selection.select`; a line or segment the file does not hold
+        raises :class:`~aeromag_env.errors.AeromagError`)
 
     Returns
     -------
@@ -79,20 +96,33 @@ def describe(path: PathLike) -> InfoReport:
         when a channel present is in implausible units (µT, radians…), since every consumer of
         that channel would refuse it.
     """
-    kind = file_format(path)
-    head = {"path": str(path), "format": kind.upper() if kind else "unknown"}
+    head: dict[str, Any] = {"path": str(path), "format": _format_label(path)}
     title = f"file: {head['path']} ({head['format']})"
     try:
         flight, problems = load_flight(path, needs=("tt",))
     except FlightFileError as exc:
         return InfoReport([title, f"error: {exc}"], [str(exc)], False, head)
+    if lines is not None or segment is not None:
+        chosen = select(flight, lines, segment)
+        flight, head["selection"] = chosen.flight, chosen.report
+        title += f", {flight.attrs['selection']}"
     usable = True
     try:  # a unit problem is fatal only for channels a consumer needs: here, all present
         validate(flight, path, present_needs(flight))
     except FlightFileError as exc:
         problems, usable = [f"unusable: {exc}", *problems], False
     summary = {**head, **summarise(flight)}
+    problems = [*problems, *summary["channel_warnings"]]
     return InfoReport([title, *_format_lines(summary, problems)], problems, usable, summary)
+
+
+def _format_label(path: PathLike) -> str:
+    """The format found from the content (``HDF5``, ``MAT5``…), else from the suffix."""
+    try:
+        return LABELS.get(detect_format(Path(path)), "unknown")
+    except (FlightFileError, OSError):
+        kind = file_format(path)
+        return kind.upper() if kind else "unknown"
 
 
 def present_needs(flight: Flight) -> list[str]:
@@ -110,6 +140,7 @@ def present_needs(flight: Flight) -> list[str]:
 def summarise(flight: Flight) -> dict[str, Any]:
     """Plain-data summary of a validated flight (see :class:`InfoReport`)."""
     rate = flight.sample_rate_hz
+    channels = choose_channels(flight)
     return {
         "samples": flight.n,
         "duration_s": flight.duration_s,
@@ -124,7 +155,33 @@ def summarise(flight: Flight) -> dict[str, Any]:
         "flight_lines": _flight_lines(flight),
         "nonfinite": nonfinite_report(flight),
         "faults": fault_report(flight),
+        "channels": channels.to_dict(),
+        "channel_warnings": list(channels.warnings),
+        "mounts": estimated_mounts(flight),
     }
+
+
+def estimated_mounts(flight: Flight) -> dict[str, dict[str, Any]]:
+    """Each fluxgate's mount as the data indicate: angles [deg], angle from the body axes [deg]
+    and residual [nT] (``aeromag compensate --mount auto`` would use it), or why not."""
+    missing = estimate_inputs_missing(flight)
+    out: dict[str, dict[str, Any]] = {}
+    for gate in flight.fluxgates():
+        if missing:
+            out[gate] = {"error": f"not estimated: no {missing} in the file"}
+            continue
+        try:
+            choice = choose_mount(flight, gate, "auto", relevant=False)
+        except (AeromagError, ValueError, KeyError) as exc:  # e.g. a date beyond IGRF
+            out[gate] = {"error": f"not estimated: {exc}"}
+            continue
+        est = choice.estimate
+        if est is None:
+            out[gate] = {"error": choice.reason.split(";")[0]}
+            continue
+        angle = Mount.identity().angle_to_deg(est)
+        out[gate] = {**est.to_dict(), "angle_from_body_deg": angle}
+    return out
 
 
 def group_fields(names: list[str]) -> dict[str, list[str]]:
@@ -219,13 +276,38 @@ def _format_lines(summary: dict[str, Any], problems: list[str]) -> list[str]:
     faults = summary["faults"]
     lines.append(f"continuous segments: {faults['segments']} ({faults['gap_count']} time gap(s))")
     lines.append(f"spikes: {sum(e['count'] for e in faults['spikes'].values()) or 'none'}")
+    lines += _channel_lines(summary["channels"], summary["mounts"])
     lines.append(f"problems: {len(problems) or 'none'}")
     return lines + [f"  - {problem}" for problem in problems]
 
 
-def main_info(path: str, as_json: bool) -> int:
-    """Print the report of ``path`` to stdout (JSON if ``as_json``); 0 if usable, else 2."""
-    report = describe(path)
+def _channel_lines(channels: dict[str, Any], mounts: dict[str, dict[str, Any]]) -> list[str]:
+    """The channels ``compensate`` would choose, and each fluxgate's estimated mount."""
+    lines = ["channels (auto):"]
+    for kind, entry in channels.items():
+        lines.append(f"  {kind}: {entry['name']} ({entry['reason']})" if entry else f"  {kind}: –")
+    lines.append(f"fluxgate mounts (estimated from attitude and IGRF): {len(mounts) or 'none'}")
+    for gate, m in mounts.items():
+        if "error" in m:
+            lines.append(f"  {gate}: {m['error']}")
+            continue
+        angles = ", ".join(f"{m[k]:.1f}" for k in ("roll_deg", "pitch_deg", "yaw_deg"))
+        lines.append(
+            f"  {gate}: roll/pitch/yaw {angles}° ({m['angle_from_body_deg']:.1f}° from the body "
+            f"axes), residual {m['residual_nt']:.0f} nT over {m['samples']} samples"
+        )
+    return lines
+
+
+def main_info(
+    path: str,
+    as_json: bool,
+    lines: tuple[float, ...] | None = None,
+    segment: tuple[float, float] | None = None,
+) -> int:
+    """Print the report of ``path`` (of its ``lines`` and ``segment``) to stdout (JSON if
+    ``as_json``); 0 if usable, else 2."""
+    report = describe(path, lines, segment)
     if as_json:
         print(json.dumps(report.to_dict(), indent=2, ensure_ascii=False, allow_nan=False))
     else:

@@ -20,6 +20,8 @@ compensated field is the same, and the compensator's ``A`` is then the symmetric
 The fit needs attitude variation (the calibration box gives plenty; a straight survey line does
 not): :attr:`Mount.conditioning` is the smallest over the largest singular value of ``B``, and a
 fit below :data:`MIN_CONDITIONING` is refused.
+
+Which mount a compensation uses, and mount files: :mod:`aeromag_env.flight.mount_choice`.
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ file's usual one), and a magnetometer throws single wild samples (*spikes*). Nei
 of the file, and both ruin a filter, a band-pass or a derivative that runs across them, silently.
 This module finds them, and every reader's validation warns about them
 (:func:`aeromag_env.flight.validation.validate`), so ``aeromag info``, ``compensate`` and
-``discover`` say so. The compensators do not yet run per continuous segment nor skip flagged
-samples (issue 19): until they do, the warning says that results near a fault are unreliable.
+``discover`` say so. The compensators run filters, band-passes and derivatives on each
+continuous segment and leave flagged samples out (:mod:`aeromag_env.compensation.samples`).
 
 * Gaps: a step ``tt[k] − tt[k−1]`` above :data:`GAP_FACTOR` times the median step. The flight
   splits into continuous segments there (:func:`segments`).
@@ -71,6 +71,19 @@ def segments(tt: np.ndarray) -> list[slice]:
     """The continuous segments of ``tt`` (n,): slices between the gaps, in order."""
     edges = [0, *(g.index for g in find_gaps(tt)), tt.size]
     return [slice(a, b) for a, b in itertools.pairwise(edges)]
+
+
+def runs(ok: np.ndarray, parts: list[slice] | None = None) -> list[slice]:
+    """Maximal runs of ``True`` in ``ok`` (n,) that lie inside one of ``parts`` (default: the
+    whole series), as slices in order: where a filter or a derivative may run uninterrupted."""
+    ok = np.asarray(ok, dtype=bool)
+    out = []
+    for part in parts if parts is not None else [slice(0, ok.size)]:
+        start = part.start or 0
+        edges = np.diff(np.concatenate([[0], ok[part].astype(np.int8), [0]]))
+        starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        out += [slice(start + int(a), start + int(b)) for a, b in zip(starts, stops, strict=True)]
+    return out
 
 
 def hampel_flags(x: np.ndarray, window: int) -> np.ndarray:
@@ -173,16 +186,16 @@ def fault_problems(report: dict[str, object]) -> list[str]:
             f"{g['duration_s']:.3g} s at t = {g['t_start_s']:.6g} s" for g in gaps[:3]
         )
         problems.append(
-            f"{report['gap_count']} time gap(s) ({listed}): filters, band-passes and derivatives "
-            "run across them, so results near them are unreliable; compensate the continuous "
-            "parts apart (--calibration-window)"
+            f"{report['gap_count']} time gap(s) ({listed}): the flight is compensated as "
+            f"{report['segments']} continuous segments (filters, band-passes and derivatives "
+            "restart at each)"
         )
     spikes = report["spikes"]
     assert isinstance(spikes, dict)
     for name, entry in spikes.items():
         times = ", ".join(f"{t:.6g}" for t in entry["times_s"][:3])
         problems.append(
-            f"{name}: {entry['count']} spike(s) (t = {times} s…), not removed: they enter the "
-            "fits and the filters"
+            f"{name}: {entry['count']} spike(s) (t = {times} s…), flagged: left out wherever "
+            f"{name} is used (fits, filter updates; the compensated output there is NaN)"
         )
     return problems

@@ -1,0 +1,160 @@
+"""MATLAB ``.mat`` files: v5 (also v6/v7) through :func:`scipy.io.loadmat`, v7.3 through h5py.
+
+Reading
+    The fields are the top-level numeric vectors, (n, 1) or (1, n) as MATLAB stores them; or, when
+    the file holds one struct and no top-level vectors (MagNav.jl's ``traj`` layout), the vectors
+    inside that struct (its name goes to the attribute ``mat_struct``). One-element numbers
+    (``dt``, ``N``) and character arrays become attributes, a character array
+    ``aeromag_attrs`` holding a JSON object becomes the attributes themselves. Matrices, cell
+    arrays, empty arrays and further structs are skipped and reported. A v7.3 file is HDF5 with a
+    512-byte MATLAB header: its ``#refs#`` and ``#subsystem#`` groups are MATLAB's own and passed
+    over.
+Writing (v5 only)
+    One double column vector (n × 1) per field, in flight order, compressed, and the attributes
+    as JSON (ASCII) in the character array ``aeromag_attrs``. Write → read gives bit-identical
+    arrays (NaN payloads included) and equal attributes (JSON types). Field names must be MATLAB
+    names: a letter, then letters, digits or ``_``, at most 63 characters.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import scipy.io
+
+from aeromag_env.flight.data import Flight
+from aeromag_env.flight.formats.common import (
+    NUMERIC_KINDS,
+    RawFile,
+    is_vector_shape,
+    plain,
+    skipped_note,
+    split_scalars,
+    to_json,
+)
+
+MAT5_HEADER = b"MATLAB 5.0 MAT-file"
+MAT73_HEADER = b"MATLAB 7.3 MAT-file"
+ATTRS_VARIABLE = "aeromag_attrs"
+STRUCT_ATTR = "mat_struct"
+_MATLAB_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
+
+
+class _Struct(dict[str, Any]):
+    """The fields of a MATLAB struct (a dict, marked as such)."""
+
+
+def read_mat5(path: Path) -> RawFile:
+    """Fields, attributes and notes of a v5/v6/v7 MAT-file (see the module docstring)."""
+    with open(path, "rb") as fh:
+        data = scipy.io.loadmat(fh, simplify_cells=True)
+    items = {k: _mark_structs(v) for k, v in data.items() if not k.startswith("__")}
+    return _collect(items)
+
+
+def _mark_structs(value: Any) -> Any:
+    """loadmat's dicts (structs) → :class:`_Struct`, recursively."""
+    if isinstance(value, dict):
+        return _Struct({k: _mark_structs(v) for k, v in value.items()})
+    return value
+
+
+def read_mat73(path: Path) -> RawFile:
+    """Fields, attributes and notes of a v7.3 MAT-file (HDF5 with a MATLAB header)."""
+    with h5py.File(path, "r") as f:
+        return _collect(_h5_items(f))
+
+
+def _h5_items(group: h5py.Group) -> dict[str, Any]:
+    """A v7.3 group as loadmat would give it: arrays, strings, structs, None for the rest."""
+    items: dict[str, Any] = {}
+    for name, item in group.items():
+        if name.startswith("#"):
+            continue
+        cls = plain(item.attrs.get("MATLAB_class", b""))
+        if isinstance(item, h5py.Group):
+            items[name] = _Struct(_h5_items(item)) if cls == "struct" else None
+        elif item.attrs.get("MATLAB_empty", 0):
+            items[name] = np.empty(0)
+        elif cls == "char":
+            items[name] = "".join(map(chr, np.asarray(item[()]).ravel().tolist()))
+        elif item.dtype.kind in NUMERIC_KINDS:
+            items[name] = np.asarray(item[()])
+        else:
+            items[name] = None  # cell arrays (object references), function handles…
+    return items
+
+
+def _collect(items: dict[str, Any]) -> RawFile:
+    """Fields (top level, or the single struct's), attributes and the names skipped."""
+    attrs: dict[str, Any] = {}
+    text = items.pop(ATTRS_VARIABLE, None)
+    structs = [nm for nm, v in items.items() if isinstance(v, _Struct)]
+    vectors, shapes, found, skipped = _sort_items(items)
+    if len(structs) == 1 and not any(v.size > 1 for v in vectors.values()):
+        name = structs[0]
+        attrs.update({nm: plain(v[0]) for nm, v in vectors.items()})  # top-level scalars
+        vectors, shapes, inner, skipped_inner = _sort_items(items[name])
+        attrs[STRUCT_ATTR] = name
+        skipped = [nm for nm in skipped if nm != name] + [f"{name}.{nm}" for nm in skipped_inner]
+        found = {**found, **inner}
+    fields, scalars = split_scalars(vectors, shapes)
+    attrs.update({**scalars, **found})
+    if isinstance(text, str):
+        attrs.update(_json_object(text))
+    return fields, attrs, skipped_note(skipped, "item(s) that are not vectors")
+
+
+def _sort_items(
+    items: dict[str, Any],
+) -> tuple[dict[str, np.ndarray], dict[str, tuple[int, ...]], dict[str, Any], list[str]]:
+    """Numeric vectors (with their MATLAB shapes), string and number attributes, skipped names."""
+    vectors: dict[str, np.ndarray] = {}
+    shapes: dict[str, tuple[int, ...]] = {}
+    attrs: dict[str, Any] = {}
+    skipped: list[str] = []
+    for name, value in items.items():
+        if isinstance(value, str):
+            attrs[name] = value
+            continue
+        numeric = isinstance(value, (np.ndarray, np.generic, int, float))
+        array = np.asarray(value) if numeric else None
+        if array is None or array.dtype.kind not in NUMERIC_KINDS or array.size == 0:
+            skipped.append(name)
+        elif array.ndim == 0 or is_vector_shape(array.shape):
+            vectors[name] = np.asarray(array, dtype=np.float64).reshape(-1)
+            shapes[name] = array.shape if array.ndim else (1, 1)
+        else:
+            skipped.append(name)
+    return vectors, shapes, attrs, skipped
+
+
+def _json_object(text: str) -> dict[str, Any]:
+    """The attributes our writer stored; anything else is kept as the string it is."""
+    try:
+        value = json.loads(text)
+    except ValueError:
+        value = None
+    return value if isinstance(value, dict) else {ATTRS_VARIABLE: text}
+
+
+def invalid_names(names: list[str]) -> list[str]:
+    """Field names a MAT-file cannot hold (not MATLAB names, or our attribute variable)."""
+    return [nm for nm in names if not _MATLAB_NAME.match(nm) or nm == ATTRS_VARIABLE]
+
+
+def write_mat5(flight: Flight, tmp: Path) -> None:
+    """A v5 MAT-file: one n × 1 double per field, the attributes as JSON (module docstring)."""
+    variables: dict[str, Any] = {
+        name: np.asarray(values, dtype=np.float64).reshape(-1, 1)
+        for name, values in flight.fields.items()
+    }
+    if flight.attrs:
+        variables[ATTRS_VARIABLE] = to_json(flight.attrs)
+    with open(tmp, "wb") as fh:
+        scipy.io.savemat(fh, variables, format="5", do_compression=True, oned_as="column")

@@ -1,0 +1,102 @@
+"""The README's "Your own flight files" walkthrough, from a raw Geosoft XYZ file to a report.
+
+No real survey file may be shipped (the public SGL flights are under an acceptable-use agreement),
+so this script writes one the way a contractor delivers it: a simulated calibration box and
+survey lines (nominal preset, seed 11) with Geosoft column names (``UNCOMPMAG1``, ``FLUXA_X``,
+``ROLL``, ``AZIMUTH``…), ``*`` for missing values, no simulator truth and no attributes, and with
+what real files bring: the fluxgate mounted as an axis swap (sensor x, y, z = body right, down,
+forward, as SGL's ``flux_a``), a 30 s logger gap on a survey line, one 1e6 nT spike in the
+scalar, a few samples of missing attitude, and the vendor's compensated channel ``COMPMAG1``
+(here the scalar minus the true interference plus 0.05 nT of noise). It then runs
+``aeromag info`` and ``aeromag compensate`` (``tl`` fitted on the calibration line, and ``kf``)
+and prints what they print, stderr included.
+
+Usage::
+
+    python experiments/own_flight_file.py [--out results/own_flight_file]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from aeromag_env.cli.main import main as aeromag
+from aeromag_env.flight.data import Flight, vector_names
+from aeromag_env.flight.files import write_flight
+from aeromag_env.simulation.config import preset, with_overrides
+from aeromag_env.simulation.simulate import simulate_flight
+
+#: Our names → the Geosoft column names of an SGL-style delivery (the alias table reverses it).
+GEOSOFT = {"tt": "TIME", "line": "LINE", "lat": "LAT", "lon": "LONG", "alt": "UTM-Z",
+           "year": "YEAR", "doy": "DOY", "ins_roll": "ROLL", "ins_pitch": "PITCH",
+           "ins_yaw": "AZIMUTH", "flux_a_x": "FLUXA_X", "flux_a_y": "FLUXA_Y",
+           "flux_a_z": "FLUXA_Z", "mag_1_uc": "UNCOMPMAG1", "mag_1_c": "COMPMAG1",
+           "diurnal": "DIURNAL"}  # fmt: skip
+#: Sensor axes = body right, down, forward: m_sensor = AXIS_SWAP @ m_body.
+AXIS_SWAP = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+SEED = 11
+
+
+def raw_flight(seed: int = SEED) -> Flight:
+    """The simulated flight as a contractor would deliver it (module docstring)."""
+    cfg = with_overrides(preset("nominal"), {"trajectory.pattern": "calibration+survey"})
+    sim = simulate_flight(cfg, rng=seed)
+    rng = np.random.default_rng(seed)
+    fields = {name: sim[name].copy() for name in GEOSOFT if name in sim}
+    swapped = sim.vector("flux_a") @ AXIS_SWAP.T
+    fields.update(zip(vector_names("flux_a"), swapped.T, strict=True))
+    fields["mag_1_c"] = sim["mag_1_uc"] - sim["truth_interf_mag_1"] + rng.normal(0, 0.05, sim.n)
+    tt = sim.tt
+    keep = ~((tt >= 1500.0) & (tt < 1530.0))  # a 30 s logger gap on a survey line
+    spike = int(np.searchsorted(tt, 1700.0))
+    fields["mag_1_uc"][spike] += 1e6  # one wild sample
+    fields["ins_pitch"][np.searchsorted(tt, 1800.0) + np.arange(3)] = np.nan  # INS dropout
+    return Flight({GEOSOFT[k]: v[keep] for k, v in fields.items()}, {})
+
+
+def run(argv: list[str]) -> tuple[int, str]:
+    """``aeromag ARGV``: exit code and what it printed (stdout, then stderr)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = aeromag(argv)
+    return code, out.getvalue() + err.getvalue()
+
+
+def walkthrough(out: Path) -> dict[str, object]:
+    """Write the raw file, run the commands, return their outputs and the key figures."""
+    out.mkdir(parents=True, exist_ok=True)
+    raw = out / "survey_raw.xyz"
+    write_flight(raw_flight(), raw)
+    steps = {
+        "info": ["info", str(raw)],
+        "tl": ["compensate", str(raw), "--method", "tl", "--calibration-line",
+               "--out", str(out / "tl")],
+        "kf": ["compensate", str(raw), "--method", "kf", "--out", str(out / "kf")],
+    }  # fmt: skip
+    printed = {}
+    for name, argv in steps.items():
+        code, text = run(argv)
+        printed[name] = {"argv": argv, "exit": code, "printed": text.replace(str(out), "OUT")}
+    figures = {name: json.loads((out / name / "report.json").read_text()) for name in ("tl", "kf")}
+    return {"printed": printed, "reports": figures}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default="results/own_flight_file", help="output folder")
+    args = parser.parse_args(argv)
+    result = walkthrough(Path(args.out))
+    for step in result["printed"].values():  # type: ignore[attr-defined]
+        print(f"$ aeromag {' '.join(step['argv'])}  # exit {step['exit']}")
+        print(step["printed"])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

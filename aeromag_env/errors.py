@@ -13,3 +13,11 @@ class FlightFileError(AeromagError, ValueError):
 
 class ConfigError(AeromagError, ValueError):
     """A configuration value is invalid; the message names the field and its unit."""
+
+
+class PolicyFileError(AeromagError, ValueError):
+    """A tuning policy file is unreadable or malformed; the message names the file."""
+
+
+class HyperparameterError(AeromagError, ValueError):
+    """A hyperparameter file is unreadable or invalid; the message names the file and field."""

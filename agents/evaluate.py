@@ -14,6 +14,7 @@ import numpy as np
 from scipy import stats
 
 import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS, check_scenario
 from aeromag_env.errors import AeromagError
 from agents import make_policy, policy_env_kwargs
 
@@ -60,7 +61,18 @@ def evaluate(
     env_kwargs: dict[str, Any] | None = None,
     progress: Any = None,
 ) -> dict[str, Any]:
-    """Every policy on the same seeds; ``results.json`` layout of ``aeromag evaluate``."""
+    """Every policy on the same seeds; ``results.json`` layout of ``aeromag evaluate``.
+
+    ``scenario`` is one of :data:`~aeromag_env.environment.scenarios.SCENARIOS`; a training-only
+    one (:data:`~aeromag_env.environment.scenarios.TRAINING_SCENARIOS`) is refused.
+    """
+    check_scenario(scenario)
+    if scenario in TRAINING_SCENARIOS:
+        raise AeromagError(
+            f"scenario {scenario!r} is for training only; evaluate one of {', '.join(SCENARIOS)}"
+        )
+    if not seeds:
+        raise AeromagError("evaluation needs at least one seed")
     if min(seeds) < TEST_SEED_START:
         raise AeromagError(
             f"evaluation seeds must be ≥ {TEST_SEED_START} (training and validation use the "

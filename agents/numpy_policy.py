@@ -3,24 +3,29 @@
 The ``.npz`` (``allow_pickle=False``) holds the observation normalisation (``obs_mean``,
 ``obs_var``, ``obs_clip``, ``obs_eps``), the actor's hidden layers ``w0, b0, w1, b1, …``
 (tanh activations, SB3's default for PPO), the action layer ``w_out, b_out`` and a JSON string
-``meta`` (scenario, environment keyword arguments, training summary).
+``meta`` (scenario, environment keyword arguments, training summary); :mod:`.policy_file` reads
+it and checks every array (names, dtypes, shapes, finite values, the sizes ``env_kwargs`` give)
+before a policy exists, so a malformed file is a one-line
+:class:`~aeromag_env.errors.PolicyFileError` at load time, never an error in :meth:`predict`.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from aeromag_env.errors import AeromagError
+from agents.policy_file import read_policy
 
 State = Any
 
 
 class NumpyPPOPolicy:
-    """Deterministic PPO actor: ``clip(W_out tanh(… tanh(W_0 x̂ + b_0) …) + b_out, −1, 1)``."""
+    """Deterministic PPO actor: ``clip(W_out tanh(… tanh(W_0 x̂ + b_0) …) + b_out, −1, 1)``.
+
+    Build it with :meth:`load` (which checks the file); the constructor trusts its arrays.
+    """
 
     name = "ppo"
 
@@ -32,17 +37,13 @@ class NumpyPPOPolicy:
         self.layers = [(arrays[f"w{i}"], arrays[f"b{i}"]) for i in range(n_hidden)]
         self.out = (arrays["w_out"], arrays["b_out"])
         self.meta = meta
+        self.n_obs = int(self.mean.shape[-1])
 
     @classmethod
     def load(cls, path: str | Path) -> NumpyPPOPolicy:
-        """Read an exported policy; a missing or malformed file is a one-line error."""
-        try:
-            with np.load(Path(path), allow_pickle=False) as data:
-                arrays = {k: data[k] for k in data.files}
-            meta = json.loads(str(arrays.pop("meta")))
-            return cls(arrays, meta)
-        except (OSError, KeyError, ValueError) as e:
-            raise AeromagError(f"cannot load PPO policy {path}: {e}") from None
+        """Read an exported policy; a missing or malformed file is a one-line
+        :class:`~aeromag_env.errors.PolicyFileError` naming the file and the problem."""
+        return cls(*read_policy(path))
 
     @property
     def env_kwargs(self) -> dict[str, Any]:
@@ -51,9 +52,15 @@ class NumpyPPOPolicy:
 
     def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+        """Actions (n_act,) for one observation (n_obs,), or (N, n_act) for (N, n_obs);
+        observations far outside the training statistics saturate (clipped after scaling)."""
         x = np.asarray(obs, dtype=np.float64)
+        if x.ndim not in (1, 2) or x.shape[-1] != self.n_obs:
+            raise ValueError(f"the PPO policy takes {self.n_obs} observations per environment, "
+                             f"got an array of shape {x.shape}")  # fmt: skip
         single = x.ndim == 1
-        x = np.clip((np.atleast_2d(x) - self.mean) / self.std, -self.clip, self.clip)
+        with np.errstate(over="ignore"):  # a huge observation scales to ±inf, then is clipped
+            x = np.clip((np.atleast_2d(x) - self.mean) / self.std, -self.clip, self.clip)
         for w, b in self.layers:
             x = np.tanh(x @ w.T + b)
         action = np.clip(x @ self.out[0].T + self.out[1], -1.0, 1.0).astype(np.float32)

@@ -26,19 +26,24 @@ import numpy as np
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.atomic import write_text
 from aeromag_env.environment.scenarios import check_scenario
-from aeromag_env.errors import AeromagError
+from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.evaluate import TRAIN_SEEDS, VALIDATION_SEEDS, run_episode
+from agents.hyperparams_file import read_hyperparams
 from agents.numpy_policy import NumpyPPOPolicy
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.json"
 
 
 def load_hyperparams(scenario: str, path: Path = HYPERPARAMS) -> dict[str, Any]:
-    """The hyperparameters of ``scenario`` (one-line error when absent)."""
-    table = json.loads(path.read_text(encoding="utf-8"))
+    """The hyperparameters of ``scenario`` from the file ``path``, validated against its schema
+    (:mod:`agents.hyperparams_file`); a one-line HyperparameterError for a bad file or an
+    absent scenario."""
+    table = read_hyperparams(path)
     if scenario not in table["scenarios"]:
-        raise AeromagError(f"no PPO hyperparameters for {scenario!r} in {path}; "
-                           f"available: {', '.join(table['scenarios'])}")  # fmt: skip
+        available = ", ".join(table["scenarios"]) or "none"
+        raise HyperparameterError(
+            f"no PPO hyperparameters for {scenario!r} in {path}; available: {available}"
+        )
     return {**table["scenarios"][scenario], "version": table["version"]}
 
 

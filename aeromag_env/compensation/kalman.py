@@ -9,6 +9,7 @@ does); :func:`run_filter` runs a whole flight.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,7 @@ from aeromag_env.compensation.kernel_layout import (
 )
 from aeromag_env.compensation.kernels import advance
 from aeromag_env.compensation.model import MODE, STATE_SCALE, FilterConfig
+from aeromag_env.errors import ConfigError
 from aeromag_env.simulation.interference import N_STATES
 
 
@@ -162,7 +164,15 @@ class FilterState:
         return self._packed
 
     def scale_noise(self, s_q: float, s_r: float) -> None:
-        """Multiply Q and R by ``s_q`` and ``s_r`` (paper eq. 21 with an external tuner)."""
+        """Multiply Q and R by ``s_q`` and ``s_r`` (paper eq. 21 with an external tuner).
+
+        Each factor must be a finite real number > 0 (a zero, negative or non-finite one would
+        make Q or R singular, indefinite or NaN): a one-line ConfigError otherwise, raised
+        before either matrix changes.
+        """
+        for name, s in (("s_q", s_q), ("s_r", s_r)):
+            if not _positive_finite(s):
+                raise ConfigError(f"scale_noise: {name} must be a finite number > 0, got {s!r}")
         self.qd *= s_q
         self.rm *= s_r
 
@@ -183,6 +193,18 @@ class FilterState:
             divergences=int(self.ints[INT_DIV]),
             skipped=int(self.ints[INT_SKIP]),
         )
+
+
+def _positive_finite(value: object) -> bool:
+    """A real number (not a bool) that is finite and > 0 as a float."""
+    if not isinstance(value, int | float | np.integer | np.floating) or isinstance(
+        value, bool | np.bool_
+    ):
+        return False
+    try:
+        return 0.0 < float(value) < math.inf  # NaN fails both comparisons
+    except OverflowError:  # an int beyond the largest float
+        return False
 
 
 def _parameters(cfg: FilterConfig) -> np.ndarray:

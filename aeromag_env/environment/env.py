@@ -12,8 +12,9 @@ from gymnasium import spaces
 
 from aeromag_env.compensation.arrays import packed
 from aeromag_env.compensation.kalman import FilterState
-from aeromag_env.configs import check, from_dict, to_dict
+from aeromag_env.configs import from_dict, to_dict
 from aeromag_env.environment import kernels
+from aeromag_env.environment.checks import RESET_OPTIONS, check_config, reset_options
 from aeromag_env.environment.kernels import (
     N_PAR,
     OUT_EPISODE_RMSE,
@@ -45,10 +46,11 @@ from aeromag_env.environment.kernels import (
     REWARD_FORMS,
     RUN_LOG_Q,
     RUN_LOG_R,
+    RUN_N_ERR,
     EnvArrays,
     EnvSettings,
 )
-from aeromag_env.environment.scenarios import Episode, check_scenario, make_episode
+from aeromag_env.environment.scenarios import Episode, make_episode
 from aeromag_env.environment.spaces import (
     action_size,
     check_actions,
@@ -61,26 +63,34 @@ from aeromag_env.environment.spaces import (
 class EnvConfig:
     """Environment settings (hyperparameters of a tuner live elsewhere).
 
+    Every field is checked when the configuration is made
+    (:func:`aeromag_env.environment.checks.check_config`: a one-line ConfigError naming the
+    field, its range and unit); the ranges below are its.
+
     Attributes
     ----------
     scenario : one of :data:`aeromag_env.environment.scenarios.SCENARIOS`
-    decision_window : K, samples the filter advances per step
-    s_max : largest scale factor per step; action ``a`` → ``s = s_max ** a``
+    decision_window : K, samples the filter advances per step, an integer in [1, 10^6]
+    s_max : largest scale factor per step (finite, > 1); action ``a`` → ``s = s_max ** a``
     extras : add log Q scale, log R scale, innovation whiteness and progress to the observation
-    reward_scale_nt : error scale of the reward [nT]
+    reward_scale_nt : error scale of the reward, in [1e-3, 1e6] [nT]
     reward_form : ``log`` (``−ln(1 + e_w/scale)``, the default), ``linear`` (``−e_w/scale``) or
         ``squared`` (``−(e_w/scale)²``; the sum over a flight is its mean squared error, the
         square of the RMSE the tuners are scored by, where ``log`` discounts the large errors
         after an interference step) — a design switch beyond the paper
-    divergence_penalty : reward of the step on which the filter diverges
-    score_from : fraction of the flight after which ``episode_rmse_nt`` is accumulated
-    scale_limit : the cumulative Q and R scales stay within [1/limit, limit] of their initial values
-    duration_s : override of the scenario's flight length [s] (None: the scenario's)
+    divergence_penalty : reward of the step on which the filter diverges, in [-1e6, 0]
+    score_from : fraction of the flight after which ``episode_rmse_nt`` is accumulated, in
+        [0, 1)
+    scale_limit : the cumulative Q and R scales stay within [1/limit, limit] of their initial
+        values, limit in (1, 1e100]
+    duration_s : override of the scenario's flight length, in [1, 86 400] [s] (None: the
+        scenario's)
     action_mode : ``relative`` (the paper's eq. 21: each action multiplies Q and R by
         ``s_max ** a``) or ``absolute`` (the action sets the scales directly:
         ``log10(Q / Q(0)) = lo + (a + 1)/2 · (hi − lo)`` within ``absolute_q_log10``, likewise R
         within ``absolute_r_log10``) — a learning aid: a constant tuning is a constant action
-    absolute_q_log10, absolute_r_log10 : (lo, hi) ranges of the absolute mode
+    absolute_q_log10, absolute_r_log10 : (lo, hi) ranges of the absolute mode, lo < hi, each
+        in [-100, 100] [decades]
     absolute_qp_log10 : (lo, hi) range of the T_p block's Q in the absolute mode with ``split_q``
     split_q : a third action scales the Q of the permanent-field block T_p (3 states) on its own,
         mapped like ``a_q``, which then scales the induced and eddy blocks (18 states) only — a
@@ -123,23 +133,7 @@ class EnvConfig:
     qp_gate: bool = False
 
     def __post_init__(self) -> None:
-        check_scenario(self.scenario)
-        check(self.decision_window >= 1, "decision_window must be ≥ 1 sample")
-        check(self.s_max > 1.0 and math.isfinite(self.s_max), "s_max must be > 1")
-        check(self.reward_scale_nt > 0, "reward_scale_nt must be > 0 [nT]")
-        check(self.reward_form in REWARD_FORMS, f"reward_form: one of {', '.join(REWARD_FORMS)}")
-        check(0.0 <= self.score_from < 1.0, "score_from must be in [0, 1)")
-        check(self.scale_limit > 1.0, "scale_limit must be > 1")
-        check(self.action_mode in ("relative", "absolute"), "action_mode: relative or absolute")
-        check(self.extras or not self.innovation_power, "innovation_power needs extras=True")
-        check(self.extras or not self.step_statistic, "step_statistic needs extras=True")
-        check(
-            not self.qp_gate or (self.split_q and self.action_mode == "absolute"),
-            "qp_gate needs split_q=True and action_mode='absolute'",
-        )
-        for nm in ("absolute_q_log10", "absolute_r_log10", "absolute_qp_log10"):
-            lo_hi = getattr(self, nm)
-            check(len(lo_hi) == 2 and lo_hi[0] < lo_hi[1], f"{nm} must be (lo, hi), lo < hi")
+        check_config(self)
 
 
 def parameters(config: EnvConfig) -> np.ndarray:
@@ -160,6 +154,21 @@ def parameters(config: EnvConfig) -> np.ndarray:
     par[PAR_REWARD_FORM] = REWARD_FORMS.index(config.reward_form)
     par[PAR_QP_GATE] = float(config.qp_gate)
     return par
+
+
+def episode_rmse(
+    outcome: np.ndarray, run: np.ndarray, truth: np.ndarray, est: np.ndarray, k: int
+) -> float:
+    """``info["episode_rmse_nt"]`` at the end of an episode [nT]: the RMS of the true minus the
+    estimated interference (pooled over axes) over the flight after ``score_from`` (the
+    compiled step's sum); when the episode ended (the filter diverged) before ``score_from``,
+    over the k samples flown, so that a score is never NaN. ``outcome`` and ``run`` are one
+    environment's rows, ``truth`` and ``est`` its (≥ k, 3) arrays [nT]."""
+    if run[RUN_N_ERR] > 0:
+        return float(outcome[OUT_EPISODE_RMSE])
+    err = truth[:k] - est[:k]
+    err = err[np.isfinite(err).all(axis=1)]  # a skipped sample has no estimate
+    return float(np.sqrt(np.mean(err**2))) if err.size else float(outcome[OUT_RMSE])
 
 
 def step_settings(config: EnvConfig) -> EnvSettings:
@@ -188,7 +197,8 @@ class AeroMagCompensationEnv(gym.Env):
 
     ``Box(-1, 1, (2,), float32)``: ``[a_q, a_r]`` → ``s_a = s_max ** a_q``, ``s_r = s_max ** a_r``
     (log scale; ``s_max = 2`` by default, so one step at most doubles or halves Q or R). Values
-    outside [-1, 1] are clipped; a non-finite action raises ``ValueError``. The cumulative scales
+    outside [-1, 1] are clipped; a non-finite action, or one that is not real numbers (complex,
+    bool, text, objects), raises ``ValueError``. The cumulative scales
     are kept within ``[1/scale_limit, scale_limit]`` of the initial Q and R. With
     ``action_mode="absolute"`` an action sets the log scale within a fixed range instead. With
     ``split_q=True`` the space is ``(3,)``: ``[a_q, a_r, a_qp]``, where ``a_qp`` scales the Q of
@@ -226,8 +236,8 @@ class AeroMagCompensationEnv(gym.Env):
     ## Starting State
 
     A new flight of the scenario, drawn from ``reset``'s seed (``options={"scenario": name}``
-    switches scenario), with the scenario's initial Q, R, P and x; the first observation is
-    zeros.
+    switches scenario; other option keys, or options that are not a dict, are refused), with
+    the scenario's initial Q, R, P and x; the first observation is zeros.
 
     ## Episode End
 
@@ -240,7 +250,8 @@ class AeroMagCompensationEnv(gym.Env):
     "rgb_array")``; keyword shortcuts: ``scenario=``, ``decision_window=``, ``extras=``.
     ``info`` holds ``rmse_window_nt``, ``ror``, ``qoq``, ``q_scale``, ``r_scale``,
     ``q_permanent_scale`` (1 unless ``split_q``), ``sample``,
-    ``flight_seed``, and at the end ``episode_rmse_nt`` (over the flight after ``score_from``).
+    ``flight_seed``, and at the end ``episode_rmse_nt`` (over the flight after ``score_from``;
+    over the part flown when the filter diverged before it) and ``divergences``.
 
     ## Version History
 
@@ -268,9 +279,10 @@ class AeroMagCompensationEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict | None = None
     ) -> tuple[np.ndarray, dict]:
+        options = reset_options(options, RESET_OPTIONS)
         super().reset(seed=seed)
-        if options and "scenario" in options:
-            self._scenario = check_scenario(options["scenario"])
+        if "scenario" in options:
+            self._scenario = options["scenario"]
         self._flight_seed = int(self.np_random.integers(2**31))
         self.episode: Episode = make_episode(
             self._scenario, self._flight_seed, self.config.duration_s
@@ -316,7 +328,9 @@ class AeroMagCompensationEnv(gym.Env):
             "flight_seed": self._flight_seed,
         }
         if done:
-            info["episode_rmse_nt"] = float(out[OUT_EPISODE_RMSE])
+            info["episode_rmse_nt"] = episode_rmse(
+                out, self._run, self._truth, self.filter.est, self.filter.k
+            )
             info["divergences"] = self.filter.divergences
         return info
 

@@ -123,15 +123,22 @@ def check_actions(
     actions: object, num_envs: int | None = None, size: int = len(BASE_ACTIONS)
 ) -> np.ndarray:
     """The action of one environment as float64 (size,), or with ``num_envs`` the actions of a
-    vector environment (num_envs, size); a one-line ValueError when the size is wrong or a value
-    is not finite (values outside [-1, 1] are clipped later, not refused)."""
+    vector environment (num_envs, size); a one-line ValueError when the size is wrong, the
+    values are not real numbers (complex, bool, text, objects) or one is not finite (values
+    outside [-1, 1] are clipped later, not refused)."""
     try:
-        a = np.asarray(actions, dtype=np.float64)
+        given = np.asarray(actions)
     except (TypeError, ValueError):
-        raise ValueError(f"actions must be numbers in [-1, 1], got {actions!r}") from None
+        raise ValueError(f"actions must be numbers in [-1, 1], got {_shown(actions)}") from None
+    if given.dtype.kind not in REAL_KINDS:
+        raise ValueError(
+            f"actions must be real numbers in [-1, 1], got {_kind_name(given.dtype)} "
+            f"({given.dtype})"
+        )
+    a = given.astype(np.float64, copy=False)
     if num_envs is None:
         if a.size != size or not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be {size} finite numbers in [-1, 1], got {actions!r}")
+            raise ValueError(f"action must be {size} finite numbers in [-1, 1], got {_shown(a)}")
         return a.reshape(size)
     if a.shape != (num_envs, size):
         raise ValueError(
@@ -143,3 +150,19 @@ def check_actions(
         i = int(np.flatnonzero(~finite.all(axis=1))[0])
         raise ValueError(f"actions must be finite; environment {i} got {a[i].tolist()}")
     return a
+
+
+#: numpy dtype kinds an action may have: floating point, signed and unsigned integers.
+REAL_KINDS = "fiu"
+
+
+def _shown(value: object) -> str:
+    """``value`` on one line, at most 80 characters (arrays as lists)."""
+    text = " ".join(repr(value.tolist() if isinstance(value, np.ndarray) else value).split())
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _kind_name(dtype: np.dtype) -> str:
+    names = {"c": "complex numbers", "b": "booleans", "O": "Python objects", "U": "text",
+             "S": "bytes", "M": "dates", "m": "time spans", "V": "raw records"}  # fmt: skip
+    return names.get(dtype.kind, "values")

@@ -15,7 +15,13 @@ from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K
 from aeromag_env.environment import kernels
-from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig, step_settings
+from aeromag_env.environment.checks import RESET_OPTIONS, reset_options
+from aeromag_env.environment.env import (
+    AeroMagCompensationEnv,
+    EnvConfig,
+    episode_rmse,
+    step_settings,
+)
 from aeromag_env.environment.kernels import (
     OUT_EPISODE_RMSE,
     OUT_Q_SCALE,
@@ -27,10 +33,10 @@ from aeromag_env.environment.kernels import (
     OUT_ROR,
     OUT_TERMINATED,
     OUT_TRUNCATED,
+    RUN_N_ERR,
     EnvArrays,
 )
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
-from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.environment.spaces import action_size, check_actions
 
 #: Per-step info entries (as the single environment's ``info``) and their rows of the outcome.
@@ -39,6 +45,8 @@ STEP_INFO = (("rmse_window_nt", OUT_RMSE), ("ror", OUT_ROR), ("qoq", OUT_QOQ),
              ("q_permanent_scale", OUT_QP_SCALE))  # fmt: skip
 _STEP_KEYS = tuple(key for key, _ in STEP_INFO)
 _STEP_COLS = np.array([col for _, col in STEP_INFO])
+#: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
+VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS)
 
 
 class AeroMagCompensationVecEnv(VectorEnv):
@@ -60,8 +68,9 @@ class AeroMagCompensationVecEnv(VectorEnv):
     ``single_action_space`` and ``single_observation_space`` are the single environment's;
     ``action_space`` and ``observation_space`` batch them: actions (N, 2), or (N, 3) with
     ``split_q``; observations (N, 2), or (N, 7) with ``extras`` (N, 8 with ``split_q`` too),
-    float32. Actions are clipped to [-1, 1]; a wrong shape or a non-finite value raises
-    ``ValueError`` naming the environment.
+    float32. Actions are clipped to [-1, 1]; a wrong shape, values that are not real numbers
+    (complex, bool, text, objects) or a non-finite value (naming its environment) raise
+    ``ValueError``.
 
     ## Autoreset
 
@@ -90,7 +99,8 @@ class AeroMagCompensationVecEnv(VectorEnv):
     ``reset(seed=s)`` seeds environment i with ``s + i`` (a list gives one seed per
     environment), like Gymnasium's vectorizers; each environment then draws its flights from its
     own generator, as the single environment does. ``options={"scenario": name}`` switches the
-    scenario of the environments being reset.
+    scenario of the environments being reset; ``scenario`` and ``reset_mask`` are the only
+    option keys (others, or options that are not a dict, are refused).
 
     ## Arguments
 
@@ -149,9 +159,9 @@ class AeroMagCompensationVecEnv(VectorEnv):
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        options = reset_options(options, VEC_RESET_OPTIONS)
         super().reset(seed=int(seed) if isinstance(seed, int | np.integer) else None)
         seeds = _per_env_seeds(seed, self.num_envs)
-        options = dict(options or {})
         mask = options.pop("reset_mask", None)
         if mask is None:
             mask = np.ones(self.num_envs, bool)
@@ -159,8 +169,6 @@ class AeroMagCompensationVecEnv(VectorEnv):
             raise ResetNeeded("reset all environments (no reset_mask) before a partial reset")
         else:
             mask = _checked_mask(mask, self.num_envs)
-        if "scenario" in options:
-            check_scenario(options["scenario"])
         indices = np.flatnonzero(mask)
         flights = [self._new_flight(int(i), seeds[i], options) for i in indices]
         if self._filters is None:
@@ -220,6 +228,10 @@ class AeroMagCompensationVecEnv(VectorEnv):
         out = self._out
         terminated, truncated = out[:, OUT_TERMINATED] > 0, out[:, OUT_TRUNCATED] > 0
         self._ended = terminated | truncated
+        for i in np.flatnonzero(self._ended & (self._run[:, RUN_N_ERR] == 0)).tolist():
+            k = int(filters.ints[i, INT_K])  # ended before score_from: score the part flown
+            out[i, OUT_EPISODE_RMSE] = episode_rmse(out[i], self._run[i], self._truth[i],
+                                                    filters.est[i], k)  # fmt: skip
         return out[:, OUT_REWARD].copy(), terminated, truncated
 
     def _restart_ended(self, infos: dict[str, Any]) -> np.ndarray:

@@ -1,0 +1,243 @@
+"""Read an exported PPO policy file (``.npz``) and check all of it before anything runs it.
+
+The layout (written by :func:`agents.ppo.export_policy`): ``obs_mean`` and ``obs_var`` (n_obs,),
+the scalars ``obs_clip`` and ``obs_eps``, hidden layers ``w0`` (h0, n_obs), ``b0`` (h0,),
+``w1`` (h1, h0), … and the action layer ``w_out`` (n_act, h_last), ``b_out`` (n_act,), all
+real numbers; ``meta`` a JSON object as a 0-d string array, whose ``env_kwargs`` (an
+:class:`~aeromag_env.environment.env.EnvConfig`) must give n_obs observations and n_act
+actions. Nothing is unpickled (``allow_pickle=False``), member sizes are checked before a
+member is read, and every problem is a one-line
+:class:`~aeromag_env.errors.PolicyFileError` naming the file and the problem.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aeromag_env.configs import from_dict
+from aeromag_env.environment.env import EnvConfig
+from aeromag_env.environment.spaces import action_size, observation_names
+from aeromag_env.errors import ConfigError, PolicyFileError
+
+#: Largest uncompressed array [bytes]: the shipped policy's largest is 33 kB; a bound keeps a
+#: hostile archive (a zip bomb) from filling the memory.
+MAX_ARRAY_BYTES = 64 * 2**20
+#: Most members an archive may have (the shipped policy has 11).
+MAX_MEMBERS = 256
+#: Largest magnitude of a stored value: a trained network's values are O(1); beyond this the
+#: products of predict could overflow to inf − inf = NaN.
+MAX_ABS = 1e100
+SCALARS = ("obs_clip", "obs_eps")
+REQUIRED = ("obs_mean", "obs_var", *SCALARS, "w_out", "b_out", "meta")
+_HIDDEN = re.compile(r"([wb])(\d+)")
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")  # an archive's first member; an empty archive
+#: What reading a broken archive raises: zipfile, zlib and numpy's .npy header parser raise
+#: many kinds (BadZipFile, EOFError, zlib.error, ValueError, SyntaxError and
+#: tokenize.TokenError from the header's literal, TypeError from its dtype, ...): for bytes
+#: from a file, any of them means a corrupt file.
+_READ_ERRORS = (Exception,)
+
+
+class _Problem(Exception):
+    """What is wrong with the file (becomes the tail of the PolicyFileError)."""
+
+
+def read_policy(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The arrays (float64) and the metadata of the policy file ``path``, checked.
+
+    Raises
+    ------
+    PolicyFileError
+        One line: ``cannot load PPO policy PATH: problem``.
+    """
+    path = Path(path)
+    try:
+        arrays = _read_arrays(path)
+        meta = _meta(arrays.pop("meta"))
+        numbers = {k: _real(k, v) for k, v in arrays.items()}
+        _check_layers(numbers, meta)
+        _check_values(numbers)
+    except _Problem as e:
+        raise PolicyFileError(f"cannot load PPO policy {path}: {e}") from None
+    return numbers, meta
+
+
+def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+    _check_head(path)
+    try:
+        with zipfile.ZipFile(path) as z:
+            infos = z.infolist()
+            if len(infos) > MAX_MEMBERS:
+                raise _Problem(f"{len(infos)} members; a policy has at most {MAX_MEMBERS}")
+            for info in infos:
+                _check_size(z, info)
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: _member(data, k) for k in data.files}
+    except _Problem:
+        raise
+    except _READ_ERRORS as e:
+        raise _Problem(f"corrupt .npz archive ({type(e).__name__}: {e})") from None
+    _check_names(arrays)
+    return arrays
+
+
+def _check_head(path: Path) -> None:
+    if path.exists() and not path.is_file() and not path.is_dir():  # a device or a pipe
+        raise _Problem("not a regular file")
+    try:
+        with path.open("rb") as f:
+            head = f.read(4)
+    except OSError as e:
+        raise _Problem(str(e.strerror or e).lower()) from None
+    if not head:
+        raise _Problem("the file is empty")
+    if head not in _ZIP_MAGIC:
+        if len(head) < 4 and _ZIP_MAGIC[0].startswith(head):
+            raise _Problem("truncated .npz archive")
+        raise _Problem(
+            "not an .npz archive (a policy file is the .npz that `aeromag train` writes)"
+        )
+
+
+def _check_size(z: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
+    """Refuse a member larger than :data:`MAX_ARRAY_BYTES`, by its stored size and by the shape
+    its .npy header declares, before numpy allocates the array."""
+    name = info.filename.removesuffix(".npy")
+    size = info.file_size
+    if size <= MAX_ARRAY_BYTES and info.filename.endswith(".npy"):
+        try:
+            with z.open(info) as f:
+                version = np.lib.format.read_magic(f)
+                read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0)  # fmt: skip
+                shape, _, dtype = read(f)
+        except _READ_ERRORS as e:
+            raise _Problem(f"{name} is corrupt or not a .npy array ({e})") from None
+        size = math.prod(shape) * dtype.itemsize
+    if size > MAX_ARRAY_BYTES:
+        raise _Problem(f"{name} is larger than {MAX_ARRAY_BYTES} bytes ({size})")
+
+
+def _member(data: Any, key: str) -> np.ndarray:
+    try:
+        value = data[key]
+    except ValueError as e:
+        if "allow_pickle" in str(e):
+            raise _Problem(f"{key} holds Python objects (pickled data is never loaded)") from None
+        raise _Problem(f"{key} is corrupt or not a .npy array ({e})") from None
+    except _READ_ERRORS as e:
+        raise _Problem(f"{key} is corrupt ({type(e).__name__}: {e})") from None
+    if not isinstance(value, np.ndarray):
+        raise _Problem(f"{key} is not a .npy array")
+    return value
+
+
+def _check_names(arrays: dict[str, np.ndarray]) -> None:
+    names = set(arrays)
+    hidden = {k for k in names if _HIDDEN.fullmatch(k)}
+    missing = [k for k in REQUIRED if k not in names]
+    if missing:
+        held = ", ".join(sorted(names)) or "none"
+        raise _Problem(f"missing arrays {', '.join(missing)} (the file holds {held})")
+    unexpected = sorted(names - hidden - set(REQUIRED))
+    if unexpected:
+        raise _Problem(f"unexpected arrays {', '.join(unexpected)}")
+    for k in sorted(hidden):
+        twin = ("b" if k[0] == "w" else "w") + k[1:]
+        if twin not in names:
+            raise _Problem(f"{k} without {twin} (hidden layer {k[1:]} needs both)")
+    n = len(hidden) // 2
+    if hidden != {f"{wb}{i}" for wb in "wb" for i in range(n)}:
+        got = ", ".join(sorted(k for k in hidden if k[0] == "w"))
+        raise _Problem(f"hidden layers must be numbered w0, w1, … without gaps; got {got}")
+
+
+def _meta(value: np.ndarray) -> dict[str, Any]:
+    if value.dtype.kind != "U" or value.shape != ():
+        raise _Problem(f"meta must be JSON text (a 0-d string array), got {value.dtype} "
+                       f"of shape {value.shape}")  # fmt: skip
+    try:
+        meta = json.loads(str(value), parse_constant=_no_constant)
+    except ValueError as e:
+        raise _Problem(f"meta is not valid JSON: {e}") from None
+    except RecursionError:
+        raise _Problem("meta is nested too deeply") from None
+    if not isinstance(meta, dict):
+        raise _Problem(f"meta must be a JSON object, got {type(meta).__name__}")
+    kwargs = meta.get("env_kwargs", {})
+    if not isinstance(kwargs, dict):
+        raise _Problem(f"meta env_kwargs must be a JSON object, got {type(kwargs).__name__}")
+    try:
+        from_dict(EnvConfig, kwargs)
+    except ConfigError as e:
+        raise _Problem(f"meta env_kwargs: {e}") from None
+    return meta
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _real(key: str, value: np.ndarray) -> np.ndarray:
+    if value.dtype.kind not in "fiu":
+        raise _Problem(f"{key} has dtype {value.dtype}; expected real numbers (float64)")
+    return value.astype(np.float64)
+
+
+def _check_layers(arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> None:
+    """Shapes: observations → hidden layers → actions, and the sizes ``env_kwargs`` give."""
+    mean = arrays["obs_mean"]
+    if mean.ndim != 1 or mean.size < 1:
+        raise _Problem(f"obs_mean has shape {mean.shape}; expected (n_obs,) with n_obs ≥ 1")
+    n_obs = mean.size
+    _shape(arrays, "obs_var", (n_obs,))
+    for k in SCALARS:
+        if arrays[k].shape != ():
+            raise _Problem(f"{k} must be a scalar, got shape {arrays[k].shape}")
+    width, prev = n_obs, "an observation has"
+    for i in range(sum(1 for k in arrays if k.startswith("w") and k[1:].isdigit())):
+        width, prev = _layer(arrays, f"w{i}", f"b{i}", width, prev), f"w{i} gives"
+    n_act = _layer(arrays, "w_out", "b_out", width, prev)
+    cfg = from_dict(EnvConfig, meta.get("env_kwargs", {}))
+    want_obs, want_act = len(observation_names(cfg)), action_size(cfg)
+    if n_obs != want_obs:
+        raise _Problem(f"the policy takes {n_obs} observations but its env_kwargs give {want_obs}")
+    if n_act != want_act:
+        raise _Problem(f"the policy gives {n_act} actions but its env_kwargs take {want_act}")
+
+
+def _layer(arrays: dict[str, np.ndarray], w: str, b: str, width: int, prev: str) -> int:
+    """Check the layer ``w`` (units, width) and ``b`` (units,); return its units."""
+    shape = arrays[w].shape
+    if len(shape) != 2 or shape[1] != width or shape[0] < 1:
+        raise _Problem(f"{w} has shape {shape}; expected (units, {width}) ({prev} {width} "
+                       "values)")  # fmt: skip
+    _shape(arrays, b, (shape[0],))
+    return int(shape[0])
+
+
+def _shape(arrays: dict[str, np.ndarray], key: str, want: tuple) -> None:
+    if arrays[key].shape != want:
+        raise _Problem(f"{key} has shape {arrays[key].shape}; expected {want}")
+
+
+def _check_values(arrays: dict[str, np.ndarray]) -> None:
+    for k, v in arrays.items():
+        if not np.all(np.isfinite(v)):
+            raise _Problem(f"{k} holds non-finite values (NaN or inf)")
+        if np.any(np.abs(v) > MAX_ABS):
+            raise _Problem(f"{k} holds values beyond ±{MAX_ABS:g}")
+    lowest = {k: float(np.min(arrays[k])) for k in ("obs_var", "obs_eps", "obs_clip")}
+    if lowest["obs_var"] <= 0.0:
+        raise _Problem(f"obs_var (observation variances) must be > 0, got {lowest['obs_var']}")
+    if lowest["obs_eps"] < 0.0:
+        raise _Problem(f"obs_eps must be ≥ 0, got {lowest['obs_eps']}")
+    if lowest["obs_clip"] <= 0.0:
+        raise _Problem(f"obs_clip must be > 0, got {lowest['obs_clip']}")

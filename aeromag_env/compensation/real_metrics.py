@@ -55,13 +55,16 @@ def vendor_channel(flight: Flight, scalar: str | None) -> str | None:
     return name if name in flight else None
 
 
-def bandpassed(flight: Flight, x: np.ndarray, band_hz: tuple[float, float] = BAND_HZ) -> np.ndarray:
-    """``x`` (n,) band-passed on each continuous segment and finite run; NaN elsewhere."""
-    out = np.full(flight.n, np.nan)
-    fs = flight.sample_rate_hz
-    for seg in segments(flight.tt):
-        out[seg] = bandpass_finite(np.asarray(x[seg], dtype=float), fs, *band_hz)
-    return out
+def bandpassed(
+    flight: Flight,
+    x: np.ndarray,
+    band_hz: tuple[float, float] = BAND_HZ,
+    parts: list[slice] | None = None,
+) -> np.ndarray:
+    """``x`` (n,) band-passed on each continuous segment (``parts``, default the flight's) and
+    finite run; NaN elsewhere."""
+    parts = segments(flight.tt) if parts is None else parts
+    return bandpass_finite(x, flight.sample_rate_hz, *band_hz, segments=parts)
 
 
 def second_half(flight: Flight) -> np.ndarray:
@@ -75,14 +78,16 @@ def spreads(
     """Band-passed std of each series over the samples finite in all of them and inside ``span``
     ((n,) bool; None: all), pooled and per continuous segment:
     ``{"samples", "std_nt": {name: …}, "segments": [...], "segment_count"}``."""
+    parts = segments(flight.tt)
     common = np.all([np.isfinite(v) for v in series.values()], axis=0)
-    bp = {k: bandpassed(flight, np.where(common, v, np.nan)) for k, v in series.items()}
+    bp = {k: bandpassed(flight, np.where(common, v, np.nan), parts=parts)
+          for k, v in series.items()}  # fmt: skip
     ok = np.all([np.isfinite(v) for v in bp.values()], axis=0)
     if span is not None:
         ok &= span
     seg_id = np.zeros(flight.n)
     per_segment = []
-    for i, seg in enumerate(segments(flight.tt)):
+    for i, seg in enumerate(parts):
         seg_id[seg] = i
         k = np.flatnonzero(ok[seg]) + seg.start
         if k.size:

@@ -78,3 +78,15 @@ def test_own_flight_file_walkthrough(tmp_path):
     raw = read_flight(tmp_path / "survey_raw.xyz")
     np.testing.assert_array_equal(written["mag_1_c"], raw["mag_1_c"])
     assert np.isnan(written["aeromag_mag_1_c"]).sum() == 1  # the spike's sample, nothing else
+
+
+def test_fault_effects_table(capsys):
+    """The README's gap/spike/NaN table: every method within 10 % of its clean RMSE."""
+    from experiments.fault_effects import main as fault_effects
+
+    assert fault_effects(["--methods", "tl,kf"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| tl")
+            or line.startswith("| kf")]  # fmt: skip
+    for row in rows:
+        rmse = [float(c.split()[0]) for c in row.strip("|").split("|")[1:]]
+        assert max(rmse) < 1.10 * rmse[0], row

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env.atomic import check_output_file
 from aeromag_env.configs import from_json
 from aeromag_env.errors import AeromagError, ConfigError
 from aeromag_env.flight.data import Flight
@@ -73,12 +74,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise AeromagError(f"--seed must be ≥ 0, got {args.seed}")
     cfg = simulation_config(args)
+    inputs = [p for p in (args.config, args.replay) if p]
+    check_output_file(out, inputs)
     replay = None
     if args.replay:
         from aeromag_env.flight.files import load_flight
 
-        if Path(args.replay).resolve() == out.resolve():
-            raise AeromagError("--out must not be the --replay file (inputs are never overwritten)")
         replay, _ = load_flight(args.replay, needs=("tt", "position", "attitude", "date"))
         replay.attrs["path"] = str(args.replay)
     with tqdm(
@@ -95,7 +96,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
         flight = simulate_flight(cfg, args.seed, progress=progress, replay=replay)
         progress("write")
-        inputs = [p for p in (args.config, args.replay) if p]
         write_flight(flight, out, inputs=inputs)
     print(simulation_summary(flight, out, cfg, args.seed))
     return 0

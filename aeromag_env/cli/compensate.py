@@ -5,7 +5,8 @@ ones), ``report.json`` (``method``, ``settings``, ``coefficients``, ``metrics``,
 blocks of :func:`aeromag_env.cli.provenance.provenance` — input hash and format, channels, mount,
 segments, flagged samples, flight date, Earth model — and the real-data accuracy blocks
 ``headline`` and, when the file has the vendor's compensated channel, ``vendor_comparison``) and
-``compensation.png``. Every file is written atomically; the input is never overwritten.
+``compensation.png`` (:data:`OUTPUTS`), written as a set (:func:`aeromag_env.atomic.output_set`):
+refused before the work if a target is an input, and all replaced together at the end.
 
 The fluxgate, scalar and altitude channels are chosen by :mod:`aeromag_env.flight.channels`
 (``--flux``/``--scalar`` ``auto`` by default) and the fluxgate's mount by
@@ -21,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env.atomic import write_text
+from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.cli.provenance import (
     Inputs,
     Warn,
@@ -48,6 +49,8 @@ from aeromag_env.flight.selection import select
 #: 2: provenance (input_sha256, input_format, channels, mount, segments, flagged_samples,
 #: flight_date, earth_model) and the headline / vendor_comparison blocks.
 REPORT_VERSION = 2
+#: The output set of ``aeromag compensate``, in the folder ``--out``.
+OUTPUTS = ("compensated.h5", "report.json", "compensation.png")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -98,6 +101,11 @@ class CompensateRequest:
         """Channel kinds (:data:`aeromag_env.flight.channels.KINDS`) the method needs."""
         return ("fluxgate", "scalar") if self.method == "tl" else ("fluxgate", "altitude")
 
+    def input_files(self) -> list[Path]:
+        """The files the run reads: the flight and a ``--mount`` file."""
+        mount = [] if self.mount in ("auto", "identity") else [Path(self.mount)]
+        return [self.path, *mount]
+
     def filter_config(self) -> FilterConfig:
         """The filter settings: the package defaults or the paper's §4 setting."""
         cfg = paper_filter_config(self.method) if self.filter_preset == "paper" else FilterConfig()
@@ -111,6 +119,7 @@ def run_compensate(req: CompensateRequest, warn: Warn = warn_stderr) -> dict[str
 
     Warnings about the channels and the mount go to ``warn``, one line each (stderr)."""
     req.check()
+    check_output_set(req.out, OUTPUTS, req.input_files())
     flight, problems = load_flight(req.path, needs=req.needs())
     # channels and mount from the whole flight (the mount is the installation's, and a single
     # line may turn too little to show it), then the selected part
@@ -145,11 +154,12 @@ def run_compensate(req: CompensateRequest, warn: Warn = warn_stderr) -> dict[str
     }
     kept = {name: values[chosen.keep] for name, values in flight.fields.items()}
     out_flight = Flight({**kept, **comp.fields}, {**flight.attrs, "compensation": comp.method})
-    write_flight(out_flight, req.out / "compensated.h5", inputs=[req.path])
-    write_text(req.out / "report.json", json.dumps(_jsonable(report), indent=2), inputs=[req.path])
     from aeromag_env.compensation.plots import plot_compensation
 
-    plot_compensation(work, comp, metrics_block, req.out / "compensation.png")
+    with output_set(req.out, OUTPUTS, req.input_files()) as stage:
+        write_flight(out_flight, stage / "compensated.h5")
+        write_text(stage / "report.json", json.dumps(_jsonable(report), indent=2))
+        plot_compensation(work, comp, metrics_block, stage / "compensation.png")
     return report
 
 

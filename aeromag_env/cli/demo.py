@@ -12,7 +12,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from aeromag_env.atomic import write_text
+from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.compensation.compensate import compensate_scalar, compensate_vector, score
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.compensation.plots import plot_compensation
@@ -24,10 +24,22 @@ from aeromag_env.simulation.simulate import simulate_flight
 
 DEMO_METHODS = ("kf", "fakf", "lsq", "tl")
 DEMO_EPISODES = 5
+#: The output set of ``aeromag demo``, in the folder ``--out``.
+OUTPUTS = ("flight.h5", "flight.png", *(f"compensation_{m}.png" for m in DEMO_METHODS),
+           "tuners.png", "summary.md", "summary.json")  # fmt: skip
 
 
 def run_demo(out: Path, seed: int = 0) -> dict[str, Any]:
-    """Run the demo; return the summary (also written to ``out/summary.json``)."""
+    """Run the demo; return the summary (also written to ``out/summary.json``).
+
+    The files (:data:`OUTPUTS`) are written as a set (:func:`aeromag_env.atomic.output_set`).
+    """
+    check_output_set(out, OUTPUTS)
+    with output_set(out, OUTPUTS) as stage:
+        return _run_demo(stage, seed)
+
+
+def _run_demo(out: Path, seed: int) -> dict[str, Any]:
     cfg = with_overrides(preset("nominal"), {"trajectory.duration_s": 1800.0})
     flight = simulate_flight(cfg, seed)
     write_flight(flight, out / "flight.h5")

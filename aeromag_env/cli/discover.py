@@ -4,7 +4,8 @@ Outputs in the folder ``out``: ``report.json`` (``missing_effects``, ``gap``, ``
 ``skipped``, ``diagnostics``…), ``report.md`` (the same for people), ``model_config.json`` (the
 augmented model as a simulator configuration: ``aeromag simulate --config model_config.json
 --replay FILE`` re-creates the flight with the named effects), ``residual.png`` and
-``diagnostics.png``. Every file is written atomically; the input is never overwritten.
+``diagnostics.png`` (:data:`OUTPUTS`), written as a set (:func:`aeromag_env.atomic.output_set`):
+refused before the work if a target is an input, and all replaced together at the end.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env.atomic import atomic_path, write_text
+from aeromag_env.atomic import atomic_path, check_output_set, output_set, write_text
 from aeromag_env.cli.compensate import _jsonable
 from aeromag_env.cli.provenance import Warn, choose_inputs, provenance, warn_stderr
 from aeromag_env.configs import to_json
@@ -27,6 +28,8 @@ from aeromag_env.flight.selection import select
 
 #: 2: the provenance blocks of :func:`aeromag_env.cli.provenance.provenance`.
 REPORT_VERSION = 2
+#: The output set of ``aeromag discover``, in the folder ``out``.
+OUTPUTS = ("report.json", "report.md", "model_config.json", "residual.png", "diagnostics.png")
 
 
 def run_discover(
@@ -48,6 +51,8 @@ def run_discover(
     (:func:`aeromag_env.flight.selection.select`); a calibration line is fitted on as a
     calibration window from its first to its last sample.
     """
+    sources = [path] if mount in ("auto", "identity") else [path, Path(mount)]
+    check_output_set(out, OUTPUTS, sources)
     flight, problems = load_flight(path, needs=("tt", "position", "attitude", "date"))
     flight.attrs.setdefault("path", str(path))
     inputs = choose_inputs(flight, path, flux, require=("fluxgate", "altitude"), mount=mount,
@@ -64,11 +69,12 @@ def run_discover(
               "input_problems": problems, "selection": chosen.report,
               **provenance(path, inputs.work, inputs, earth_model_used=True)}  # fmt: skip
     report = _jsonable(report)
-    write_text(out / "report.json", json.dumps(report, indent=2), inputs=[path])
-    write_text(out / "report.md", markdown(report), inputs=[path])
     model = json.loads(to_json(result.model))
-    write_text(out / "model_config.json", json.dumps(model, indent=2), inputs=[path])
-    plot_discovery(result, out)
+    with output_set(out, OUTPUTS, sources) as stage:
+        write_text(stage / "report.json", json.dumps(report, indent=2))
+        write_text(stage / "report.md", markdown(report))
+        write_text(stage / "model_config.json", json.dumps(model, indent=2))
+        plot_discovery(result, stage)
     return report
 
 

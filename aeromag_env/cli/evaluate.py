@@ -10,9 +10,12 @@ import json
 from pathlib import Path
 from typing import Any
 
-from aeromag_env.atomic import write_text
+from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError
+
+#: The output set of ``aeromag evaluate``, in the folder ``--out``.
+OUTPUTS = ("results.json", "evaluation.png")
 
 
 def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: int, out: Path,
@@ -30,14 +33,17 @@ def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: 
                            f"{', '.join(POLICIES)}")  # fmt: skip
     if episodes < 1:
         raise AeromagError(f"--episodes must be ≥ 1, got {episodes}")
+    policy_files = [Path(p[4:]) for p in policies if p.startswith("ppo:")]
+    check_output_set(out, OUTPUTS, policy_files)
     seeds = list(range(seed_start, seed_start + episodes))
     with tqdm(total=episodes * len(policies), desc=scenario, unit="episode",
               disable=quiet or None, leave=False) as bar:  # fmt: skip
         results = evaluate(scenario, policies, seeds, progress=bar.update)
-    write_text(out / "results.json", json.dumps(results, indent=2))
     from aeromag_env.cli.plots import plot_evaluation
 
-    plot_evaluation(results, out / "evaluation.png")
+    with output_set(out, OUTPUTS, policy_files) as stage:
+        write_text(stage / "results.json", json.dumps(results, indent=2))
+        plot_evaluation(results, stage / "evaluation.png")
     print(evaluation_table(results))
     print(f"wrote {out}/results.json, evaluation.png")
     return results

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env.atomic import write_text
+from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.compensation.compensate import earth_model
 from aeromag_env.compensation.kalman import FilterResult, run_filter
 from aeromag_env.compensation.least_squares import fit_vector_lsq
@@ -29,6 +29,8 @@ from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.interference import STATE_SLICES, VectorCoefficients
 from aeromag_env.simulation.simulate import simulate_flight
 
+#: The output set of ``aeromag reproduce-paper``, in the folder ``--out``.
+OUTPUTS = ("flight.h5", "fig3_field.png", "fig4_states.png", "fig5_compensation.png", "report.json")
 #: A state has converged once it stays within this fraction of its typical magnitude
 #: (5 nT for T_p, 5e-5 for A, 5e-6 s for B) of its final value.
 CONVERGENCE_TOLERANCE = 0.05
@@ -110,6 +112,7 @@ def reproduce_paper(out: Path, quick: bool = False, seed: int = 2014) -> dict[st
 
     ``quick``: one calibration box (527 s) instead of 30 minutes of repeated boxes.
     """
+    check_output_set(out, OUTPUTS)
     cfg = with_overrides(preset("paper"), {"trajectory.duration_s": None if quick else 1800.0})
     flight = simulate_flight(cfg, seed)
     coef = json.loads(flight.attrs["truth_coefficients"])["flux_a"]
@@ -138,12 +141,12 @@ def reproduce_paper(out: Path, quick: bool = False, seed: int = 2014) -> dict[st
         "reference": {"kf_true_r": summaries["kf_true_r"], "lsq_compensation_rmse_nt": lsq_rmse},
         "claims": _claims(summaries["fakf"], summaries["kf"], summaries["kf_true_r"]),
     }  # fmt: skip
-    out.mkdir(parents=True, exist_ok=True)
-    write_flight(flight, out / "flight.h5")
     from aeromag_env.compensation.paper_plots import plot_paper_figures
 
-    plot_paper_figures(flight, runs, truth_state, out)
-    write_text(out / "report.json", json.dumps(report, indent=2))
+    with output_set(out, OUTPUTS) as stage:
+        write_flight(flight, stage / "flight.h5")
+        plot_paper_figures(flight, runs, truth_state, stage)
+        write_text(stage / "report.json", json.dumps(report, indent=2))
     _print_summary(report, out)
     return report
 

@@ -31,7 +31,7 @@ from pathlib import Path
 
 from scipy.io.matlab import MatReadError
 
-from aeromag_env.atomic import atomic_path, check_not_input
+from aeromag_env.atomic import atomic_path, check_output_file
 from aeromag_env.errors import FlightFileError
 from aeromag_env.flight.aliases import apply_aliases
 from aeromag_env.flight.data import Flight
@@ -177,7 +177,7 @@ def write_flight(flight: Flight, path: PathLike, *, inputs: Iterable[PathLike] =
     kind = file_format(out)
     if kind is None:
         raise file_error(out, f"unsupported output type {out.suffix!r} (use {_SUPPORTED})")
-    check_not_input(out, inputs, FlightFileError)
+    check_output_file(out, inputs, FlightFileError)
     check_structure(flight, out)
     writer, invalid = _writer(kind)
     bad_names = invalid(flight.names)
@@ -216,7 +216,7 @@ def convert_flight(source: PathLike, target: PathLike) -> tuple[Flight, list[str
     if file_format(target) is None:
         raise file_error(target, f"unsupported output type {Path(target).suffix!r} "
                                  f"(use {_SUPPORTED})")  # fmt: skip
-    check_not_input(target, [source], FlightFileError)
+    check_output_file(target, [source], FlightFileError)
     flight, problems = load_flight(source)
     write_flight(flight, target, inputs=[source])
     return flight, problems

@@ -24,7 +24,7 @@ import gymnasium as gym
 import numpy as np
 
 import aeromag_env  # noqa: F401  (registers the environment)
-from aeromag_env.atomic import write_text
+from aeromag_env.atomic import atomic_path, check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.evaluate import TRAIN_SEEDS, VALIDATION_SEEDS, run_episode
@@ -32,6 +32,10 @@ from agents.hyperparams_file import read_hyperparams
 from agents.numpy_policy import NumpyPPOPolicy
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.json"
+#: The checkpoint, written as a set (the model, the observation normaliser, the curve).
+CHECKPOINT = ("checkpoint.zip", "vecnormalize.pkl", "curve.json")
+#: The other outputs in ``--out``: the best policy, the latest candidate, the summary.
+OUTPUTS = ("policy.npz", "candidate.npz", "training.json")
 
 
 def load_hyperparams(scenario: str, path: Path = HYPERPARAMS) -> dict[str, Any]:
@@ -129,10 +133,8 @@ def export_policy(model: Any, venv: Any, path: Path, meta: dict[str, Any]) -> Pa
     for i, layer in enumerate(linear):
         arrays[f"w{i}"] = layer.weight.detach().cpu().numpy().astype(np.float64)
         arrays[f"b{i}"] = layer.bias.detach().cpu().numpy().astype(np.float64)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, **arrays)  # type: ignore[arg-type]
-    tmp.replace(path)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)  # type: ignore[arg-type]
     return path
 
 
@@ -152,7 +154,12 @@ def train_ppo(
     progress: bool = True,
     hyperparams: Path = HYPERPARAMS,
 ) -> dict[str, Any]:
-    """Train (or resume) PPO; keep the best validated policy as ``out/policy.npz``."""
+    """Train (or resume) PPO; keep the best validated policy as ``out/policy.npz``.
+
+    The checkpoint (:data:`CHECKPOINT`) is written as a set, so a kill leaves the previous
+    checkpoint or the new one; the run is refused before training if a file it writes is an
+    input."""
+    check_output_set(out, (*CHECKPOINT, *OUTPUTS), [hyperparams])
     with training_torch():
         return _train_ppo(scenario, timesteps, seed, out, quick, progress, hyperparams)
 
@@ -173,8 +180,13 @@ def _train_ppo(
     venv = make_training_env(scenario, hp, seed)
     ckpt, stats = out / "checkpoint.zip", out / "vecnormalize.pkl"
     if ckpt.exists() and stats.exists():  # resume (pickle files this run wrote itself)
-        venv = VecNormalize.load(str(stats), venv.venv)
-        model = PPO.load(str(ckpt), env=venv, device="cpu")
+        try:
+            venv = VecNormalize.load(str(stats), venv.venv)
+            model = _quiet(PPO.load(str(ckpt), env=venv, device="cpu"))
+        except Exception as e:  # a checkpoint of another version, or damaged by hand
+            raise AeromagError(f"cannot resume from the checkpoint in {out} ({type(e).__name__}: "
+                               f"{e}); remove checkpoint.zip and vecnormalize.pkl to start "
+                               "afresh, or choose another --out") from None  # fmt: skip
     else:
         model = make_ppo(venv, hp, seed)
     curve = _load_curve(out)
@@ -224,7 +236,16 @@ def make_ppo(venv: Any, hp: dict[str, Any], seed: int) -> Any:
     """A fresh stable-baselines3 PPO (MLP policy, CPU) with the hyperparameters ``hp``."""
     from stable_baselines3 import PPO
 
-    return PPO("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **_ppo_kwargs(hp))
+    return _quiet(PPO("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **_ppo_kwargs(hp)))
+
+
+def _quiet(model: Any) -> Any:
+    """``model`` with a logger that writes nowhere: stable-baselines3's default makes an
+    ``SB3-<date>`` folder in the temporary directory on every run, and never removes it."""
+    from stable_baselines3.common.logger import Logger
+
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
 
 
 def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
@@ -383,6 +404,7 @@ class _Callback(_callback_base()):  # type: ignore[misc]
             candidate.replace(self.out / "policy.npz")
 
     def checkpoint(self, model: Any) -> None:
-        model.save(str(self.out / "checkpoint.zip"))
-        self.venv.save(str(self.out / "vecnormalize.pkl"))
-        write_text(self.out / "curve.json", json.dumps(self.curve, indent=1))
+        with output_set(self.out, CHECKPOINT) as stage:
+            model.save(str(stage / "checkpoint.zip"))
+            self.venv.save(str(stage / "vecnormalize.pkl"))
+            write_text(stage / "curve.json", json.dumps(self.curve, indent=1))

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator
+
 import pytest
 
 from aeromag_env.flight.data import Flight
@@ -11,3 +14,16 @@ from tests._flights import simulated
 @pytest.fixture(scope="session")
 def nominal_box() -> Flight:
     return simulated("nominal", 0)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def sb3_logs_in_pytest_tmp(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """Tests that build stable-baselines3 models log into pytest's temporary folder, not into
+    a new ``/tmp/SB3-<date>`` folder per model."""
+    before = os.environ.get("SB3_LOGDIR")
+    os.environ["SB3_LOGDIR"] = str(tmp_path_factory.mktemp("sb3"))
+    yield
+    if before is None:
+        del os.environ["SB3_LOGDIR"]
+    else:
+        os.environ["SB3_LOGDIR"] = before

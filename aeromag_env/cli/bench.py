@@ -34,7 +34,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from aeromag_env.atomic import write_text
+from aeromag_env.atomic import check_output_set, write_text
 from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.threads import cores
@@ -157,6 +157,7 @@ def bench_memory(hours: float = 10.0) -> dict[str, float]:
 
 def run_benchmarks(out: Path, quick: bool = False) -> dict[str, Any]:
     """Run every benchmark, print a table with ratios, write ``out/bench.json``."""
+    check_output_set(out, ("bench.json",))  # before minutes of work
     from aeromag_env.cli.bench_envs import bench_env, bench_ppo
 
     repeats = 3 if quick else 7

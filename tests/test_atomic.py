@@ -66,7 +66,7 @@ def test_an_exception_while_writing_keeps_the_old_set(tmp_path: Path) -> None:
 def test_a_set_missing_a_file_replaces_nothing(tmp_path: Path) -> None:
     _write_set(tmp_path, "old")
     before = _digest(tmp_path)
-    with pytest.raises(AeromagError, match="lacks c.png"), output_set(tmp_path, NAMES) as stage:
+    with pytest.raises(AeromagError, match=r"lacks c\.png"), output_set(tmp_path, NAMES) as stage:
         (stage / NAMES[0]).write_text("new")
         (stage / NAMES[1]).write_text("new")
     assert _digest(tmp_path) == before
@@ -88,8 +88,9 @@ def test_an_input_named_like_an_output_is_refused_before_anything_is_written(
     else:
         os.link(source, out / "c.png")
     before = _digest(out)
-    with pytest.raises(AeromagError, match="is the input file"), output_set(
-        out, NAMES, inputs=[source]
+    with (
+        pytest.raises(AeromagError, match="is the input file"),
+        output_set(out, NAMES, inputs=[source]),
     ):
         raise AssertionError("the block must not run")
     assert _digest(out) == before
@@ -238,3 +239,22 @@ def test_kill_9_during_simulate_leaves_the_old_file_or_the_new_one(tmp_path: Pat
     # the next run removes what the killed ones left
     assert main([*base, "--seed", "1"]) == 0
     assert [p.name for p in tmp_path.iterdir()] == ["sim.h5"]
+
+
+@pytest.mark.parametrize(("command", "name"), [("compensate", "compensation.png"),
+                                               ("compensate", "report.json"),
+                                               ("discover", "residual.png")])  # fmt: skip
+def test_a_flight_file_named_like_an_output_in_out_is_refused_and_kept(
+    tmp_path: Path, short_flight: Path, command: str, name: str, capsys: pytest.CaptureFixture
+) -> None:
+    """Before issue 20 the PNG writers skipped the input check: the plot replaced the input."""
+    out = tmp_path / "out"
+    out.mkdir()
+    source = out / name  # formats are found from the content, so this is a readable flight
+    source.write_bytes(short_flight.read_bytes())
+    before = _digest(out)
+    method = ["--method", "lsq"] if command == "compensate" else []
+    assert main([command, str(source), *method, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "is the input file" in err
+    assert _digest(out) == before

@@ -1,6 +1,6 @@
 """Read an exported PPO policy file (``.npz``) and check all of it before anything runs it.
 
-The layout (written by :func:`agents.ppo.export_policy`): ``obs_mean`` and ``obs_var`` (n_obs,),
+The layout (written by :func:`export_policy`): ``obs_mean`` and ``obs_var`` (n_obs,),
 the scalars ``obs_clip`` and ``obs_eps``, hidden layers ``w0`` (h0, n_obs), ``b0`` (h0,),
 ``w1`` (h1, h0), … and the action layer ``w_out`` (n_act, h_last), ``b_out`` (n_act,), all
 real numbers; ``meta`` a JSON object as a 0-d string array, whose ``env_kwargs`` (an
@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env.atomic import atomic_path
 from aeromag_env.configs import from_dict
 from aeromag_env.environment.env import EnvConfig
 from aeromag_env.environment.spaces import action_size, observation_names
@@ -241,3 +242,25 @@ def _check_values(arrays: dict[str, np.ndarray]) -> None:
         raise _Problem(f"obs_eps must be ≥ 0, got {lowest['obs_eps']}")
     if lowest["obs_clip"] <= 0.0:
         raise _Problem(f"obs_clip must be > 0, got {lowest['obs_clip']}")
+
+
+def export_policy(model: Any, venv: Any, path: Path, meta: dict[str, Any]) -> Path:
+    """Write a stable-baselines3 PPO actor (``model``) and the observation statistics of its
+    ``VecNormalize`` (``venv``) as a plain ``.npz`` in the layout above, atomically."""
+    policy = model.policy
+    linear = [m for m in policy.mlp_extractor.policy_net if hasattr(m, "weight")]
+    arrays: dict[str, np.ndarray] = {
+        "obs_mean": venv.obs_rms.mean.astype(np.float64),
+        "obs_var": venv.obs_rms.var.astype(np.float64),
+        "obs_clip": np.array(venv.clip_obs),
+        "obs_eps": np.array(venv.epsilon),
+        "w_out": policy.action_net.weight.detach().cpu().numpy().astype(np.float64),
+        "b_out": policy.action_net.bias.detach().cpu().numpy().astype(np.float64),
+        "meta": np.array(json.dumps(meta)),
+    }
+    for i, layer in enumerate(linear):
+        arrays[f"w{i}"] = layer.weight.detach().cpu().numpy().astype(np.float64)
+        arrays[f"b{i}"] = layer.bias.detach().cpu().numpy().astype(np.float64)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)  # type: ignore[arg-type]
+    return path

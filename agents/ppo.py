@@ -24,12 +24,13 @@ import gymnasium as gym
 import numpy as np
 
 import aeromag_env  # noqa: F401  (registers the environment)
-from aeromag_env.atomic import atomic_path, check_output_set, output_set, write_text
+from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.evaluate import TRAIN_SEEDS, VALIDATION_SEEDS, run_episode
 from agents.hyperparams_file import read_hyperparams
 from agents.numpy_policy import NumpyPPOPolicy
+from agents.policy_file import export_policy
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.json"
 #: The checkpoint, written as a set (the model, the observation normaliser, the curve).
@@ -115,27 +116,6 @@ def normalized(venv: Any, hp: dict[str, Any]) -> Any:
 
     return VecNormalize(venv, norm_obs=True, norm_reward=bool(hp["normalize_reward"]),
                         gamma=float(hp["gamma"]), clip_obs=10.0)  # fmt: skip
-
-
-def export_policy(model: Any, venv: Any, path: Path, meta: dict[str, Any]) -> Path:
-    """Write the actor and the observation statistics as a plain ``.npz`` (see numpy_policy)."""
-    policy = model.policy
-    linear = [m for m in policy.mlp_extractor.policy_net if hasattr(m, "weight")]
-    arrays: dict[str, np.ndarray] = {
-        "obs_mean": venv.obs_rms.mean.astype(np.float64),
-        "obs_var": venv.obs_rms.var.astype(np.float64),
-        "obs_clip": np.array(venv.clip_obs),
-        "obs_eps": np.array(venv.epsilon),
-        "w_out": policy.action_net.weight.detach().cpu().numpy().astype(np.float64),
-        "b_out": policy.action_net.bias.detach().cpu().numpy().astype(np.float64),
-        "meta": np.array(json.dumps(meta)),
-    }
-    for i, layer in enumerate(linear):
-        arrays[f"w{i}"] = layer.weight.detach().cpu().numpy().astype(np.float64)
-        arrays[f"b{i}"] = layer.bias.detach().cpu().numpy().astype(np.float64)
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)  # type: ignore[arg-type]
-    return path
 
 
 def validate(policy: NumpyPPOPolicy, scenario: str, episodes: int) -> float:

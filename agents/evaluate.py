@@ -25,7 +25,8 @@ TEST_SEED_START = 100_000
 
 def run_episode(env: gym.Env, policy: Any, seed: int) -> dict[str, float]:
     """One episode; returns ``rmse_nt`` (truth, after ``score_from``), ``reward``,
-    ``divergences`` and ``log_ror_abs_median`` (|log10 ROR| over the scored part)."""
+    ``divergences``, ``outliers_rejected`` (samples the filter's outlier gate skipped) and
+    ``log_ror_abs_median`` (|log10 ROR| over the scored part)."""
     obs, _ = env.reset(seed=seed)
     inner: Any = env.unwrapped
     state, start, done, total = None, np.array([True]), False, 0.0
@@ -43,6 +44,7 @@ def run_episode(env: gym.Env, policy: Any, seed: int) -> dict[str, float]:
         "rmse_nt": float(info["episode_rmse_nt"]),
         "reward": float(total),
         "divergences": int(info["divergences"]),
+        "outliers_rejected": int(info["outliers_rejected"]),
         "log_ror_abs_median": float(np.median(log_ror)) if log_ror else float("nan"),
     }
 
@@ -103,6 +105,7 @@ def _summaries(per: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, Any
             "rmse_nt_ci95": _ci95(v["rmse_nt"]),
             "reward_mean": float(v["reward"].mean()),
             "divergences": int(v["divergences"].sum()),
+            "outliers_rejected": int(v["outliers_rejected"].sum()),
             "log_ror_abs_median": float(np.nanmedian(v["log_ror_abs_median"])),
             "rmse_nt": v["rmse_nt"].tolist(),
         }

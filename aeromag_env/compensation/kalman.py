@@ -19,6 +19,7 @@ from aeromag_env.compensation.kernel_layout import (
     INT_DIV,
     INT_INTERVAL,
     INT_K,
+    INT_OUT,
     INT_SKIP,
     INT_WINDOW,
     N_ACC,
@@ -56,8 +57,11 @@ class FilterResult:
     final_covariance : (21, 21) ``P`` after the last sample [physical units]
     final_r : (3, 3) ``R`` after the last sample [nT²] (adapted by fakf and sage-husa)
     final_q : (21,) diagonal of ``Q`` after the last sample [physical units²]
-    divergences : restarts after a non-finite or non-positive-definite covariance
+    divergences : restarts: a non-finite or absurd state, a non-finite or non-positive-definite
+        covariance, an adaptive filter's runaway, or a whole window of outliers that shift the data
+        (:mod:`aeromag_env.compensation.consistency`)
     skipped : samples with non-finite input (predict only)
+    outliers_rejected : samples whose innovation failed the outlier gate (predict only)
     """
 
     interference: np.ndarray
@@ -73,6 +77,7 @@ class FilterResult:
     final_q: np.ndarray
     divergences: int
     skipped: int
+    outliers_rejected: int = 0
 
 
 class FilterState:
@@ -146,6 +151,11 @@ class FilterState:
         """Restarts after a divergence so far."""
         return int(self.ints[INT_DIV])
 
+    @property
+    def outliers_rejected(self) -> int:
+        """Samples rejected by the outlier gate so far."""
+        return int(self.ints[INT_OUT])
+
     def advance(self, k1: int) -> None:
         """Run the filter from the current sample up to (not including) ``k1``."""
         k1 = min(int(k1), self.n)
@@ -192,6 +202,7 @@ class FilterState:
             final_q=self.qd * self.d**2,
             divergences=int(self.ints[INT_DIV]),
             skipped=int(self.ints[INT_SKIP]),
+            outliers_rejected=int(self.ints[INT_OUT]),
         )
 
 

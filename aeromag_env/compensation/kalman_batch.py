@@ -30,10 +30,11 @@ from aeromag_env.compensation.arrays import (
     packed,
     row,
 )
-from aeromag_env.compensation.kalman import FilterResult, FilterState
-from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_SKIP
+from aeromag_env.compensation.kalman import FilterResult, FilterState, _positive_finite
+from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_OUT, INT_SKIP
 from aeromag_env.compensation.kernels import advance
 from aeromag_env.compensation.model import FilterConfig
+from aeromag_env.errors import ConfigError
 from aeromag_env.threads import run_chunks
 
 
@@ -152,6 +153,11 @@ class BatchFilterState:
         """(N,) restarts after a divergence so far per flight."""
         return self.ints[:, INT_DIV].copy()
 
+    @property
+    def outliers_rejected(self) -> np.ndarray:
+        """(N,) samples rejected by the outlier gate so far per flight."""
+        return self.ints[:, INT_OUT].copy()
+
     def load(self, i: int, state: FilterState) -> None:
         """Put ``state`` (a flight of any length) into slot ``i``, growing the padding if needed."""
         if state.n > self._capacity():
@@ -181,9 +187,35 @@ class BatchFilterState:
         advance_batch(self.mode, self.k, target, self.arrays())
 
     def scale_noise(self, s_q: float | np.ndarray, s_r: float | np.ndarray) -> None:
-        """Multiply Q and R of flight i by ``s_q[i]`` and ``s_r[i]`` (scalars: all flights)."""
-        self.qd *= np.reshape(s_q, (-1, 1))
-        self.rm *= np.reshape(s_r, (-1, 1, 1))
+        """Multiply Q and R of flight i by ``s_q[i]`` and ``s_r[i]`` (scalars: all flights).
+
+        Each factor must be a finite real number > 0, as for
+        :meth:`~aeromag_env.compensation.kalman.FilterState.scale_noise`, and an array must hold
+        one per flight: a one-line ConfigError otherwise, raised before any matrix changes.
+        """
+        q, r = self._factors("s_q", s_q), self._factors("s_r", s_r)
+        self.qd *= q[:, None]
+        self.rm *= r[:, None, None]
+
+    def _factors(self, name: str, s: float | np.ndarray) -> np.ndarray:
+        """``s`` as (N,) float64 factors, checked (see :meth:`scale_noise`)."""
+        if np.ndim(s) == 0:
+            value = s.item() if isinstance(s, np.ndarray) else s
+            if not _positive_finite(value):
+                raise ConfigError(f"scale_noise: {name} must be a finite number > 0, got {s!r}")
+            return np.full(self.num_flights, float(value))
+        a = np.asarray(s)
+        if a.shape != (self.num_flights,) or a.dtype.kind not in "iuf":
+            raise ConfigError(
+                f"scale_noise: {name} must be a number or {self.num_flights} real numbers "
+                f"(one per flight), got shape {a.shape} of {a.dtype}"
+            )
+        bad = np.flatnonzero(~(np.isfinite(a) & (a > 0)))
+        if bad.size:
+            i = int(bad[0])
+            got = a[i].item()
+            raise ConfigError(f"scale_noise: {name}[{i}] must be a finite number > 0, got {got!r}")
+        return a.astype(np.float64)
 
     def result(self, i: int) -> FilterResult:
         """Outputs of flight ``i`` so far, in physical units (as :meth:`FilterState.result`)."""
@@ -202,6 +234,7 @@ class BatchFilterState:
             final_q=self.qd[i] * d**2,
             divergences=int(self.ints[i, INT_DIV]),
             skipped=int(self.ints[i, INT_SKIP]),
+            outliers_rejected=int(self.ints[i, INT_OUT]),
         )
 
     def _capacity(self) -> int:

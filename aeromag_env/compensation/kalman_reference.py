@@ -1,8 +1,9 @@
 """Plain-numpy reference of the recursive compensators, written for reading, not speed.
 
 It mirrors :mod:`aeromag_env.compensation.kernels` (and
-:mod:`aeromag_env.compensation.adaptive_rules`) equation by equation with dense matrices and the
-factored Joseph form, so the compiled loop is tested against an independent transcription.
+:mod:`aeromag_env.compensation.adaptive_rules`, :mod:`aeromag_env.compensation.consistency`)
+equation by equation with dense matrices and the factored Joseph form, so the compiled loop is
+tested against an independent transcription.
 Pure functions (``kf_predict``, ``kf_update``) follow filterpy's procedural style.
 """
 
@@ -12,6 +13,13 @@ import numpy as np
 
 from aeromag_env.compensation.fuzzy import fis_scale_reference
 from aeromag_env.compensation.kalman import FilterResult
+from aeromag_env.compensation.kernel_layout import (
+    GATE_NIS,
+    GATE_POWER,
+    GATE_POWER_AFTER,
+    RUNAWAY_POWER,
+    SHIFT_FRACTION,
+)
 from aeromag_env.compensation.model import STATE_SCALE, FilterConfig, measurement_rows
 from aeromag_env.simulation.interference import N_STATES
 
@@ -36,63 +44,147 @@ def kf_update(
     return x + k @ innov, 0.5 * (p_new + p_new.T), innov, s, k
 
 
+class _Consistency:
+    """The checks of :mod:`aeromag_env.compensation.consistency`, written out: the outlier gate
+    (its lap reference, the run of rejections and the calm samples since the last) and the
+    runaway test."""
+
+    def __init__(self, window: int) -> None:
+        self.m = window
+        self.clear()
+
+    def clear(self) -> None:
+        self.ref, self.adds, self.calm, self.run = 0.0, 0, 0, 0
+        self.run_sum, self.run_power = np.zeros(3), 0.0
+
+    def outlier(self, innov: np.ndarray, s: np.ndarray, window: list) -> bool:
+        power = float(innov @ innov)
+        out = False
+        if self.ref > 0 and np.isfinite(power):
+            if self.calm < self.m:  # within a window after a rejection: the last lap's mean
+                out = power > GATE_POWER_AFTER * self.ref
+            else:  # |r|² against the last lap's and the window's mean, and rᵀ S⁻¹ r
+                recent = max(self.ref, float(np.mean([v @ v for v, _ in window])))
+                nis = innov @ np.linalg.inv(s) @ innov
+                out = power > GATE_POWER * recent and nis > GATE_NIS
+        if not out:
+            self.calm, self.run = self.calm + 1, 0
+        return bool(out)
+
+    def reject(self, innov: np.ndarray) -> bool:
+        """Count a rejection; True for a whole window of them that shifts the data."""
+        if self.run == 0:
+            self.run_sum, self.run_power = np.zeros(3), 0.0
+        self.run, self.calm = self.run + 1, 0
+        self.run_sum = self.run_sum + innov
+        self.run_power += float(innov @ innov)
+        mean_power = float(self.run_sum @ self.run_sum) / self.run  # |Σr|²/n² against Σ|r|²/n
+        return self.run >= self.m and mean_power > SHIFT_FRACTION * self.run_power
+
+    def added(self, window: list) -> bool:
+        """An innovation entered the window; True at the end of a lap (a new reference)."""
+        self.adds += 1
+        if self.adds % self.m:
+            return False
+        self.ref = float(np.mean([v @ v for v, _ in window]))
+        return True
+
+
+def _runaway(k: int, m: int, y: np.ndarray, est: np.ndarray, valid: np.ndarray) -> bool:
+    """Over the valid samples among the last m up to k: Σ|y − H z⁻|² > RUNAWAY_POWER Σ|y|²."""
+    rows = slice(max(0, k + 1 - m), k + 1)
+    ok = valid[rows]
+    num, den = np.sum((y[rows] - est[rows])[ok] ** 2), np.sum(y[rows][ok] ** 2)
+    return bool(den > 0 and num > RUNAWAY_POWER * den)
+
+
 def run_reference(
     cfg: FilterConfig, y: np.ndarray, t_b: np.ndarray, tdot_b: np.ndarray
 ) -> FilterResult:
-    """Same contract as :func:`aeromag_env.compensation.kalman.run_filter` (no divergence
-    restarts)."""
+    """Same contract as :func:`aeromag_env.compensation.kalman.run_filter`; of the divergence
+    restarts only those of the consistency checks (a sustained shift, an adaptive filter's
+    runaway), not those of a non-finite or indefinite covariance."""
     n, d = y.shape[0], STATE_SCALE
     h_all = measurement_rows(t_b, tdot_b) * d  # H_s = H diag(d)
+    valid = np.all(np.isfinite(y), axis=1) & np.all(np.isfinite(h_all), axis=(1, 2))
     z = cfg.initial_state() / d
-    p = cfg.initial_covariance() / np.outer(d, d)
-    q = np.diag(cfg.process_noise() / d**2)
-    q0, r0 = q.copy(), cfg.measurement_noise()
-    r = r0.copy()
+    p0 = cfg.initial_covariance() / np.outer(d, d)
+    q0, r0 = np.diag(cfg.process_noise() / d**2), cfg.measurement_noise()
+    p, q, r = p0.copy(), q0.copy(), r0.copy()
     window: list[tuple[np.ndarray, float]] = []
     out = {k: np.full(n, np.nan) for k in ("ror", "qoq", "q_scale", "r_scale")}
     est, innovations = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
     states = np.zeros((n, N_STATES))
-    skipped, since = 0, 0
+    counts = {"skipped": 0, "divergences": 0, "outliers": 0}
+    since, gate = 0, _Consistency(cfg.window)
     for k in range(n):
         if cfg.method == "rls":
             p = p / cfg.forgetting  # RLS with forgetting: P⁻ = P / λ
         else:
             z, p = kf_predict(z, p, q)
         est[k] = h_all[k] @ z
-        gain = None
-        if not (np.all(np.isfinite(y[k])) and np.all(np.isfinite(h_all[k]))):
-            skipped += 1
+        gain, rejected, restart = None, False, False
+        if not valid[k]:
+            counts["skipped"] += 1
         else:
-            z, p, innov, s, gain = kf_update(z, p, y[k], h_all[k], r)
-            innovations[k] = innov
-            window = ([*window, (innov, float(np.trace(s)))])[-cfg.window :]
-            if cfg.method == "sage-husa":
-                post_fit = y[k] - h_all[k] @ z  # e = y − H x⁺
-                hph_post = h_all[k] @ p @ h_all[k].T  # H P⁺ Hᵀ
-                r, q = _sage_husa(cfg, k, innov, s, gain, r, q, q0, post_fit, hph_post)
+            innovations[k] = y[k] - h_all[k] @ z  # r = y − H x⁻
+            s = h_all[k] @ p @ h_all[k].T + r  # S = H P⁻ Hᵀ + R
+            rejected = gate.outlier(innovations[k], s, window)
+            if rejected:  # predict only; a whole window that shifts the data: restart
+                counts["outliers"] += 1
+                restart = gate.reject(innovations[k])
+            else:
+                z, p, q, r, window, gain, restart = _accept(
+                    cfg, k, (z, p, q, r), q0, (y, h_all, est, valid), window, gate
+                )
+        if restart:
+            counts["divergences"] += 1
+            p, q, r, window = p0.copy(), q0.copy(), r0.copy(), []
+            gate.clear()
         if window:
             c_r = np.mean([np.outer(v, v) for v, _ in window], axis=0)  # eq. 24
             out["ror"][k] = np.trace(c_r) / np.mean([t for _, t in window])  # eq. 22
             if gain is not None and np.trace(q) > 0:
                 out["qoq"][k] = np.trace(gain @ c_r @ gain.T) / np.trace(q)
-        since += 1
-        if (
-            cfg.method in ("fakf", "ding")
-            and len(window) == cfg.window
-            and since >= cfg.adapt_interval
-        ):
-            r, q = _adapt(cfg, out["ror"][k], out["qoq"][k], window, r, q)
-            r, q = _clamp(cfg, r, q, r0, q0)
-            since = 0
-        elif cfg.method == "sage-husa":
-            r, q = _clamp(cfg, r, q, r0, q0)
+        if not rejected:  # a rejected sample leaves the window as it was: nothing to adapt to
+            since += 1
+            r, q, since = _adapted(cfg, k, out, window, r, q, r0, q0, since)
         out["q_scale"][k] = np.trace(q) / np.trace(q0) if np.trace(q0) > 0 else np.nan
         out["r_scale"][k] = np.trace(r) / np.trace(r0)
         states[k] = z * d
     return FilterResult(
         est, innovations, out["ror"], out["qoq"], out["q_scale"], out["r_scale"],
-        states, z * d, p * np.outer(d, d), r, np.diag(q) * d**2, 0, skipped,
+        states, z * d, p * np.outer(d, d), r, np.diag(q) * d**2, counts["divergences"],
+        counts["skipped"], counts["outliers"],
     )  # fmt: skip
+
+
+def _accept(cfg, k, filt, q0, data, window, gate):
+    """The update with sample k (and Sage–Husa's R, Q) of the filter ``filt = (z, p, q, r)`` on
+    ``data = (y, h_all, est, valid)``: ``z, p, q, r, window, gain`` and whether an adaptive
+    filter's runaway restarts it (then ``z`` is the last good state)."""
+    (z, p, q, r), (y, h_all, est, valid) = filt, data
+    z_prior = z
+    z, p, innov, s, gain = kf_update(z, p, y[k], h_all[k], r)
+    window = ([*window, (innov, float(np.trace(s)))])[-cfg.window :]
+    lap = gate.added(window)
+    if cfg.method == "sage-husa":
+        post_fit = y[k] - h_all[k] @ z  # e = y − H x⁺
+        hph_post = h_all[k] @ p @ h_all[k].T  # H P⁺ Hᵀ
+        r, q = _sage_husa(cfg, k, innov, s, gain, r, q, q0, post_fit, hph_post)
+    adaptive = cfg.method in ("fakf", "ding", "sage-husa")
+    restart = adaptive and lap and _runaway(k, cfg.window, y, est, valid)
+    return (z_prior if restart else z), p, q, r, window, gain, restart
+
+
+def _adapted(cfg, k, out, window, r, q, r0, q0, since):
+    """The windowed adaptation (fakf, ding) when due, and the clamp: ``r, q, since``."""
+    if cfg.method in ("fakf", "ding") and len(window) == cfg.window and since >= cfg.adapt_interval:
+        r, q = _adapt(cfg, out["ror"][k], out["qoq"][k], window, r, q)
+        return (*_clamp(cfg, r, q, r0, q0), 0)
+    if cfg.method == "sage-husa":
+        return (*_clamp(cfg, r, q, r0, q0), since)
+    return r, q, since
 
 
 def _adapt(cfg: FilterConfig, ror: float, qoq: float, window: list, r: np.ndarray, q: np.ndarray):

@@ -21,10 +21,14 @@ Per sample k (normalised state ``z``, ``H_s = H diag(d)``):
   every sample (``R ← (1−d)R + d(e eᵀ + H P⁺ Hᵀ)`` from the post-fit residual ``e``;
   optionally ``Q ← Q + d·diag(K(r rᵀ − S)Kᵀ)``); these rules are in
   :mod:`aeromag_env.compensation.adaptive_rules`.
+* consistency (:mod:`aeromag_env.compensation.consistency`): an outlier — an innovation far
+  beyond both ``S`` and the recent innovations — is rejected (predict only, the window and the
+  adaptation left as they were) and counted; a whole window of outliers that shift the data,
+  or an adaptive filter's runaway, is a divergence that also empties the window
 * divergence (a non-finite or absurd state — beyond 1e8 typical magnitudes —, a non-finite
-  covariance, a non-positive variance, or — checked once per window — a failed Cholesky of P):
-  counted, and the filter restarts from the last good state with ``P(0)``, ``Q(0)``, ``R(0)``;
-  nothing non-finite is ever written out.
+  covariance, a non-positive variance, or — checked once per window — a failed Cholesky of P;
+  or one of the consistency checks above): counted, and the filter restarts from the last good
+  state with ``P(0)``, ``Q(0)``, ``R(0)``; nothing non-finite is ever written out.
 """
 
 from __future__ import annotations
@@ -34,8 +38,10 @@ from numba import njit
 
 from aeromag_env.compensation.adaptive_rules import adapt, clamp_scales, sage_husa
 from aeromag_env.compensation.arrays import FilterArrays, Packed, named
+from aeromag_env.compensation.consistency import clear_window, outlier, reject, runaway
 from aeromag_env.compensation.kernel_layout import (
     ACC_C,
+    ACC_REF,
     ACC_RR,
     ACC_S,
     INT_COUNT,
@@ -151,6 +157,7 @@ def _window_add(r, trs, rbuf, sbuf, acc, ints) -> None:
             for i in range(3):
                 for j in range(3):
                     acc[ACC_C + 3 * i + j] += rbuf[w, i] * rbuf[w, j]
+        acc[ACC_REF] = acc[ACC_RR] / m  # the outlier gate's reference for the next lap
 
 
 @per_sample
@@ -344,9 +351,11 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
     lam = par[PAR_FORGET]
     trq0 = q0.sum()
     trr0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
+    adaptive = mode == FilterMode.FAKF or mode == FilterMode.DING or mode == FilterMode.SAGE_HUSA
     for k in range(k0, k1):
         _predict(mode, lam, p, qd)
         _estimate(k, t, td, d, z, col, hv, est)
+        rejected = False
         if not valid[k]:
             innov[k, :] = np.nan
             ints[INT_SKIP] += 1
@@ -354,16 +363,25 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
             _innovation(k, y, est, p, rm, col, hv, gt, s, r)
             innov[k, :] = r
             ok = _inv3(s, sinv)
-            if ok:
-                _update(z, p, gt, kt, kst, s, sinv, r)
-                _window_add(r, s[0, 0] + s[1, 1] + s[2, 2], rbuf, sbuf, acc, ints)
-                if mode == FilterMode.SAGE_HUSA:
-                    sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INT_K], par)
-            if _healthy(ok, z, p, ints, work):
-                z_good[:] = z
-            else:
+            rejected = ok and outlier(r, sinv, acc, ints)
+            inconsistent = rejected and reject(r, acc, ints)  # a window of shifted outliers
+            if not rejected:
+                if ok:
+                    _update(z, p, gt, kt, kst, s, sinv, r)
+                    _window_add(r, s[0, 0] + s[1, 1] + s[2, 2], rbuf, sbuf, acc, ints)
+                    if mode == FilterMode.SAGE_HUSA:
+                        sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INT_K], par)
+                if not _healthy(ok, z, p, ints, work):
+                    _restart(z, z_good, p, p0, qd, q0, rm, r0, ints)
+                else:
+                    inconsistent = adaptive and runaway(k, y, est, valid, ints)
+                    if not inconsistent:
+                        z_good[:] = z
+            if inconsistent:  # restart, and the window starts again at the new level
                 _restart(z, z_good, p, p0, qd, q0, rm, r0, ints)
-        _statistics(k, valid[k], ints, acc, kt, qd, ror, qoq)
-        _adapt(mode, ror[k], qoq[k], ints, par, acc, qd, q0, rm, r0)
+                clear_window(acc, ints)
+        _statistics(k, valid[k] and not rejected, ints, acc, kt, qd, ror, qoq)
+        if not rejected:  # a rejected sample leaves the window as it was: nothing to adapt to
+            _adapt(mode, ror[k], qoq[k], ints, par, acc, qd, q0, rm, r0)
         _record(k, trq0, trr0, qd, rm, z, d, q_scale, r_scale, states)
         ints[INT_K] += 1

@@ -242,7 +242,8 @@ class AeroMagCompensationEnv(gym.Env):
     ## Episode End
 
     ``truncated`` at the end of the flight; ``terminated`` when the filter diverges (non-finite
-    or absurd state, non-finite or non-positive-definite covariance).
+    or absurd state, non-finite or non-positive-definite covariance, or a whole window of
+    outliers that shift the data: :mod:`aeromag_env.compensation.consistency`).
 
     ## Arguments
 
@@ -251,7 +252,9 @@ class AeroMagCompensationEnv(gym.Env):
     ``info`` holds ``rmse_window_nt``, ``ror``, ``qoq``, ``q_scale``, ``r_scale``,
     ``q_permanent_scale`` (1 unless ``split_q``), ``sample``,
     ``flight_seed``, and at the end ``episode_rmse_nt`` (over the flight after ``score_from``;
-    over the part flown when the filter diverged before it) and ``divergences``.
+    over the part flown when the filter diverged before it), ``divergences`` and
+    ``outliers_rejected`` (samples the filter's outlier gate skipped: a spike or a burst of
+    noise in the fluxgate; 0 on a clean flight).
 
     ## Version History
 
@@ -332,6 +335,7 @@ class AeroMagCompensationEnv(gym.Env):
                 out, self._run, self._truth, self.filter.est, self.filter.k
             )
             info["divergences"] = self.filter.divergences
+            info["outliers_rejected"] = self.filter.outliers_rejected
         return info
 
     def render(self) -> np.ndarray | None:

@@ -13,7 +13,7 @@ from gymnasium.vector.utils import batch_space
 
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
-from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K
+from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_OUT
 from aeromag_env.environment import kernels
 from aeromag_env.environment.checks import RESET_OPTIONS, reset_options
 from aeromag_env.environment.env import (
@@ -314,6 +314,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         _put(infos, "flight_seed", self.flight_seeds, stepped)
         _put(infos, "episode_rmse_nt", self._out[:, OUT_EPISODE_RMSE], stepped & ended)
         _put(infos, "divergences", filters.ints[:, INT_DIV], stepped & ended)
+        _put(infos, "outliers_rejected", filters.ints[:, INT_OUT], stepped & ended)
 
     def _info(self, i: int) -> dict[str, Any]:
         """The single env's info of environment i at the end of its episode."""
@@ -323,6 +324,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         info["flight_seed"] = int(self.flight_seeds[i])
         info["episode_rmse_nt"] = float(out[OUT_EPISODE_RMSE])
         info["divergences"] = int(filters.ints[i, INT_DIV])
+        info["outliers_rejected"] = int(filters.ints[i, INT_OUT])
         return info
 
     def _same_step_reset(self, infos: dict[str, Any], stepped: np.ndarray) -> np.ndarray:

@@ -13,41 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env.atomic import check_output_file
-from aeromag_env.configs import from_json
-from aeromag_env.errors import AeromagError, ConfigError
-from aeromag_env.flight.data import Flight
-from aeromag_env.simulation.config import SimulationConfig, preset, with_overrides
-
-FLIGHT_SUFFIXES = (".h5", ".hdf5", ".csv", ".xyz", ".mat")
-
-
-def simulation_config(args: argparse.Namespace) -> SimulationConfig:
-    """The simulator configuration of ``aeromag simulate``'s arguments.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        ``config`` (a JSON file, else ``preset``), ``pattern`` and ``duration_s`` overrides.
-
-    Returns
-    -------
-    SimulationConfig
-    """
-    if args.config:
-        try:
-            text = Path(args.config).read_text(encoding="utf-8")
-        except OSError as e:
-            raise ConfigError(f"cannot read configuration {args.config}: {e.strerror}") from None
-        cfg = from_json(SimulationConfig, text)
-    else:
-        cfg = preset(args.preset)
-    overrides: dict[str, object] = {}
-    if args.pattern:
-        overrides["trajectory.pattern"] = args.pattern
-    if args.duration_s is not None:
-        overrides["trajectory.duration_s"] = args.duration_s
-    return with_overrides(cfg, overrides) if overrides else cfg
+from aeromag_env.cli import limits
+from aeromag_env.errors import AeromagError
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -63,70 +30,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     int
         Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
     """
-    from tqdm import tqdm
+    from aeromag_env.cli.simulate import run_simulate, simulation_summary
 
-    from aeromag_env.flight.files import write_flight
-    from aeromag_env.simulation.simulate import STAGES, simulate_flight
-
-    out = Path(args.out)
-    if out.suffix.lower() not in FLIGHT_SUFFIXES:
-        raise AeromagError(f"--out must end in {', '.join(FLIGHT_SUFFIXES)}, got {out.name!r}")
-    if args.seed < 0:
-        raise AeromagError(f"--seed must be ≥ 0, got {args.seed}")
-    cfg = simulation_config(args)
-    inputs = [p for p in (args.config, args.replay) if p]
-    check_output_file(out, inputs)
-    replay = None
-    if args.replay:
-        from aeromag_env.flight.files import load_flight
-
-        replay, _ = load_flight(args.replay, needs=("tt", "position", "attitude", "date"))
-        replay.attrs["path"] = str(args.replay)
-    with tqdm(
-        total=len(STAGES) + 1,
-        desc="simulate",
-        unit="stage",
-        disable=args.quiet or None,
-        leave=False,
-    ) as bar:
-
-        def progress(stage: str) -> None:
-            bar.set_description(stage)
-            bar.update(1)
-
-        flight = simulate_flight(cfg, args.seed, progress=progress, replay=replay)
-        progress("write")
-        write_flight(flight, out, inputs=inputs)
-    print(simulation_summary(flight, out, cfg, args.seed))
+    flight, cfg = run_simulate(args)
+    print(simulation_summary(flight, Path(args.out), cfg, args.seed))
     return 0
-
-
-def simulation_summary(flight: Flight, out: Path, cfg: SimulationConfig, seed: int) -> str:
-    """One line: what was written.
-
-    Parameters
-    ----------
-    flight : Flight
-        The simulated flight.
-    out : pathlib.Path
-        Where it was written.
-    cfg : SimulationConfig
-        Its configuration.
-    seed : int
-        Its seed.
-
-    Returns
-    -------
-    str
-    """
-    interf = flight.vector("truth_interf")
-    rms = float(np.sqrt(np.mean(np.sum(interf**2, axis=1))))
-    return (
-        f"wrote {out}: {cfg.trajectory.pattern}, preset {cfg.preset}, seed {seed}; "
-        f"{flight.n} samples ({flight.duration_s:.1f} s at {flight.sample_rate_hz:g} Hz), "
-        f"{len(flight.maneuver_windows())} maneuver windows, "
-        f"fluxgate interference {rms:.0f} nT RMS"
-    )
 
 
 def cmd_discover(args: argparse.Namespace) -> int:
@@ -142,6 +50,7 @@ def cmd_discover(args: argparse.Namespace) -> int:
     int
         Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
     """
+    limits.check_window("--calibration-window", args.calibration_window)
     from aeromag_env.cli.discover import run_discover
 
     out = Path(args.out)
@@ -241,6 +150,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     int
         Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
     """
+    limits.check_seed("--seed", args.seed)
     from aeromag_env.cli.demo import run_demo
 
     out = Path(args.out)
@@ -287,6 +197,7 @@ def cmd_compensate(args: argparse.Namespace) -> int:
     int
         Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
     """
+    limits.check_compensate(args)
     from aeromag_env.cli.compensate import CompensateRequest, run_compensate, summary_line
 
     req = CompensateRequest(
@@ -314,6 +225,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     int
         Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
     """
+    limits.check_seed("--seed", args.seed)
     from aeromag_env.compensation.paper import reproduce_paper
 
     reproduce_paper(Path(args.out), quick=args.quick, seed=args.seed)
@@ -333,6 +245,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     int
         Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
     """
+    limits.check_evaluate(args)
     from aeromag_env.cli.evaluate import run_evaluate
 
     policies = [p.strip() for p in args.policies.split(",") if p.strip()]
@@ -355,14 +268,13 @@ def cmd_train(args: argparse.Namespace) -> int:
     int
         Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
     """
+    limits.check_train(args)
     try:
         from agents.ppo import train_ppo
     except ImportError as e:
         raise AeromagError(
             f"training needs the rl extra (pip install 'aeromag-env[rl]'): {e}"
         ) from None
-    if args.timesteps < 1 or args.seed < 0:
-        raise AeromagError("--timesteps must be ≥ 1 and --seed ≥ 0")
     extra = {"hyperparams": Path(args.hyperparams)} if args.hyperparams else {}
     summary = train_ppo(args.scenario, args.timesteps, args.seed, Path(args.out), args.quick,
                         progress=not args.quiet, **extra)  # fmt: skip

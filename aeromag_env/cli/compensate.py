@@ -253,6 +253,9 @@ def summary_line(report: dict[str, Any], out: Path) -> str:
         parts.append(f"{m['nonfinite_samples']} non-finite samples ({report['nonfinite_policy']})")
     if m["divergences"]:
         parts.append(f"{m['divergences']} divergences detected and recovered")
+    if m.get("outliers_rejected"):
+        parts.append(f"{m['outliers_rejected']} samples rejected by the filter's outlier gate "
+                     "(predict only)")  # fmt: skip
     if report["input_problems"]:
         parts.append(f"{len(report['input_problems'])} input warning(s), listed in report.json "
                      "(aeromag info explains them)")  # fmt: skip

@@ -7,10 +7,12 @@ imports ``agents`` at module level).
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 from aeromag_env.atomic import check_output_set, output_set, write_text
+from aeromag_env.cli.compensate import _jsonable
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError
 
@@ -42,7 +44,7 @@ def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: 
     from aeromag_env.cli.plots import plot_evaluation
 
     with output_set(out, OUTPUTS, policy_files) as stage:
-        write_text(stage / "results.json", json.dumps(results, indent=2))
+        write_text(stage / "results.json", json.dumps(_jsonable(results), indent=2))
         plot_evaluation(results, stage / "evaluation.png")
     print(evaluation_table(results))
     print(f"wrote {out}/results.json, evaluation.png")
@@ -60,11 +62,18 @@ def evaluation_table(results: dict[str, Any]) -> str:
         "|---|---|---|---|---|",
     ]
     for name, r in results["policies"].items():
-        lo, hi = r["rmse_nt_ci95"]
         diff = ""
         if "diff_vs_fis_nt_mean" in r and name != "fis":
-            dlo, dhi = r["diff_vs_fis_ci95"]
-            diff = f"{r['diff_vs_fis_nt_mean']:+.3g} [{dlo:+.3g}, {dhi:+.3g}]"
-        lines.append(f"| {name} | {r['rmse_nt_mean']:.3g} [{lo:.3g}, {hi:.3g}] | {diff} | "
-                     f"{r['log_ror_abs_median']:.2g} | {r['divergences']} |")  # fmt: skip
+            diff = f"{r['diff_vs_fis_nt_mean']:+.3g} {_interval(r['diff_vs_fis_ci95'], '+.3g')}"
+        mean = f"{r['rmse_nt_mean']:.3g} {_interval(r['rmse_nt_ci95'], '.3g')}"
+        lines.append(f"| {name} | {mean} | {diff} | {r['log_ror_abs_median']:.2g} | "
+                     f"{r['divergences']} |")  # fmt: skip
+    if len(results["seeds"]) < 2:
+        lines += ["", "n/a: an interval needs at least 2 flights (--episodes ≥ 2)"]
     return "\n".join(lines) + "\n"
+
+
+def _interval(ci: Any, fmt: str) -> str:
+    """``[lo, hi]``, or ``[n/a]`` when it could not be computed (a single flight)."""
+    lo, hi = (float("nan") if v is None else float(v) for v in ci)
+    return f"[{lo:{fmt}}, {hi:{fmt}}]" if math.isfinite(lo) and math.isfinite(hi) else "[n/a]"

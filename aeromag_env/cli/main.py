@@ -1,20 +1,27 @@
 """The ``aeromag`` command line: one entry point, one subcommand per job.
 
-Every subcommand has ``--help``, writes its results atomically, and on bad input exits with
-status 2 and a one-line message on stderr (no traceback). The parser is in
-:mod:`aeromag_env.cli.parser`, the subcommands' handlers in :mod:`aeromag_env.cli.commands`.
+Every subcommand has ``--help``, writes its results atomically, and ends with one exit status
+(:data:`EXIT_STATUS`): 0 done, 2 bad input (a one-line message on stderr, no traceback), 1 an
+internal error (a bug: one line on stderr; ``AEROMAG_DEBUG=1`` shows the traceback), 130
+interrupted. The parser is in :mod:`aeromag_env.cli.parser`, the subcommands' handlers in
+:mod:`aeromag_env.cli.commands`.
 """
 
 from __future__ import annotations
 
+import argparse
+import os
 import sys
 from collections.abc import Sequence
 
-from aeromag_env.cli.commands import FLIGHT_SUFFIXES, simulation_summary
-from aeromag_env.cli.parser import build_parser
+from aeromag_env.cli.parser import EXIT_STATUS, build_parser
+from aeromag_env.cli.simulate import FLIGHT_SUFFIXES, simulation_summary
 from aeromag_env.errors import AeromagError
 
-__all__ = ["FLIGHT_SUFFIXES", "build_parser", "main", "simulation_summary"]
+__all__ = ["EXIT_STATUS", "FLIGHT_SUFFIXES", "build_parser", "main", "simulation_summary"]
+
+#: Environment variable that lets an internal error raise with its traceback.
+DEBUG_VARIABLE = "AEROMAG_DEBUG"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -28,10 +35,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        Exit status: 0, 2 on bad input (one line on stderr), 130 when interrupted.
+        Exit status, one convention for every subcommand (also in ``aeromag --help``):
+
+        * 0 — done;
+        * 2 — bad input: an :class:`~aeromag_env.errors.AeromagError` (options, files), a
+          rejected argument (argparse exits 2 itself) or an ``OSError`` about the user's paths;
+          one line ``aeromag CMD: error: ...`` on stderr;
+        * 1 — internal error: any other exception, a bug; one line ``aeromag CMD: internal
+          error: TYPE: message (...)`` on stderr, or, with the environment variable
+          ``AEROMAG_DEBUG=1``, the exception itself with its traceback;
+        * 130 — interrupted (Ctrl-C); no output is left half-written.
     """
     args = build_parser().parse_args(argv)
     try:
+        _check_paths(args)
         return int(args.func(args))
     except AeromagError as e:
         print(f"aeromag {args.command}: error: {e}", file=sys.stderr)
@@ -46,6 +63,32 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"aeromag {args.command}: interrupted; no output was left half-written", file=sys.stderr
         )
         return 130
+    except Exception as e:
+        if os.environ.get(DEBUG_VARIABLE) == "1":
+            raise
+        print(f"aeromag {args.command}: internal error: {_one_line(e)} (a bug: please report "
+              f"it with the command line; {DEBUG_VARIABLE}=1 shows the traceback)",
+              file=sys.stderr)  # fmt: skip
+        return 1
+
+
+#: The arguments that name files or folders (an empty one would silently mean ``.``).
+PATH_ARGUMENTS = ("file", "input", "output", "out", "config", "replay", "hyperparams", "mount")
+
+
+def _check_paths(args: argparse.Namespace) -> None:
+    """Refuse an empty path argument (``--out ''`` would write into the current folder)."""
+    for name in PATH_ARGUMENTS:
+        value = getattr(args, name, None)
+        if isinstance(value, str) and not value.strip():
+            flag = name if name in ("file", "input", "output") else f"--{name}"
+            raise AeromagError(f"{flag} is empty; give a path")
+
+
+def _one_line(exc: BaseException) -> str:
+    """``TYPE: first line of the message`` (``TYPE`` alone without a message)."""
+    lines = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
 
 
 if __name__ == "__main__":

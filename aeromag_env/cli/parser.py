@@ -21,6 +21,12 @@ from aeromag_env.cli.commands import (
 )
 from aeromag_env.simulation.config import PATTERNS, PRESETS
 
+#: The exit statuses of every subcommand (``--help`` epilog; :func:`aeromag_env.cli.main.main`).
+EXIT_STATUS = (
+    "exit status: 0 done; 2 bad input (options, files, paths; one line on stderr); 1 internal "
+    "error (a bug: one line on stderr, AEROMAG_DEBUG=1 shows the traceback); 130 interrupted"
+)
+
 
 class _Parser(argparse.ArgumentParser):
     """argparse with a one-line error message (no usage dump)."""
@@ -299,7 +305,11 @@ def build_parser() -> argparse.ArgumentParser:
         Subcommands in ``--help`` order; each sets ``func`` (its handler) and ``command``; bad
         arguments exit with status 2 and a one-line message.
     """
-    parser = _Parser(prog="aeromag", description="Aircraft aeromagnetic compensation toolkit.")
+    parser = _Parser(
+        prog="aeromag",
+        description="Aircraft aeromagnetic compensation toolkit.",
+        epilog=EXIT_STATUS,
+    )
     sub = parser.add_subparsers(
         dest="command", required=True, metavar="COMMAND", parser_class=_Parser
     )
@@ -308,4 +318,6 @@ def build_parser() -> argparse.ArgumentParser:
               _add_bench)  # fmt: skip
     for add in adders:
         add(sub)
+    for command in sub.choices.values():
+        command.epilog = EXIT_STATUS
     return parser

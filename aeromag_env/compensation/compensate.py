@@ -67,7 +67,10 @@ class Compensation:
     total_before, total_after : (n,) uncompensated and compensated total field [nT]
     model_total : (n,) model Earth total field [nT], or None when the file has no position/date
     series : dict[str, ndarray] — filter diagnostics (ROR, QOQ, Q and R scales)
-    divergences, nonfinite : int
+    divergences : int, the recursive filter's restarts
+        (:class:`~aeromag_env.compensation.kalman.FilterResult`)
+    outliers_rejected : int, samples the recursive filter's outlier gate rejected (predict only)
+    nonfinite : int
     samples : the segments and flagged samples the method worked with
     """
 
@@ -80,8 +83,27 @@ class Compensation:
     model_total: np.ndarray | None = None
     series: dict[str, np.ndarray] = field(default_factory=dict)
     divergences: int = 0
+    outliers_rejected: int = 0
     nonfinite: int = 0
     samples: Samples | None = None
+
+
+#: Fewest samples a vector method accepts: 7 coefficients per axis (T_p, a row of A, a row of
+#: B), four samples each, as the batch fit (``lsq``) asks; a recursive filter given fewer only
+#: returns its prior.
+MIN_VECTOR_SAMPLES = 28
+
+
+def check_long_enough(flight: Flight, method: str, tl: TollesLawson | None = None) -> None:
+    """One-line error when ``flight`` is too short for ``method`` (``tl``: its band-pass, trim
+    and coefficients at the flight's sample rate), naming the minimum."""
+    if tl is not None:
+        tl.check_length(flight.n, flight.sample_rate_hz)
+    elif flight.n < MIN_VECTOR_SAMPLES:
+        raise AeromagError(
+            f"{method} needs a flight of at least {MIN_VECTOR_SAMPLES} samples (7 coefficients "
+            f"per axis, 4 samples each); this one has {flight.n}"
+        )
 
 
 def compensate_vector(
@@ -95,15 +117,17 @@ def compensate_vector(
     """Run a vector method; with ``calibration`` (bool mask), fit there and apply everywhere.
 
     ``mount`` rotates the fluxgate from its own axes into the body frame first
-    (:mod:`aeromag_env.flight.mounting`); None takes the sensor axes for body axes.
+    (:mod:`aeromag_env.flight.mounting`); None takes the sensor axes for body axes. A flight
+    shorter than :data:`MIN_VECTOR_SAMPLES` is refused.
     """
+    check_long_enough(flight, method)
     cfg = replace(filter_cfg or FilterConfig(), method=method) if method != "lsq" else filter_cfg
     scheme = "central" if method == "lsq" else (cfg.rate_scheme if cfg else "backward")
     samples = flight_samples(flight, vector_inputs(flight, flux), [flux])
     t_b, tdot_b = earth_model(flight, scheme, samples.segments)
     meas = flight.vector(flux) if mount is None else mount.to_body(flight.vector(flux))
     y = np.where(samples.valid[:, None], meas - t_b, np.nan)  # flagged: predict only / no fit
-    state, est, series, divergences, settings = _estimate(method, cfg, y, t_b, tdot_b, calibration)
+    state, est, series, counts, settings = _estimate(method, cfg, y, t_b, tdot_b, calibration)
     known = np.all(np.isfinite(t_b) & np.isfinite(tdot_b), axis=1)  # the model field is known
     est = np.where(known[:, None], est, np.nan)
     after = np.where(samples.valid[:, None], meas - est, np.nan)
@@ -122,7 +146,8 @@ def compensate_vector(
         total_after=np.linalg.norm(after, axis=1),
         model_total=np.linalg.norm(t_b, axis=1),
         series=series,
-        divergences=divergences,
+        divergences=counts[0],
+        outliers_rejected=counts[1],
         nonfinite=samples.n_nonfinite,
         samples=samples,
     )
@@ -135,12 +160,13 @@ def _estimate(
     t_b: np.ndarray,
     tdot_b: np.ndarray,
     calibration: np.ndarray | None,
-) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], int, dict[str, Any]]:
-    """Final state (21,), interference estimate (n, 3) [nT], filter series, divergences and
-    settings of a vector method on ``y = T_m − T`` (NaN rows: skipped / left out)."""
+) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], tuple[int, int], dict[str, Any]]:
+    """Final state (21,), interference estimate (n, 3) [nT], filter series, (divergences,
+    outliers rejected) and settings of a vector method on ``y = T_m − T`` (NaN rows: skipped /
+    left out)."""
     if method == "lsq":
         fit = fit_vector_lsq(y, t_b, tdot_b, mask=calibration)
-        return fit.state, fit.predict(t_b, tdot_b), {}, 0, {"rate_scheme": "central"}
+        return fit.state, fit.predict(t_b, tdot_b), {}, (0, 0), {"rate_scheme": "central"}
     assert cfg is not None
     y_fit = y if calibration is None else np.where(calibration[:, None], y, np.nan)
     res = run_filter(cfg, y_fit, t_b, tdot_b, store_states=False)
@@ -150,7 +176,8 @@ def _estimate(
         else interference_from_states(res.final_state, t_b, tdot_b)
     )
     series = {"ror": res.ror, "qoq": res.qoq, "q_scale": res.q_scale, "r_scale": res.r_scale}
-    return res.final_state, est, series, res.divergences, to_dict(cfg)
+    counts = (res.divergences, res.outliers_rejected)
+    return res.final_state, est, series, counts, to_dict(cfg)
 
 
 def compensate_scalar(
@@ -161,7 +188,9 @@ def compensate_scalar(
     The design and the band-pass run on each run of valid samples (both channels finite, no
     spike in either) inside each continuous segment, trimmed per run; the correction is built
     on each run of valid fluxgate samples; the output is NaN where either channel is flagged.
+    A flight shorter than ``tl`` needs (:meth:`TollesLawson.length_needed`) is refused.
     """
+    check_long_enough(flight, "tl", tl)
     vec, mag = flight.vector(flux), flight[scalar]
     samples = flight_samples(flight, [flux, scalar], [flux, scalar])
     use = samples.valid if calibration is None else samples.valid & calibration
@@ -214,7 +243,9 @@ def score(flight: Flight, comp: Compensation) -> dict[str, Any]:
     (windows ``12b + 1 … 12b + 12``; a one-box flight includes the filters' convergence).
     ``compensation_rmse_all_nt`` covers all samples. Band-passes run on each continuous segment
     and flagged (NaN) samples are left out; ``segments`` and ``flagged_samples`` say what those
-    were (:meth:`aeromag_env.compensation.samples.Samples.report`).
+    were (:meth:`aeromag_env.compensation.samples.Samples.report`); ``divergences`` and
+    ``outliers_rejected`` are the recursive filter's restarts and rejected samples
+    (:mod:`aeromag_env.compensation.consistency`), 0 for the fits.
     """
     n, fs = flight.n, flight.sample_rate_hz
     samples = comp.samples or flight_samples(flight, [], [])
@@ -237,6 +268,7 @@ def score(flight: Flight, comp: Compensation) -> dict[str, Any]:
         "fom_windows": None,
         "nonfinite_samples": comp.nonfinite,
         "divergences": comp.divergences,
+        "outliers_rejected": comp.outliers_rejected,
         **samples.report(),
     }
     if truth is not None:

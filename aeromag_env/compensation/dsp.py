@@ -139,6 +139,13 @@ def min_length(sos: np.ndarray) -> int:
     return 3 * (2 * len(sos) + 1 - zeros) + 1
 
 
+#: Lowest band edge, as a fraction of the Nyquist frequency: below about 2e-9 the Butterworth
+#: sections' padding solve is singular (measured at 10 Hz: 1e-7 Hz works, 1e-8 Hz fails); 1e-6
+#: keeps a margin of 500, and a cutoff that low (5 µHz at 10 Hz: a period of 2 days) does
+#: nothing on a flight anyway.
+MIN_EDGE = 1e-6
+
+
 def _design(fs_hz: float, low_hz: float, high_hz: float, order: int) -> np.ndarray | None:
     """Second-order sections of the Butterworth filter, or None for "no filtering"."""
     if not (math.isfinite(fs_hz) and fs_hz > 0):
@@ -155,6 +162,13 @@ def _design(fs_hz: float, low_hz: float, high_hz: float, order: int) -> np.ndarr
         raise AeromagError(f"low-pass cutoff must be > 0 Hz, got {high_hz}")
     if use_low and low_hz >= nyquist:
         raise AeromagError(f"high-pass cutoff must be < fs/2 = {nyquist} Hz, got {low_hz}")
+    lowest = MIN_EDGE * nyquist
+    for edge, used in ((low_hz, use_low), (high_hz, use_high)):
+        if used and edge < lowest:
+            raise AeromagError(
+                f"band edge {edge:g} Hz is below {lowest:g} Hz ({MIN_EDGE:g} × fs/2), where the "
+                "filter cannot be designed; use 0 for no high-pass"
+            )
     from scipy.signal import butter
 
     if use_low and use_high:

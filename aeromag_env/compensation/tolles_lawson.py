@@ -9,7 +9,7 @@ import numpy as np
 
 from aeromag_env.compensation.dsp import bandpass, bandpass_min_length, is_all_pass
 from aeromag_env.errors import AeromagError, ConfigError
-from aeromag_env.simulation.tolles_lawson_terms import design_matrix
+from aeromag_env.simulation.tolles_lawson_terms import N_TERMS, design_matrix
 from aeromag_env.units import BT_SCALE_NT
 
 
@@ -137,7 +137,17 @@ class TollesLawson:
         Returns
         -------
         self
+
+        Raises
+        ------
+        AeromagError
+            A pass band beyond the Nyquist frequency (:meth:`check_band`), or no run long
+            enough to filter, trim and fit (:meth:`check_length`).
         """
+        self.check_band(fs_hz)
+        if self._filters(fs_hz):  # else the rows are counted below
+            lengths = [len(flux)] if runs is None else [r.stop - r.start for r in runs]
+            self.check_length(max(lengths, default=0), fs_hz, "a run of valid samples")
         if runs is None:
             a, y = self._prepare(*self._design_and_target(flux, scalar, earth_total), fs_hz)
         else:
@@ -153,6 +163,64 @@ class TollesLawson:
         low = self.bandpass_hz[0] if self.bandpass_hz is not None else 0.0
         self.remove_mean_ = bool(0 < low < fs_hz / 2)
         return self
+
+    def check_band(self, fs_hz: float) -> None:
+        """One-line error when the pass band does not fit a sample rate ``fs_hz`` [Hz]: an edge
+        above the Nyquist frequency fs/2 (HIGH = fs/2 is MagNav's "no low-pass": a high-pass)
+        or a LOW edge at or above it."""
+        if self.bandpass_hz is None or not np.isfinite(fs_hz):
+            return
+        low, high = self.bandpass_hz
+        nyquist = fs_hz / 2
+        if high > nyquist * (1 + 1e-6) or low >= nyquist:  # 1e-6: a median rate's rounding
+            raise ConfigError(
+                f"Tolles–Lawson band-pass (--tl-bandpass) {low:g} {high:g} Hz does not fit this "
+                f"flight's sample rate {fs_hz:g} Hz: use 0 ≤ LOW < HIGH ≤ {nyquist:g} Hz, the "
+                "Nyquist frequency fs/2 (HIGH = fs/2: high-pass only)"
+            )
+
+    def length_needed(self, fs_hz: float) -> tuple[int, str]:
+        """Fewest samples one run of valid samples needs to be fitted at ``fs_hz`` [Hz], and why.
+
+        More than the coefficients (18, or 19 with the bias) are left after the band-pass (whose
+        zero-phase padding needs :func:`aeromag_env.compensation.dsp.bandpass_min_length`
+        samples) and after ``trim`` samples are cut from each end.
+        """
+        self.check_band(fs_hz)
+        fit = N_TERMS + self.bias + 1
+        if not self._filters(fs_hz):
+            return fit, f"more than {fit - 1} to fit {fit - 1} coefficients"
+        assert self.bandpass_hz is not None
+        low, high = self.bandpass_hz
+        pad = self._padding(fs_hz)
+        why = (
+            f"the {low:g}–{high:g} Hz band-pass needs {pad}, then trim {self.trim} at each end "
+            f"(--tl-trim) and more than {fit - 1} left to fit {fit - 1} coefficients"
+        )
+        return max(pad, 2 * self.trim + fit), why
+
+    def _padding(self, fs_hz: float) -> int:
+        """Fewest samples the band-pass filters at ``fs_hz`` [Hz] (0 at an unknown rate)."""
+        assert self.bandpass_hz is not None
+        return bandpass_min_length(fs_hz, *self.bandpass_hz) if np.isfinite(fs_hz) else 0
+
+    def _filters(self, fs_hz: float) -> bool:
+        """Whether the fit band-passes (and trims) at ``fs_hz`` [Hz]."""
+        band = self.bandpass_hz
+        return band is not None and not (np.isfinite(fs_hz) and is_all_pass(fs_hz, *band))
+
+    def check_length(self, n: int, fs_hz: float, what: str = "a flight") -> None:
+        """One-line error when ``n`` samples (of ``what``) are fewer than :meth:`length_needed`,
+        saying which ``trim`` would fit."""
+        need, why = self.length_needed(fs_hz)
+        if n >= need:
+            return
+        room = (n - N_TERMS - self.bias - 1) // 2
+        fits = self._filters(fs_hz) and room >= 0 and n >= self._padding(fs_hz)  # trim = room
+        raise AeromagError(
+            f"Tolles–Lawson fit needs {what} of at least {need} samples ({why}); this one has "
+            f"{n}" + (f"; --tl-trim ≤ {room} would fit" if fits else "")
+        )
 
     def predict(self, flux: np.ndarray, runs: list[slice] | None = None) -> np.ndarray:
         """Scalar interference [nT], shape (n,): unfiltered design × ``coef_``.

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -105,7 +106,7 @@ def describe(
     if lines is not None or segment is not None:
         chosen = select(flight, lines, segment)
         flight, head["selection"] = chosen.flight, chosen.report
-        title += f", {flight.attrs['selection']}"
+        title += f", {flight.attrs.get('selection', 'selection: every sample')}"
     usable = True
     try:  # a unit problem is fatal only for channels a consumer needs: here, all present
         validate(flight, path, present_needs(flight))
@@ -126,14 +127,16 @@ def _format_label(path: PathLike) -> str:
 
 
 def present_needs(flight: Flight) -> list[str]:
-    """``needs`` tokens for every fluxgate, scalar, position, attitude and date present."""
+    """``needs`` tokens for every fluxgate, scalar, position and attitude present.
+
+    Not the date: one that is unreadable or outside IGRF-14's years is listed among the
+    problems, and only the commands that evaluate the Earth-field model refuse it (``tl`` and
+    ``convert`` use the file as it is)."""
     needs = [*flight.fluxgates(), *flight.scalars()]
     if all(nm in flight for nm in ATTITUDE_NAMES):
         needs.append("attitude")
     if "lat" in flight and "lon" in flight and flight.altitude_name():
         needs.append("position")
-    if "date" in flight.attrs or ("year" in flight and "doy" in flight):
-        needs.append("date")
     return needs
 
 
@@ -306,10 +309,15 @@ def main_info(
     segment: tuple[float, float] | None = None,
 ) -> int:
     """Print the report of ``path`` (of its ``lines`` and ``segment``) to stdout (JSON if
-    ``as_json``); 0 if usable, else 2."""
+    ``as_json``); 0 if usable, else 2 with the error as one line ``aeromag info: error: ...`` on
+    stderr. An unreadable file has no text report (its JSON report still goes to stdout); a
+    file in implausible units keeps its summary on stdout."""
     report = describe(path, lines, segment)
     if as_json:
         print(json.dumps(report.to_dict(), indent=2, ensure_ascii=False, allow_nan=False))
-    else:
+    elif report.summary.keys() - {"path", "format"}:  # a summary, not just the failed read
         print("\n".join(report.lines))
-    return 0 if report.usable else 2
+    if report.usable:
+        return 0
+    print(f"aeromag info: error: {report.problems[0].removeprefix('unusable: ')}", file=sys.stderr)
+    return 2

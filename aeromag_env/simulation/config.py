@@ -36,6 +36,11 @@ from aeromag_env.configs import (
 from aeromag_env.errors import ConfigError
 
 PATTERNS = ("calibration", "survey", "calibration+survey")
+#: Samples a set ``duration_s`` may give, at its sample rate: at least two (a flight needs a
+#: sample rate, and every pattern is cut to this length), at most 10⁸ (116 days at 10 Hz; the
+#: 23 fields of a nominal flight alone then hold 18 GB, and ``aeromag simulate`` further checks
+#: what the memory available allows).
+DURATION_SAMPLES = (2, 10**8)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -89,7 +94,12 @@ class SurveyConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class TrajectoryConfig:
-    """Flight pattern, timing, start point and attitude turbulence (FOGM per Euler angle)."""
+    """Flight pattern, timing, start point and attitude turbulence (FOGM per Euler angle).
+
+    ``duration_s`` [s] cuts the pattern (or repeats calibration boxes) to that length, which
+    must give :data:`DURATION_SAMPLES` samples at ``sample_rate_hz`` (0.2 s to 10⁷ s at
+    10 Hz); None flies the pattern's own length.
+    """
 
     pattern: str = "calibration"
     duration_s: float | None = None
@@ -110,9 +120,9 @@ class TrajectoryConfig:
             self.pattern in PATTERNS,
             f"pattern must be one of {', '.join(PATTERNS)}; got {self.pattern!r}",
         )
-        if self.duration_s is not None:
-            require_positive(self, "duration_s")
         require_positive(self, "sample_rate_hz", "speed_m_s", "jitter_tau_s")
+        if self.duration_s is not None:
+            self._check_duration()
         require_nonnegative(self, "jitter_roll_deg", "jitter_pitch_deg", "jitter_yaw_deg")
         check(
             -90 < self.start_lat_deg < 90,
@@ -127,6 +137,17 @@ class TrajectoryConfig:
             parse_date(self.date)
         except ValueError as e:
             raise ConfigError(f"TrajectoryConfig.date: {e}") from None
+
+    def _check_duration(self) -> None:
+        """``duration_s`` [s] finite and giving :data:`DURATION_SAMPLES` samples."""
+        d, fs = self.duration_s, self.sample_rate_hz
+        lo, hi = DURATION_SAMPLES
+        ok = isinstance(d, (int, float)) and math.isfinite(d) and lo <= d * fs <= hi
+        check(
+            ok,
+            f"TrajectoryConfig.duration_s must be > 0 and give {lo} to {hi:.0e} samples: "
+            f"{lo / fs:g} to {hi / fs:g} s at {fs:g} Hz, got {d}",
+        )
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -23,6 +23,7 @@ import numpy as np
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.channels import KINDS, Channels, choose_channels, with_altitude
 from aeromag_env.flight.data import Flight
+from aeromag_env.flight.earth_model import model_mismatch
 from aeromag_env.flight.formats.detect import detect_format
 from aeromag_env.flight.mount_choice import (
     MOUNT_MODES,
@@ -99,7 +100,10 @@ def choose_inputs(
     ``altitude``), ``kinds`` those it reads at all; ``mask`` (n,) restricts the mount estimate
     (None: every sample, the mount being a constant of the installation);
     ``mount_matters=False`` (Tolles–Lawson) reports the mount without applying it. The chosen
-    magnetometers get the reader's fatal unit checks (:func:`check_units`, naming ``path``).
+    magnetometers get the reader's fatal unit checks (:func:`check_units`, naming ``path``), and
+    their magnitude is compared with the Earth-field model
+    (:func:`~aeromag_env.flight.earth_model.model_mismatch`: a warning when position, date or
+    units look wrong).
     """
     mode, mounts = parse_mount_option(mount)
     channels = choose_channels(flight, flux, scalar, require, kinds)
@@ -116,7 +120,9 @@ def choose_inputs(
                 )
             given = mounts[name]
         choice = choose_mount(work, name, mode, given, mask, relevant=mount_matters)
-    for message in (*channels.warnings, choice.warning if choice else None):
+    scalar_name, flux_name = (c.name if c else None for c in (channels.scalar, channels.fluxgate))
+    mismatch = model_mismatch(work, scalar_name, flux_name)
+    for message in (*channels.warnings, choice.warning if choice else None, mismatch):
         if message:
             warn(message)
     return Inputs(channels, work, choice)
@@ -174,8 +180,10 @@ def flight_date(flight: Flight) -> dict[str, str | None]:
     """``{"iso", "source"}``: the epoch the Earth model used and where it came from."""
     try:
         date = flight.date()
-    except (KeyError, ValueError, OverflowError):
+    except KeyError:
         return {"iso": None, "source": "none (no 'date' attribute, no 'year'/'doy' fields)"}
+    except (ValueError, OverflowError) as exc:  # unreadable, or outside IGRF-14's years
+        return {"iso": None, "source": f"unusable: {exc}"}
     if "date" in flight.attrs:
         source = "file attribute 'date'"
     else:

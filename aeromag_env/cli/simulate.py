@@ -56,7 +56,7 @@ def load_replay(path: str | Path) -> Flight:
     from aeromag_env.flight.files import load_flight
 
     replay, problems = load_flight(path, needs=("tt", "position", "attitude", "date"))
-    for problem in problems:
+    for problem in [*problems, *replay_warnings(replay)]:
         print(f"aeromag simulate: warning: {problem}", file=sys.stderr)
     flown = {"tt": replay.tt, **dict(zip(("lat", "lon", "alt"), replay.position_rad(),
                                          strict=True)),
@@ -69,6 +69,23 @@ def load_replay(path: str | Path) -> Flight:
                                   "e.g. with aeromag convert of a selected part)")  # fmt: skip
     replay.attrs["path"] = str(path)
     return replay
+
+
+def replay_warnings(replay: Flight) -> list[str]:
+    """What makes a replay fly the wrong track, as ``compensate`` would warn of it: altitude
+    channels that disagree (feet beside metres), a median ground speed no aircraft flies (time
+    in ms, lat/lon in radians) and a magnetometer far from IGRF-14 at the file's position and
+    date (lat/lon in radians, a wrong date)."""
+    from aeromag_env.flight.channels import altitude_disagreements, choose_channels
+    from aeromag_env.flight.earth_model import model_mismatch
+    from aeromag_env.flight.quality import ground_speed_problem
+
+    altitude = replay.altitude_name()
+    chosen = choose_channels(replay, kinds=("scalar", "fluxgate"))
+    scalar, flux = (c.name if c else None for c in (chosen.scalar, chosen.fluxgate))
+    found = [ground_speed_problem(replay), model_mismatch(replay, scalar, flux)]
+    disagree = altitude_disagreements(replay, altitude) if altitude else []
+    return [*disagree, *(message for message in found if message)]
 
 
 def run_simulate(args: argparse.Namespace) -> tuple[Flight, SimulationConfig]:

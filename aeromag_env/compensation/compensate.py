@@ -223,11 +223,16 @@ def compensate_scalar(
 
 
 def _model_total(flight: Flight) -> np.ndarray | None:
-    """|model Earth field| when the file has position and date (rotation-free), else None."""
+    """|model Earth field| when the file has position and date (rotation-free), else None.
+
+    None too when no sample has a finite position (an all-NaN ``lat``, ``lon`` or ``alt``): the
+    residual is then taken about its mean, as without position.
+    """
     try:
-        return np.linalg.norm(earth_model_ned(flight), axis=1)
+        total = np.linalg.norm(earth_model_ned(flight), axis=1)
     except KeyError:
         return None
+    return total if np.isfinite(total).any() else None
 
 
 def _count(mask: np.ndarray | None) -> int | None:

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env.geo.earth import parse_date
+from aeromag_env.geo.earth import check_model_date, parse_date
 
 ALTITUDE_NAMES = ("alt", "utm_z", "ins_alt")
 ATTITUDE_NAMES = ("ins_roll", "ins_pitch", "ins_yaw")
@@ -132,12 +132,24 @@ class Flight:
         return lat, lon, self.fields[alt]
 
     def date(self) -> _dt.datetime:
-        """Epoch for the Earth-field model: attribute ``date``, else the first ``year``/``doy``."""
+        """Epoch for the Earth-field model: attribute ``date``, else the first ``year``/``doy``.
+
+        Raises KeyError without either; ValueError (or OverflowError) for a date that cannot be
+        read (not ISO 8601, a non-finite year or doy) and
+        :class:`~aeromag_env.geo.earth.ModelDateError` for one outside IGRF-14's years, each
+        naming the field and its value.
+        """
         if "date" in self.attrs:
-            return parse_date(self.attrs["date"])
+            value = self.attrs["date"]
+            return check_model_date(parse_date(value), f"date attribute {str(value)!r}")
         if "year" in self.fields and "doy" in self.fields:
-            year, doy = int(self.fields["year"][0]), float(self.fields["doy"][0])
-            return _dt.datetime(year, 1, 1) + _dt.timedelta(days=doy - 1.0)
+            year, doy = float(self.fields["year"][0]), float(self.fields["doy"][0])
+            source = f"year {year:g}, doy {doy:g} at the first sample"
+            try:
+                date = _dt.datetime(int(year), 1, 1) + _dt.timedelta(days=doy - 1.0)
+            except (ValueError, OverflowError) as exc:  # NaN, inf, a year beyond 1…9999
+                raise ValueError(f"{source}: not a date ({exc})") from None
+            return check_model_date(date, source)
         raise KeyError("no date: neither a 'date' attribute nor 'year' and 'doy' fields")
 
     def maneuver_windows(self) -> list[tuple[int, float, float]]:

@@ -15,26 +15,50 @@ rate (NaN). On a flight without gaps or missing samples this is the plain
 
 from __future__ import annotations
 
+import datetime as _dt
+
 import numpy as np
 
-from aeromag_env.flight.data import Flight
+from aeromag_env.flight.data import POSITION_NAMES, Flight
 from aeromag_env.flight.quality import runs, segments
-from aeromag_env.geo.earth import igrf_ned_along_track
+from aeromag_env.geo.earth import igrf_ned, igrf_ned_along_track
 from aeromag_env.geo.frames import dcm_from_euler, nav_to_body, time_derivative
+
+#: Median relative disagreement between the measured field magnitude and IGRF-14 above which
+#: the position, date or units are suspect [-]. Aircraft interference is at most a few % of
+#: the Earth field (hundreds to ~2000 nT against 22 000–67 000 nT) and crustal anomalies at
+#: survey altitude rarely reach 5 %; lat/lon in radians (a position near 0°N 0°E), a wrong
+#: date (decades of secular variation, or a two-digit year) or a field in another unit move
+#: the model or the measurement by far more.
+MODEL_MISMATCH_FRACTION = 0.2
+#: Samples compared, evenly spread over the finite ones (IGRF synthesis costs ~µs a point).
+_MISMATCH_POINTS = 200
 
 
 def earth_model_ned(flight: Flight) -> np.ndarray:
     """Model Earth field in NED (n, 3) [nT]: IGRF-14 plus ``diurnal`` along the main field.
 
-    NaN where the position is not finite. Raises KeyError without position or date.
+    NaN where the position is not finite. Raises KeyError without position or without a date
+    the model can use (unreadable, or outside IGRF-14's years: :meth:`Flight.date` says why, and
+    the message repeats it): the callers that can do without the model (``tl``'s residual
+    against it) treat both alike.
     """
     lat, lon, alt = flight.position_rad()
+    date = model_date(flight)
     ok = np.isfinite(flight.tt) & np.isfinite(lat) & np.isfinite(lon) & np.isfinite(alt)
     t_n = np.full((flight.n, 3), np.nan)
-    t_n[ok] = igrf_ned_along_track(flight.tt[ok], lat[ok], lon[ok], alt[ok], flight.date())
+    t_n[ok] = igrf_ned_along_track(flight.tt[ok], lat[ok], lon[ok], alt[ok], date)
     if "diurnal" in flight:  # a base station sees the external field along the main field
         t_n += (t_n / np.linalg.norm(t_n, axis=1, keepdims=True)) * flight["diurnal"][:, None]
     return t_n
+
+
+def model_date(flight: Flight) -> _dt.datetime:
+    """The flight's date for the Earth-field model; KeyError without one it can use."""
+    try:
+        return flight.date()
+    except (ValueError, OverflowError) as exc:
+        raise KeyError(f"no usable date: {exc}") from exc
 
 
 def earth_model(
@@ -64,3 +88,40 @@ def field_rate(x: np.ndarray, tt: np.ndarray, scheme: str, parts: list[slice]) -
         if run.stop - run.start > 1:
             rate[run] = time_derivative(x[run], tt[run], scheme)
     return rate
+
+
+def model_mismatch(flight: Flight, scalar: str | None, fluxgate: str | None) -> str | None:
+    """A one-line warning when the measured field disagrees with IGRF-14, else None.
+
+    The measured magnitude is the scalar magnetometer's (``scalar``), else the fluxgate's
+    (``fluxgate``, a prefix); the model's is IGRF-14 at the file's positions and date, at up to
+    200 samples where both are finite. A median relative disagreement above
+    :data:`MODEL_MISMATCH_FRACTION` names what to check. None too when the file lacks what the
+    comparison needs (position, a usable date, a magnetometer): other checks report those.
+    """
+    name = scalar or fluxgate
+    has_position = flight.altitude_name() is not None and all(nm in flight for nm in POSITION_NAMES)
+    if name is None or not has_position:
+        return None
+    try:
+        date = model_date(flight)
+    except KeyError:
+        return None
+    with np.errstate(over="ignore"):  # |1e200 nT| is implausible (validation), not warned on
+        measured = np.abs(flight[name]) if scalar else np.linalg.norm(flight.vector(name), axis=1)
+    lat, lon, alt = flight.position_rad()
+    ok = np.isfinite(measured) & (np.abs(lat) <= np.pi / 2) & np.isfinite(lon) & np.isfinite(alt)
+    k = np.flatnonzero(ok)
+    if k.size == 0:
+        return None
+    k = k[np.unique(np.linspace(0, k.size - 1, min(k.size, _MISMATCH_POINTS)).round().astype(int))]
+    model = np.linalg.norm(igrf_ned(lat[k], lon[k], alt[k], date), axis=1)
+    apart = float(np.median(np.abs(measured[k] - model) / model))
+    if not apart > MODEL_MISMATCH_FRACTION:
+        return None
+    return (
+        f"{name} reads a median {np.median(measured[k]):.0f} nT where IGRF-14 at the file's "
+        f"position and date gives {np.median(model):.0f} nT, {100 * apart:.0f} % apart (more than "
+        f"{100 * MODEL_MISMATCH_FRACTION:.0f} %; aircraft interference is a few %): check that lat "
+        f"and lon are in degrees, alt in metres and the date ({date.date().isoformat()}) right"
+    )

@@ -17,8 +17,9 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.errors import AeromagError, FlightFileError
-from aeromag_env.flight.channels import choose_channels
+from aeromag_env.flight.channels import Channels, choose_channels, with_altitude
 from aeromag_env.flight.data import ALTITUDE_NAMES, ATTITUDE_NAMES, AUX_PREFIXES, Flight
+from aeromag_env.flight.earth_model import model_mismatch
 from aeromag_env.flight.files import file_format, load_flight
 from aeromag_env.flight.formats.detect import LABELS, detect_format
 from aeromag_env.flight.mount_choice import choose_mount, estimate_inputs_missing
@@ -60,8 +61,9 @@ class InfoReport:
         sample_rate_hz, date, attributes, fields by group, maneuver_windows, flight_line_count,
         flight_lines, nonfinite, faults: time gaps and spikes, :mod:`aeromag_env.flight.quality`;
         channels: the scalar, fluxgate and altitude ``compensate`` would choose and why,
-        :mod:`aeromag_env.flight.channels`; mounts: each fluxgate's mount estimated from the data,
-        :mod:`aeromag_env.flight.mount_choice`).
+        :mod:`aeromag_env.flight.channels`; earth_model_warnings: the chosen magnetometers against
+        IGRF-14 at the file's position and date, :mod:`aeromag_env.flight.earth_model`; mounts:
+        each fluxgate's mount estimated from the data, :mod:`aeromag_env.flight.mount_choice`).
     """
 
     lines: list[str]
@@ -113,7 +115,7 @@ def describe(
     except FlightFileError as exc:
         problems, usable = [f"unusable: {exc}", *problems], False
     summary = {**head, **summarise(flight)}
-    problems = [*problems, *summary["channel_warnings"]]
+    problems = [*problems, *summary["channel_warnings"], *summary["earth_model_warnings"]]
     return InfoReport([title, *_format_lines(summary, problems)], problems, usable, summary)
 
 
@@ -160,14 +162,25 @@ def summarise(flight: Flight) -> dict[str, Any]:
         "faults": fault_report(flight),
         "channels": channels.to_dict(),
         "channel_warnings": list(channels.warnings),
+        "earth_model_warnings": _model_warnings(flight, channels),
         "mounts": estimated_mounts(flight),
     }
+
+
+def _model_warnings(flight: Flight, channels: Channels) -> list[str]:
+    """The chosen magnetometers against the Earth-field model (position, date, units), as
+    ``compensate`` checks them (:func:`~aeromag_env.flight.earth_model.model_mismatch`)."""
+    scalar, flux = (c.name if c else None for c in (channels.scalar, channels.fluxgate))
+    found = model_mismatch(with_altitude(flight, channels.altitude), scalar, flux)
+    return [found] if found else []
 
 
 def estimated_mounts(flight: Flight) -> dict[str, dict[str, Any]]:
     """Each fluxgate's mount as the data indicate: angles [deg], angle from the body axes [deg]
     and residual [nT] (``aeromag compensate --mount auto`` would use it), or why not."""
     missing = estimate_inputs_missing(flight)
+    if "date" in flight.attrs or ("year" in flight and "doy" in flight):  # there, but unusable
+        missing = missing.replace("date", "usable date")
     out: dict[str, dict[str, Any]] = {}
     for gate in flight.fluxgates():
         if missing:
@@ -221,6 +234,13 @@ def _date_text(flight: Flight) -> str | None:
     return date.date().isoformat() if date.time() == date.min.time() else date.isoformat()
 
 
+def _no_date_text(problems: list[str]) -> str:
+    """Why the date line shows no date: an unusable one (listed among the problems) or none."""
+    if any(p.startswith(("unreadable date", "unusable date")) for p in problems):
+        return "unusable (see problems)"
+    return "unknown (no date attribute, no year/doy fields)"
+
+
 def _count_lines(flight: Flight) -> int:
     """Number of distinct finite values of the ``line`` field (0 without one)."""
     if "line" not in flight:
@@ -255,7 +275,7 @@ def _format_lines(summary: dict[str, Any], problems: list[str]) -> list[str]:
         f"samples: {summary['samples']}",
         f"duration: {summary['duration_s']:.6g} s",
         f"sample rate: {rate:.6g} Hz" if rate is not None else "sample rate: –",
-        f"date: {summary['date'] or 'unknown (no date attribute, no year/doy fields)'}",
+        f"date: {summary['date'] or _no_date_text(problems)}",
         f"attributes: {truncated_list(summary['attributes']) or 'none'}",
         f"fields ({sum(map(len, summary['fields'].values()))}):",
     ]

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aeromag_env.flight.data import Flight, vector_names
+from aeromag_env.units import WGS84_A_M
 
 #: A time step above this many median steps is a gap [-].
 GAP_FACTOR = 3.0
@@ -199,3 +200,38 @@ def fault_problems(report: dict[str, object]) -> list[str]:
             f"{name} is used (fits, filter updates; the compensated output there is NaN)"
         )
     return problems
+
+
+#: Ground speeds an aircraft flies at [m/s]: a survey drone's 2 m/s to well above any survey
+#: aircraft's 100 m/s. A median outside says that ``tt`` or the position is in another unit
+#: (time in ms: 1000× slower; lat/lon in radians read as degrees: 57× slower).
+GROUND_SPEED_RANGE_M_S = (2.0, 350.0)
+
+
+def ground_speed_problem(flight: Flight) -> str | None:
+    """A one-line warning when the median ground speed from ``lat``, ``lon`` [deg] and ``tt``
+    [s] is outside :data:`GROUND_SPEED_RANGE_M_S`; None otherwise or without them.
+
+    The speed is the spherical (equirectangular) distance between consecutive samples where
+    both are finite, over their time step; accurate to well under 1 % at survey spacings.
+    """
+    if not all(name in flight for name in ("lat", "lon")):
+        return None
+    lat, lon, tt = np.deg2rad(flight["lat"]), np.deg2rad(flight["lon"]), flight.tt
+    with np.errstate(invalid="ignore"):
+        dt = np.diff(tt)
+        d_north = np.diff(lat) * WGS84_A_M
+        d_lon = (np.diff(lon) + np.pi) % (2 * np.pi) - np.pi  # across the antimeridian
+        d_east = d_lon * WGS84_A_M * np.cos(lat[1:])
+        speed = np.hypot(d_north, d_east) / dt
+    speed = speed[np.isfinite(speed) & (dt > 0)]
+    if speed.size == 0:
+        return None
+    median = float(np.median(speed))
+    low, high = GROUND_SPEED_RANGE_M_S
+    if low <= median <= high:
+        return None
+    return (
+        f"median ground speed {median:.3g} m/s from lat, lon and tt, outside the {low:g}–{high:g} "
+        "m/s an aircraft flies: check that tt is in seconds and lat and lon in degrees"
+    )

@@ -26,7 +26,7 @@ import numpy as np
 from aeromag_env.errors import FlightFileError
 from aeromag_env.flight.data import ATTITUDE_NAMES, POSITION_NAMES, Flight, vector_names
 from aeromag_env.flight.quality import fault_problems, fault_report
-from aeromag_env.geo.earth import igrf_ned
+from aeromag_env.geo.earth import ModelDateError, igrf_ned
 from aeromag_env.geo.frames import dcm_from_euler, nav_to_body
 from aeromag_env.units import EARTH_FIELD_RANGE_NT, WGS84_A_M
 
@@ -218,7 +218,7 @@ def _magnitude_problem(label: str, values: np.ndarray) -> tuple[bool, str] | Non
 
 
 def _position_date_problems(flight: Flight) -> list[Problem]:
-    """Latitude beyond ±90°, longitude beyond ±360°, or a date that cannot be read."""
+    """Latitude beyond ±90°, longitude beyond ±360°, a date unreadable or outside IGRF-14."""
     problems: list[Problem] = []
     for name, limit in (("lat", 90.0), ("lon", 360.0)):
         values = flight.fields.get(name, np.empty(0))
@@ -228,8 +228,9 @@ def _position_date_problems(flight: Flight) -> list[Problem]:
             problems.append(((name,), True, message))
     try:
         flight.date()
-    except (ValueError, OverflowError) as exc:
-        problems.append((("date", "year", "doy"), True, f"unreadable date: {exc}"))
+    except (ValueError, OverflowError) as exc:  # ModelDateError: read, but outside IGRF-14
+        what = "unusable date" if isinstance(exc, ModelDateError) else "unreadable date"
+        problems.append((("date", "year", "doy"), True, f"{what}: {exc}"))
     except KeyError:  # no date at all: a missing field, reported when needed
         pass
     return problems

@@ -18,6 +18,29 @@ from aeromag_env.noise import fogm
 
 #: Altitude step for the finite-difference vertical gradient [m].
 _DH_M = 100.0
+#: The dates IGRF-14 covers: its first main-field epoch and the end of its secular variation,
+#: the first and last dates of ppigrf's coefficient file (tested). Outside, ppigrf's field is
+#: NaN (before) or the 2030 field held (after).
+IGRF_FIRST_DATE = _dt.datetime(1900, 1, 1)
+IGRF_LAST_DATE = _dt.datetime(2030, 1, 1)
+IGRF_VALID_YEARS = f"IGRF-14's valid years {IGRF_FIRST_DATE.year}–{IGRF_LAST_DATE.year}"
+
+
+class ModelDateError(ValueError):
+    """A readable date that the Earth-field model does not cover (:func:`check_model_date`)."""
+
+
+def check_model_date(date: _dt.datetime, source: str) -> _dt.datetime:
+    """``date`` if IGRF-14 covers it, else :class:`ModelDateError` on one line.
+
+    ``source`` names where the date came from, with its value (``"date attribute '26-06-01'"``,
+    ``"year 26, doy 152 at the first sample"``); the message adds the date read and the valid
+    years, and a hint when the year has two digits.
+    """
+    if IGRF_FIRST_DATE <= date <= IGRF_LAST_DATE:
+        return date
+    hint = " (a two-digit year?)" if date.year < 100 else ""
+    raise ModelDateError(f"{source} is {date.date().isoformat()}, outside {IGRF_VALID_YEARS}{hint}")
 
 
 def parse_date(date: str | _dt.date | _dt.datetime) -> _dt.datetime:

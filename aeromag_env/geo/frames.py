@@ -22,11 +22,13 @@ def dcm_from_euler(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.n
     Returns
     -------
     C_nb : ndarray, shape (n, 3, 3)
-        ``C_nb = R_z(yaw) @ R_y(pitch) @ R_x(roll)``, so ``v_n = C_nb @ v_b``.
+        ``C_nb = R_z(yaw) @ R_y(pitch) @ R_x(roll)``, so ``v_n = C_nb @ v_b``. NaN where an
+        angle is not finite (±inf included: the samples the callers flag, without a warning).
     """
-    cr, sr = np.cos(roll), np.sin(roll)
-    cp, sp = np.cos(pitch), np.sin(pitch)
-    cy, sy = np.cos(yaw), np.sin(yaw)
+    with np.errstate(invalid="ignore"):  # sin/cos(±inf) = NaN, as NaN gives NaN: no warning
+        cr, sr = np.cos(roll), np.sin(roll)
+        cp, sp = np.cos(pitch), np.sin(pitch)
+        cy, sy = np.cos(yaw), np.sin(yaw)
     c = np.empty((np.size(roll), 3, 3))
     c[:, 0, 0] = cp * cy
     c[:, 0, 1] = sr * sp * cy - cr * sy

@@ -17,8 +17,14 @@ RawFile = tuple[dict[str, np.ndarray], dict[str, Any], list[str]]
 #: HDF5 attribute listing the attributes that the writer JSON-encoded.
 JSON_ATTRS = "_json_attrs"
 
-#: Array kinds read as numbers (bool, signed, unsigned, float).
-NUMERIC_KINDS = "biuf"
+#: Array kinds read as numbers (signed, unsigned, float). Booleans (HDF5 bool, MATLAB logical)
+#: are flags, not measurements: read as 0/1 they would pass every check as a field in wrong
+#: units (a latitude of 0 or 1°), so the readers skip them with a note (:data:`BOOLEAN_ITEMS`).
+NUMERIC_KINDS = "iuf"
+#: The array kind of booleans.
+BOOLEAN_KIND = "b"
+#: How a reader's note names the boolean arrays it skipped.
+BOOLEAN_ITEMS = "boolean (true/false) item(s), not numbers"
 
 
 def reason(exc: BaseException) -> str:

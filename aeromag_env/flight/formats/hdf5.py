@@ -3,8 +3,9 @@
 Reading
     Every numeric dataset at the root with at most one axis longer than 1 is a field: (n,), and
     also (n, 1) or (1, n) as some exporters write them. A (1, 1) or 0-D dataset (SGL's ``N``,
-    ``dt``) and a string dataset (``info``) become attributes; anything else (matrices such as
-    MagNav.jl's ``Cnb``, groups) is skipped and reported. File attributes become
+    ``dt``) and a string dataset (``info``) become attributes; a boolean array is not a field
+    (a flag, not numbers) and is skipped and reported on its own; anything else (matrices such
+    as MagNav.jl's ``Cnb``, groups) is skipped and reported. File attributes become
     :attr:`Flight.attrs`, bytes decoded to ``str``.
 Writing
     One float64 1-D dataset per field, in flight order (gzip above 4096 samples). Attributes
@@ -23,6 +24,8 @@ import numpy as np
 
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.formats.common import (
+    BOOLEAN_ITEMS,
+    BOOLEAN_KIND,
     JSON_ATTRS,
     NUMERIC_KINDS,
     RawFile,
@@ -44,20 +47,22 @@ def read_h5(path: Path) -> RawFile:
     vectors: dict[str, np.ndarray] = {}
     shapes: dict[str, tuple[int, ...]] = {}
     attrs: dict[str, Any] = {}
-    skipped = []
+    skipped: list[str] = []
+    booleans: list[str] = []
     with h5py.File(path, "r") as f:
         for name, item in f.items():
             kind = item.dtype.kind if isinstance(item, h5py.Dataset) else ""
-            if kind and item.ndim == 0 and kind in NUMERIC_KINDS + "SUO":
+            if kind and item.ndim == 0 and kind in NUMERIC_KINDS + BOOLEAN_KIND + "SUO":
                 attrs[name] = plain(item[()])
             elif kind and kind in NUMERIC_KINDS and item.ndim and is_vector_shape(item.shape):
                 vectors[name] = np.asarray(item[()], dtype=np.float64).reshape(-1)
                 shapes[name] = item.shape
             else:
-                skipped.append(name)
+                (booleans if kind == BOOLEAN_KIND else skipped).append(name)
         attrs.update(decode_json_attrs({k: plain(v) for k, v in f.attrs.items()}))
     fields, scalars = split_scalars(vectors, shapes)
-    return fields, {**scalars, **attrs}, skipped_note(skipped)
+    notes = skipped_note(booleans, BOOLEAN_ITEMS) + skipped_note(skipped)
+    return fields, {**scalars, **attrs}, notes
 
 
 def write_h5(flight: Flight, tmp: Path) -> None:

@@ -5,10 +5,13 @@ Reading
     the file holds one struct and no top-level vectors (MagNav.jl's ``traj`` layout), the vectors
     inside that struct (its name goes to the attribute ``mat_struct``). One-element numbers
     (``dt``, ``N``) and character arrays become attributes, a character array
-    ``aeromag_attrs`` holding a JSON object becomes the attributes themselves. Matrices, cell
-    arrays, empty arrays and further structs are skipped and reported. A v7.3 file is HDF5 with a
-    512-byte MATLAB header: its ``#refs#`` and ``#subsystem#`` groups are MATLAB's own and passed
-    over.
+    ``aeromag_attrs`` holding a JSON object becomes the attributes themselves. Logical arrays
+    (flags, not numbers) are skipped and reported on their own, a one-element logical is an
+    attribute (a logical is stored as uint8: a v5 file with integer variables is loaded a
+    second time as MATLAB classes, ``mat_dtype``, to tell them apart). Matrices, cell arrays,
+    empty arrays and further structs are skipped and reported. A v7.3 file is HDF5 with a
+    512-byte MATLAB header: its ``#refs#`` and ``#subsystem#`` groups are MATLAB's own and
+    passed over.
 Writing (v5 only)
     One double column vector (n × 1) per field, in flight order, compressed, and the attributes
     as JSON (ASCII) in the character array ``aeromag_attrs``. Write → read gives bit-identical
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +33,8 @@ import scipy.io
 
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.formats.common import (
+    BOOLEAN_ITEMS,
+    BOOLEAN_KIND,
     NUMERIC_KINDS,
     RawFile,
     is_vector_shape,
@@ -51,10 +57,42 @@ class _Struct(dict[str, Any]):
 
 def read_mat5(path: Path) -> RawFile:
     """Fields, attributes and notes of a v5/v6/v7 MAT-file (see the module docstring)."""
-    with open(path, "rb") as fh:
-        data = scipy.io.loadmat(fh, simplify_cells=True)
-    items = {k: _mark_structs(v) for k, v in data.items() if not k.startswith("__")}
+    items = _load_mat5(path, as_class=False)
+    if _has_integers(items):  # a logical loads as the uint8 it is stored as: find it by class
+        items = _logicals_as_bool(items, _load_mat5(path, as_class=True))
     return _collect(items)
+
+
+def _load_mat5(path: Path, as_class: bool) -> dict[str, Any]:
+    """The variables of a v5 MAT-file, structs marked. ``as_class``: each converted to its
+    MATLAB class (``mat_dtype``), which tells a logical from a uint8 but casts complex values
+    to real: such a load is only asked for its logicals (ComplexWarning silenced)."""
+    with open(path, "rb") as fh, warnings.catch_warnings():
+        warnings.simplefilter("ignore", np.exceptions.ComplexWarning)
+        data = scipy.io.loadmat(fh, simplify_cells=True, mat_dtype=as_class)
+    return {k: _mark_structs(v) for k, v in data.items() if not k.startswith("__")}
+
+
+def _has_integers(items: dict[str, Any]) -> bool:
+    """Whether any variable (in structs too) loaded as an integer: possibly a logical."""
+    return any(
+        _has_integers(v) if isinstance(v, _Struct) else np.asarray(v).dtype.kind in "iu"
+        for v in items.values()
+        if isinstance(v, (_Struct, np.ndarray, np.generic, int))
+    )
+
+
+def _logicals_as_bool(items: dict[str, Any], classes: dict[str, Any]) -> dict[str, Any]:
+    """``items`` with the variables that are logical in ``classes`` (the same file loaded as
+    MATLAB classes) as bool arrays, in structs too."""
+    out = dict(items)
+    for name, value in items.items():
+        cls = classes.get(name)
+        if isinstance(value, _Struct) and isinstance(cls, _Struct):
+            out[name] = _Struct(_logicals_as_bool(value, cls))
+        elif isinstance(cls, (bool, np.bool_, np.ndarray)) and np.asarray(cls).dtype.kind == "b":
+            out[name] = np.asarray(cls)
+    return out
 
 
 def _mark_structs(value: Any) -> Any:
@@ -83,7 +121,9 @@ def _h5_items(group: h5py.Group) -> dict[str, Any]:
             items[name] = np.empty(0)
         elif cls == "char":
             items[name] = "".join(map(chr, np.asarray(item[()]).ravel().tolist()))
-        elif item.dtype.kind in NUMERIC_KINDS:
+        elif cls == "logical":  # stored as uint8
+            items[name] = np.asarray(item[()]).astype(bool)
+        elif item.dtype.kind in NUMERIC_KINDS + BOOLEAN_KIND:
             items[name] = np.asarray(item[()])
         else:
             items[name] = None  # cell arrays (object references), function handles…
@@ -95,43 +135,51 @@ def _collect(items: dict[str, Any]) -> RawFile:
     attrs: dict[str, Any] = {}
     text = items.pop(ATTRS_VARIABLE, None)
     structs = [nm for nm, v in items.items() if isinstance(v, _Struct)]
-    vectors, shapes, found, skipped = _sort_items(items)
+    vectors, shapes, found, skipped, booleans = _sort_items(items)
     if len(structs) == 1 and not any(v.size > 1 for v in vectors.values()):
         name = structs[0]
         attrs.update({nm: plain(v[0]) for nm, v in vectors.items()})  # top-level scalars
-        vectors, shapes, inner, skipped_inner = _sort_items(items[name])
+        vectors, shapes, inner, skipped_inner, booleans_inner = _sort_items(items[name])
         attrs[STRUCT_ATTR] = name
         skipped = [nm for nm in skipped if nm != name] + [f"{name}.{nm}" for nm in skipped_inner]
+        booleans += [f"{name}.{nm}" for nm in booleans_inner]
         found = {**found, **inner}
     fields, scalars = split_scalars(vectors, shapes)
     attrs.update({**scalars, **found})
     if isinstance(text, str):
         attrs.update(_json_object(text))
-    return fields, attrs, skipped_note(skipped, "item(s) that are not vectors")
+    notes = skipped_note(booleans, BOOLEAN_ITEMS)
+    return fields, attrs, notes + skipped_note(skipped, "item(s) that are not vectors")
 
 
 def _sort_items(
     items: dict[str, Any],
-) -> tuple[dict[str, np.ndarray], dict[str, tuple[int, ...]], dict[str, Any], list[str]]:
-    """Numeric vectors (with their MATLAB shapes), string and number attributes, skipped names."""
+) -> tuple[dict[str, np.ndarray], dict[str, tuple[int, ...]], dict[str, Any], list[str], list[str]]:
+    """Numeric vectors (with their MATLAB shapes), string, number and one-element logical
+    attributes, skipped names, skipped logical arrays' names."""
     vectors: dict[str, np.ndarray] = {}
     shapes: dict[str, tuple[int, ...]] = {}
     attrs: dict[str, Any] = {}
     skipped: list[str] = []
+    booleans: list[str] = []
     for name, value in items.items():
         if isinstance(value, str):
             attrs[name] = value
             continue
         numeric = isinstance(value, (np.ndarray, np.generic, int, float))
         array = np.asarray(value) if numeric else None
-        if array is None or array.dtype.kind not in NUMERIC_KINDS or array.size == 0:
+        if array is not None and array.dtype.kind == BOOLEAN_KIND and array.size == 1:
+            attrs[name] = plain(array.reshape(-1)[0])
+        elif array is not None and array.dtype.kind == BOOLEAN_KIND:
+            booleans.append(name)
+        elif array is None or array.dtype.kind not in NUMERIC_KINDS or array.size == 0:
             skipped.append(name)
         elif array.ndim == 0 or is_vector_shape(array.shape):
             vectors[name] = np.asarray(array, dtype=np.float64).reshape(-1)
             shapes[name] = array.shape if array.ndim else (1, 1)
         else:
             skipped.append(name)
-    return vectors, shapes, attrs, skipped
+    return vectors, shapes, attrs, skipped, booleans
 
 
 def _json_object(text: str) -> dict[str, Any]:

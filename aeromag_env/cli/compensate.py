@@ -252,7 +252,9 @@ def summary_line(report: dict[str, Any], out: Path) -> str:
     if m["nonfinite_samples"]:
         parts.append(f"{m['nonfinite_samples']} non-finite samples ({report['nonfinite_policy']})")
     if m["divergences"]:
-        parts.append(f"{m['divergences']} divergences detected and recovered")
+        fell_back = " (a runaway makes an adaptive filter the plain kf)" if report.get(
+            "method") in ("fakf", "ding", "sage-husa") else ""  # fmt: skip
+        parts.append(f"{m['divergences']} divergences detected and recovered{fell_back}")
     if m.get("outliers_rejected"):
         parts.append(f"{m['outliers_rejected']} samples rejected by the filter's outlier gate "
                      "(predict only)")  # fmt: skip

@@ -9,6 +9,8 @@ Pure functions (``kf_predict``, ``kf_update``) follow filterpy's procedural styl
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from aeromag_env.compensation.fuzzy import fis_scale_reference
@@ -22,6 +24,9 @@ from aeromag_env.compensation.kernel_layout import (
 )
 from aeromag_env.compensation.model import STATE_SCALE, FilterConfig, measurement_rows
 from aeromag_env.simulation.interference import N_STATES
+
+#: The methods whose own rules move Q and R: a runaway makes them the plain KF.
+ADAPTIVE = ("fakf", "ding", "sage-husa")
 
 
 def kf_predict(x: np.ndarray, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -139,13 +144,12 @@ def run_reference(
                 )
         if restart:
             counts["divergences"] += 1
+            if cfg.method in ADAPTIVE and not rejected:  # a runaway: go on as the plain KF
+                cfg = replace(cfg, method="kf")
             p, q, r, window = p0.copy(), q0.copy(), r0.copy(), []
             gate.clear()
         if window:
-            c_r = np.mean([np.outer(v, v) for v, _ in window], axis=0)  # eq. 24
-            out["ror"][k] = np.trace(c_r) / np.mean([t for _, t in window])  # eq. 22
-            if gain is not None and np.trace(q) > 0:
-                out["qoq"][k] = np.trace(gain @ c_r @ gain.T) / np.trace(q)
+            out["ror"][k], out["qoq"][k] = _ratios(window, gain, q)
         if not rejected:  # a rejected sample leaves the window as it was: nothing to adapt to
             since += 1
             r, q, since = _adapted(cfg, k, out, window, r, q, r0, q0, since)
@@ -157,6 +161,15 @@ def run_reference(
         states, z * d, p * np.outer(d, d), r, np.diag(q) * d**2, counts["divergences"],
         counts["skipped"], counts["outliers"],
     )  # fmt: skip
+
+
+def _ratios(window: list, gain: np.ndarray | None, q: np.ndarray) -> tuple[float, float]:
+    """ROR (eq. 22) and QOQ of the window (NaN without a gain or with Q = 0)."""
+    c_r = np.mean([np.outer(v, v) for v, _ in window], axis=0)  # eq. 24
+    ror = np.trace(c_r) / np.mean([t for _, t in window])
+    if gain is None or not np.trace(q) > 0:
+        return float(ror), np.nan
+    return float(ror), float(np.trace(gain @ c_r @ gain.T) / np.trace(q))
 
 
 def _accept(cfg, k, filt, q0, data, window, gate):
@@ -172,8 +185,7 @@ def _accept(cfg, k, filt, q0, data, window, gate):
         post_fit = y[k] - h_all[k] @ z  # e = y − H x⁺
         hph_post = h_all[k] @ p @ h_all[k].T  # H P⁺ Hᵀ
         r, q = _sage_husa(cfg, k, innov, s, gain, r, q, q0, post_fit, hph_post)
-    adaptive = cfg.method in ("fakf", "ding", "sage-husa")
-    restart = adaptive and lap and _runaway(k, cfg.window, y, est, valid)
+    restart = cfg.method in ADAPTIVE and lap and _runaway(k, cfg.window, y, est, valid)
     return (z_prior if restart else z), p, q, r, window, gain, restart
 
 

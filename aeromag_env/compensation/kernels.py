@@ -46,6 +46,7 @@ from aeromag_env.compensation.kernel_layout import (
     ACC_S,
     INT_COUNT,
     INT_DIV,
+    INT_FELL_BACK,
     INT_INTERVAL,
     INT_K,
     INT_POS,
@@ -351,6 +352,8 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
     lam = par[PAR_FORGET]
     trq0 = q0.sum()
     trr0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
+    if ints[INT_FELL_BACK]:  # an adaptive filter that ran away goes on as the plain KF
+        mode = FilterMode.KF
     adaptive = mode == FilterMode.FAKF or mode == FilterMode.DING or mode == FilterMode.SAGE_HUSA
     for k in range(k0, k1):
         _predict(mode, lam, p, qd)
@@ -375,7 +378,9 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
                     _restart(z, z_good, p, p0, qd, q0, rm, r0, ints)
                 else:
                     inconsistent = adaptive and runaway(k, y, est, valid, ints)
-                    if not inconsistent:
+                    if inconsistent:  # restarted below; no more adaptation
+                        mode, adaptive, ints[INT_FELL_BACK] = FilterMode.KF, False, 1
+                    else:
                         z_good[:] = z
             if inconsistent:  # restart, and the window starts again at the new level
                 _restart(z, z_good, p, p0, qd, q0, rm, r0, ints)

@@ -320,16 +320,12 @@ def test_any_action_is_refused_or_keeps_everything_finite(stepping_env, action):
         stepping_env.reset()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="compensation.kernels._window_add keeps the window's sums of tr S as running sums: "
-    "after R swings by more than 16 decades within the statistics window, subtracting the "
-    "old terms cancels catastrophically and the sum goes negative (ROR NaN) or keeps a "
-    "residual (ROR silently ~1e-80) until the next re-sum; not this module's to fix",
-)
 def test_window_statistics_after_a_huge_r_swing():
-    """The environment's configuration allows R over ±100 decades (absolute mode); the
-    filter's window statistics do not yet hold that. Found by the soak (seeded: env 3, step 9)."""
+    """The environment's configuration allows R over ±100 decades (absolute mode): the window's
+    running sums of tr S then lost the small terms to the subtraction of a huge one (ROR NaN
+    from a negative sum, or ~1e-80 from a residual) until the next lap's re-sum; they are now
+    summed afresh when the term leaving carried nearly all of a sum. Found by the soak (seeded:
+    env 3, step 9; NaN from step 9 before)."""
     config = {"scenario": "calibration_then_survey", "action_mode": "absolute",
               "absolute_r_log10": (-100.0, 100.0), "scale_limit": 1e100}  # fmt: skip
     rng = np.random.default_rng(20)
@@ -339,6 +335,38 @@ def test_window_statistics_after_a_huge_r_swing():
         for t in range(12):
             _, _, _, _, infos = env.step(_actions("random", t, (32, 2), rng))
             assert np.all(np.isfinite(infos["ror"])), f"step {t}"
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_window_sums_hold_terms_100_decades_apart(seed):
+    """``window_add``'s running sums against math.fsum of the window's last M terms, for tr S
+    and |r|² that jump between 1e-50 and 1e+50 (the environment's R over ±100 decades): within
+    1e-12 relative at every sample (they were negative, or 1e80× too large, before)."""
+    from aeromag_env.compensation.kernel_layout import (
+        ACC_C,
+        ACC_RR,
+        ACC_S,
+        INT_WINDOW,
+        N_ACC,
+        N_INT,
+    )
+    from aeromag_env.compensation.window import window_add
+
+    m, rng = 50, np.random.default_rng(seed)
+    rbuf, sbuf, acc, ints = np.zeros((m, 3)), np.zeros(m), np.zeros(N_ACC), np.zeros(N_INT, int)
+    ints[INT_WINDOW] = m
+    level = 10.0 ** rng.choice([-50.0, 0.0, 50.0], size=600).repeat(3)  # runs of 3 samples
+    r_all = rng.standard_normal((level.size, 3)) * np.sqrt(level)[:, None]
+    s_all = level * rng.uniform(1.0, 2.0, level.size)
+    for k in range(level.size):
+        window_add(r_all[k], s_all[k], rbuf, sbuf, acc, ints)
+        lo = max(0, k + 1 - m)
+        want_s = math.fsum(s_all[lo : k + 1])
+        want_rr = math.fsum((r_all[lo : k + 1] ** 2).sum(axis=1))
+        want_xy = math.fsum(r_all[lo : k + 1, 0] * r_all[lo : k + 1, 1])
+        assert acc[ACC_S] == pytest.approx(want_s, rel=1e-12), k
+        assert acc[ACC_RR] == pytest.approx(want_rr, rel=1e-12), k
+        assert acc[ACC_C + 1] == pytest.approx(want_xy, rel=1e-9, abs=1e-12 * want_rr), k
 
 
 # --- soak: the batched environment under random, extreme and adversarial actions ---------------

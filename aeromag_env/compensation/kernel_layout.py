@@ -23,6 +23,10 @@ N_INT = 12
 ACC_RR, ACC_S, ACC_C = 0, 1, 2
 ACC_REF, ACC_RUN, ACC_RUN_RR = 11, 12, 15
 N_ACC = 16
+#: The window's running sums are summed afresh when the term leaving carried more than
+#: RESUM_RATIO times what is left (8 of 16 digits lost to the subtraction): actions that swing
+#: R by decades within a window. Clean runs never come near it (their terms span < 1e4).
+RESUM_RATIO = 1e8
 #: A normalised state beyond this (1e8 typical magnitudes, e.g. T_p > 1e10 nT) is a divergence.
 MAX_STATE = 1e8
 #: Outlier gate (:mod:`aeromag_env.compensation.consistency`): a sample's innovation is rejected

@@ -41,7 +41,6 @@ from aeromag_env.compensation.arrays import FilterArrays, Packed, named
 from aeromag_env.compensation.consistency import clear_window, outlier, reject, runaway
 from aeromag_env.compensation.kernel_layout import (
     ACC_C,
-    ACC_REF,
     ACC_RR,
     ACC_S,
     INT_COUNT,
@@ -59,6 +58,7 @@ from aeromag_env.compensation.kernel_layout import (
     PAR_LO,
 )
 from aeromag_env.compensation.model import FilterMode
+from aeromag_env.compensation.window import window_add
 from aeromag_env.simulation.interference import EDDY_START, INDUCED_START, PERMANENT_START
 
 #: The non-zeros of row i of ``H_s`` in the order they are stored: ``T_p,i`` at 0, ``A_i·`` from
@@ -127,38 +127,6 @@ def _psd(p: np.ndarray, work: np.ndarray) -> bool:
             else:
                 work[i, j] = s / work[j, j]
     return True
-
-
-@njit(cache=True)  # writes a row of rbuf: needs the runtime
-def _window_add(r, trs, rbuf, sbuf, acc, ints) -> None:
-    """Push one innovation into the circular window and update the running sums."""
-    m = ints[INT_WINDOW]
-    pos = ints[INT_POS]
-    if ints[INT_COUNT] == m:
-        old = rbuf[pos]
-        acc[ACC_RR] -= old[0] ** 2 + old[1] ** 2 + old[2] ** 2
-        acc[ACC_S] -= sbuf[pos]
-        for i in range(3):
-            for j in range(3):
-                acc[ACC_C + 3 * i + j] -= old[i] * old[j]
-    rbuf[pos, :] = r
-    sbuf[pos] = trs
-    acc[ACC_RR] += r[0] ** 2 + r[1] ** 2 + r[2] ** 2
-    acc[ACC_S] += trs
-    for i in range(3):
-        for j in range(3):
-            acc[ACC_C + 3 * i + j] += r[i] * r[j]
-    ints[INT_POS] = (pos + 1) % m
-    ints[INT_COUNT] = min(ints[INT_COUNT] + 1, m)
-    if ints[INT_POS] == 0:  # re-sum once per lap: no drift of the running sums
-        acc[:] = 0.0
-        for w in range(ints[INT_COUNT]):
-            acc[ACC_RR] += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
-            acc[ACC_S] += sbuf[w]
-            for i in range(3):
-                for j in range(3):
-                    acc[ACC_C + 3 * i + j] += rbuf[w, i] * rbuf[w, j]
-        acc[ACC_REF] = acc[ACC_RR] / m  # the outlier gate's reference for the next lap
 
 
 @per_sample
@@ -371,7 +339,7 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
             if not rejected:
                 if ok:
                     _update(z, p, gt, kt, kst, s, sinv, r)
-                    _window_add(r, s[0, 0] + s[1, 1] + s[2, 2], rbuf, sbuf, acc, ints)
+                    window_add(r, s[0, 0] + s[1, 1] + s[2, 2], rbuf, sbuf, acc, ints)
                     if mode == FilterMode.SAGE_HUSA:
                         sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INT_K], par)
                 if not _healthy(ok, z, p, ints, work):

@@ -1,0 +1,76 @@
+"""The innovation window of the recursive compensators: its circular buffers and running sums.
+
+The window holds the last M innovations ``r`` and ``tr S`` (``rbuf``, ``sbuf``) and keeps the
+sums of ``|r|²``, ``tr S`` and ``r rᵀ`` (``acc[ACC_RR]``, ``acc[ACC_S]``, ``acc[ACC_C:]``) from
+which the loop (:mod:`aeromag_env.compensation.kernels`) reads ROR and QOQ (eqs. 22–24). The
+sums run (add the new term, subtract the one leaving) and are summed afresh once per lap, and
+whenever the term leaving carried nearly all of a sum: the environment's actions may swing R by
+tens of decades within a window, and subtracting a 1e50 term from a sum of 1e-50 ones leaves
+rounding error, even a negative sum.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from aeromag_env.compensation.kernel_layout import (
+    ACC_C,
+    ACC_REF,
+    ACC_RR,
+    ACC_S,
+    INT_COUNT,
+    INT_POS,
+    INT_WINDOW,
+    RESUM_RATIO,
+)
+
+#: Compiled as :data:`aeromag_env.compensation.kernels.per_sample` (no allocation, no copies).
+per_sample = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+
+
+@njit(cache=True)  # writes a row of rbuf: needs the runtime
+def window_add(r, trs, rbuf, sbuf, acc, ints) -> None:
+    """Push one innovation into the circular window and update the running sums; re-sum them
+    when the term that left carried nearly all of a sum (:data:`RESUM_RATIO`: subtracting it
+    would leave rounding error for a sum, negative or ~1e-80 after R swung by decades)."""
+    m = ints[INT_WINDOW]
+    pos = ints[INT_POS]
+    old_rr, old_s = 0.0, 0.0
+    if ints[INT_COUNT] == m:
+        old = rbuf[pos]
+        old_rr, old_s = old[0] ** 2 + old[1] ** 2 + old[2] ** 2, sbuf[pos]
+        acc[ACC_RR] -= old_rr
+        acc[ACC_S] -= old_s
+        for i in range(3):
+            for j in range(3):
+                acc[ACC_C + 3 * i + j] -= old[i] * old[j]
+    rbuf[pos, :] = r
+    sbuf[pos] = trs
+    acc[ACC_RR] += r[0] ** 2 + r[1] ** 2 + r[2] ** 2
+    acc[ACC_S] += trs
+    for i in range(3):
+        for j in range(3):
+            acc[ACC_C + 3 * i + j] += r[i] * r[j]
+    ints[INT_POS] = (pos + 1) % m
+    ints[INT_COUNT] = min(ints[INT_COUNT] + 1, m)
+    if ints[INT_POS] == 0:  # re-sum once per lap: no drift of the running sums
+        acc[:] = 0.0
+        window_sums(rbuf, sbuf, acc, ints[INT_COUNT])
+        acc[ACC_REF] = acc[ACC_RR] / m  # the outlier gate's reference for the next lap
+    elif old_rr > RESUM_RATIO * acc[ACC_RR] or old_s > RESUM_RATIO * acc[ACC_S]:
+        window_sums(rbuf, sbuf, acc, ints[INT_COUNT])
+
+
+@per_sample
+def window_sums(rbuf, sbuf, acc, count) -> None:
+    """The window's sums of |r|², tr S and r rᵀ over its first ``count`` entries, afresh."""
+    acc[ACC_RR] = 0.0
+    acc[ACC_S] = 0.0
+    for a in range(9):
+        acc[ACC_C + a] = 0.0
+    for w in range(count):
+        acc[ACC_RR] += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
+        acc[ACC_S] += sbuf[w]
+        for i in range(3):
+            for j in range(3):
+                acc[ACC_C + 3 * i + j] += rbuf[w, i] * rbuf[w, j]

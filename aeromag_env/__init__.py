@@ -13,9 +13,11 @@ light; see the README, "How the code is laid out")::
     found = am.discover(flight).report["missing_effects"]           # what the model misses
     env = gymnasium.make(am.ENV_ID, scenario="nonstationary")       # the tuning environment
 
-Importing the package registers the Gymnasium environment ``AeroMagCompensation-v0`` and its
-batched vector form (``gym.make_vec(..., vectorization_mode="vector_entry_point")``); the
-environment modules themselves are imported only by ``gym.make`` / ``gym.make_vec``.
+Importing the package registers the Gymnasium environment ``AeroMagCompensation-v0`` (the
+scenario a keyword) and one id per scenario (``AeroMag/Nonstationary-v0``…,
+:mod:`aeromag_env.environment.ids`), each with its batched vector form
+(``gym.make_vec(..., vectorization_mode="vector_entry_point")``); the environment modules
+themselves are imported only by ``gym.make`` / ``gym.make_vec``.
 """
 
 from __future__ import annotations
@@ -23,18 +25,11 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from gymnasium.envs.registration import register as _register
+from aeromag_env.environment.ids import ENV_ID, register_all
 
 __version__ = "0.1.0"
 
-#: The Gymnasium id of the tuning environment.
-ENV_ID = "AeroMagCompensation-v0"
-
-_register(
-    id=ENV_ID,
-    entry_point="aeromag_env.environment.env:AeroMagCompensationEnv",
-    vector_entry_point="aeromag_env.environment.vec_env:AeroMagCompensationVecEnv",
-)
+register_all()  # ENV_ID (the generic id) and AeroMag/<Scenario>-v0 per scenario
 
 #: Public name → the module that defines it (imported on first access, PEP 562); these and
 #: ENV_ID, __version__ are ``__all__`` (tests/test_layout.py).
@@ -54,7 +49,7 @@ _PUBLIC = {
     "EnvConfig": "aeromag_env.environment.env",
     "AeroMagCompensationEnv": "aeromag_env.environment.env",
     "AeroMagCompensationVecEnv": "aeromag_env.environment.vec_env",
-    "SCENARIOS": "aeromag_env.environment.scenarios",
+    "SCENARIOS": "aeromag_env.environment.ids",
     "discover": "aeromag_env.discovery.workflow",
     "Discovery": "aeromag_env.discovery.workflow",
     "AeromagError": "aeromag_env.errors",
@@ -95,7 +90,7 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers and IDEs
     from aeromag_env.compensation.tolles_lawson import TollesLawson
     from aeromag_env.discovery.workflow import Discovery, discover
     from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig
-    from aeromag_env.environment.scenarios import SCENARIOS
+    from aeromag_env.environment.ids import SCENARIOS
     from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
     from aeromag_env.errors import AeromagError
     from aeromag_env.flight.data import Flight

@@ -50,6 +50,17 @@ class NumpyPPOPolicy:
         """Environment settings the policy was trained with (observation layout, action scale)."""
         return dict(self.meta.get("env_kwargs", {}))
 
+    def make_env(self, scenario: str | None = None, **overrides: Any) -> Any:
+        """The environment the policy was trained for, by its registered id
+        (``AeroMag/Nonstationary-v0``…) with the policy's :attr:`env_kwargs` (``overrides``
+        on top, e.g. ``max_episode_steps``); ``scenario`` defaults to the training scenario."""
+        import gymnasium as gym
+
+        from aeromag_env.environment.ids import env_id
+
+        name = scenario or self.meta.get("scenario", "nominal")
+        return gym.make(env_id(name), **{**self.env_kwargs, **overrides})
+
     def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
         """Actions (n_act,) for one observation (n_obs,), or (N, n_act) for (N, n_obs);
@@ -57,7 +68,8 @@ class NumpyPPOPolicy:
         x = np.asarray(obs, dtype=np.float64)
         if x.ndim not in (1, 2) or x.shape[-1] != self.n_obs:
             raise ValueError(f"the PPO policy takes {self.n_obs} observations per environment, "
-                             f"got an array of shape {x.shape}")  # fmt: skip
+                             f"got an array of shape {x.shape}: make the environment with "
+                             "policy.make_env(), or pass it policy.env_kwargs")  # fmt: skip
         single = x.ndim == 1
         with np.errstate(over="ignore"):  # a huge observation scales to ±inf, then is clipped
             x = np.clip((np.atleast_2d(x) - self.mean) / self.std, -self.clip, self.clip)

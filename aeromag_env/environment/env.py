@@ -46,7 +46,6 @@ from aeromag_env.environment.kernels import (
     REWARD_FORMS,
     RUN_LOG_Q,
     RUN_LOG_R,
-    RUN_N_ERR,
     EnvArrays,
     EnvSettings,
 )
@@ -156,21 +155,6 @@ def parameters(config: EnvConfig) -> np.ndarray:
     return par
 
 
-def episode_rmse(
-    outcome: np.ndarray, run: np.ndarray, truth: np.ndarray, est: np.ndarray, k: int
-) -> float:
-    """``info["episode_rmse_nt"]`` at the end of an episode [nT]: the RMS of the true minus the
-    estimated interference (pooled over axes) over the flight after ``score_from`` (the
-    compiled step's sum); when the episode ended (the filter diverged) before ``score_from``,
-    over the k samples flown, so that a score is never NaN. ``outcome`` and ``run`` are one
-    environment's rows, ``truth`` and ``est`` its (≥ k, 3) arrays [nT]."""
-    if run[RUN_N_ERR] > 0:
-        return float(outcome[OUT_EPISODE_RMSE])
-    err = truth[:k] - est[:k]
-    err = err[np.isfinite(err).all(axis=1)]  # a skipped sample has no estimate
-    return float(np.sqrt(np.mean(err**2))) if err.size else float(outcome[OUT_RMSE])
-
-
 def step_settings(config: EnvConfig) -> EnvSettings:
     """What the compiled step of every environment of ``config`` shares: the parameters, the
     observation layout and its bounds."""
@@ -251,10 +235,11 @@ class AeroMagCompensationEnv(gym.Env):
     "rgb_array")``; keyword shortcuts: ``scenario=``, ``decision_window=``, ``extras=``.
     ``info`` holds ``rmse_window_nt``, ``ror``, ``qoq``, ``q_scale``, ``r_scale``,
     ``q_permanent_scale`` (1 unless ``split_q``), ``sample``,
-    ``flight_seed``, and at the end ``episode_rmse_nt`` (over the flight after ``score_from``;
-    over the part flown when the filter diverged before it), ``divergences`` and
-    ``outliers_rejected`` (samples the filter's outlier gate skipped: a spike or a burst of
-    noise in the fluxgate; 0 on a clean flight).
+    ``flight_seed``, and the episode's totals so far — at every step, so that the step on which
+    a ``TimeLimit`` (``gym.make(..., max_episode_steps=N)``) cuts the episode carries them:
+    ``episode_rmse_nt`` (over the flight after ``score_from``; over the part flown when the
+    episode ends before it), ``divergences`` and ``outliers_rejected`` (samples the filter's
+    outlier gate skipped: a spike or a burst of noise in the fluxgate; 0 on a clean flight).
 
     ## Version History
 
@@ -316,9 +301,9 @@ class AeroMagCompensationEnv(gym.Env):
         reward = float(out[OUT_REWARD])
         terminated, truncated = bool(out[OUT_TERMINATED]), bool(out[OUT_TRUNCATED])
         self._rewards.append(reward)
-        return obs, reward, terminated, truncated, self._info(terminated or truncated)
+        return obs, reward, terminated, truncated, self._info()
 
-    def _info(self, done: bool) -> dict[str, Any]:
+    def _info(self) -> dict[str, Any]:
         out = self._out
         info = {
             "rmse_window_nt": float(out[OUT_RMSE]),
@@ -329,13 +314,10 @@ class AeroMagCompensationEnv(gym.Env):
             "q_permanent_scale": float(out[OUT_QP_SCALE]),
             "sample": self.filter.k,
             "flight_seed": self._flight_seed,
+            "episode_rmse_nt": float(out[OUT_EPISODE_RMSE]),
+            "divergences": self.filter.divergences,
+            "outliers_rejected": self.filter.outliers_rejected,
         }
-        if done:
-            info["episode_rmse_nt"] = episode_rmse(
-                out, self._run, self._truth, self.filter.est, self.filter.k
-            )
-            info["divergences"] = self.filter.divergences
-            info["outliers_rejected"] = self.filter.outliers_rejected
         return info
 
     def render(self) -> np.ndarray | None:

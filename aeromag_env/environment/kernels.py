@@ -44,9 +44,12 @@ from aeromag_env.simulation.interference import INDUCED_START, PERMANENT_START
 from aeromag_env.threads import run_chunks
 
 # running values of one environment (float vector); RUN_LOG_Q is the Q of all 21 states, or with
-# split_q of the coefficient blocks (A, B) only, and RUN_LOG_QP that of the permanent block T_p
-RUN_LOG_Q, RUN_LOG_R, RUN_SQ_ERR, RUN_N_ERR, RUN_LOG_QP = range(5)
-N_RUN = 5
+# split_q of the coefficient blocks (A, B) only, and RUN_LOG_QP that of the permanent block T_p;
+# RUN_SQ_ERR and RUN_N_ERR sum the squared errors from score_start on, RUN_SQ_FLOWN and
+# RUN_N_FLOWN over every sample flown that has an estimate (the score of an episode that ends
+# before score_start)
+RUN_LOG_Q, RUN_LOG_R, RUN_SQ_ERR, RUN_N_ERR, RUN_LOG_QP, RUN_SQ_FLOWN, RUN_N_FLOWN = range(7)
+N_RUN = 7
 # environment parameters (float vector, see aeromag_env.environment.env.parameters)
 (PAR_K, PAR_LOG_S_MAX, PAR_LOG_LIMIT, PAR_ABSOLUTE, PAR_Q_LO, PAR_Q_HI, PAR_R_LO, PAR_R_HI,
  PAR_REWARD_NT, PAR_PENALTY, PAR_LN10, PAR_SPLIT_Q, PAR_QP_LO, PAR_QP_HI, PAR_REWARD_FORM,
@@ -109,19 +112,37 @@ def _window_error(
     k0: int, k1: int, truth: np.ndarray, est: np.ndarray, score_start: int, run: np.ndarray
 ) -> float:
     """RMS of true minus estimated interference over ``k0 ≤ k < k1`` [nT] (pooled over axes);
-    the part from ``score_start`` on is added to the episode's sums."""
+    the part from ``score_start`` on is added to the episode's sums, every sample with an
+    estimate (a skipped one has none) to the sums of the part flown."""
     total, scored = 0.0, 0.0
     for k in range(k0, k1):
+        row = 0.0
         for i in range(3):
             e2 = (truth[k, i] - est[k, i]) ** 2
             total += e2
+            row += e2
             if k >= score_start:
                 scored += e2
+        if np.isfinite(row):
+            run[RUN_SQ_FLOWN] += row
+            run[RUN_N_FLOWN] += 3
     lo = max(k0, score_start)
     if lo < k1:
         run[RUN_SQ_ERR] += scored
         run[RUN_N_ERR] += 3 * (k1 - lo)
     return math.sqrt(total / (3 * (k1 - k0))) if k1 > k0 else np.nan
+
+
+@njit(cache=True)
+def _episode_rmse(run: np.ndarray, window_rmse: float) -> float:
+    """The episode's RMSE so far [nT]: over the flight after ``score_from``; before it (an
+    episode cut or diverged early) over the part flown, so that a score is never NaN; the
+    window's when no sample has an estimate yet."""
+    if run[RUN_N_ERR] > 0:
+        return math.sqrt(run[RUN_SQ_ERR] / run[RUN_N_ERR])
+    if run[RUN_N_FLOWN] > 0:
+        return math.sqrt(run[RUN_SQ_FLOWN] / run[RUN_N_FLOWN])
+    return window_rmse
 
 
 @njit(cache=True)
@@ -306,8 +327,7 @@ def env_step(
     out[OUT_QP_SCALE] = math.exp(run[RUN_LOG_QP])
     out[OUT_TERMINATED] = 1.0 if terminated else 0.0
     out[OUT_TRUNCATED] = 1.0 if k1 >= n and not terminated else 0.0
-    n_err = run[RUN_N_ERR]
-    out[OUT_EPISODE_RMSE] = math.sqrt(run[RUN_SQ_ERR] / n_err) if n_err > 0 else np.nan
+    out[OUT_EPISODE_RMSE] = _episode_rmse(run, rmse)
     _observe(k1, n, env, settings, f)
 
 

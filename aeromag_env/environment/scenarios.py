@@ -31,14 +31,12 @@ import numpy as np
 
 from aeromag_env.compensation.compensate import earth_model
 from aeromag_env.compensation.model import FilterConfig, paper_filter_config
+from aeromag_env.environment.ids import SCENARIOS, TRAINING_SCENARIOS
 from aeromag_env.errors import ConfigError
 from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.config import SimulationConfig, preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
 
-SCENARIOS = ("paper", "nominal", "misspecified", "nonstationary", "calibration_then_survey")
-#: Scenarios for training only (not evaluated or tabled): ``nonstationary_dense``.
-TRAINING_SCENARIOS = ("nonstationary_dense",)
 #: Noise regimes of ``nonstationary``: white-noise std per axis [nT].
 REGIME_STD_NT = (1.0, 5.0, 15.0)
 #: Std of each interference step of ``nonstationary``, per axis [nT].

@@ -19,7 +19,6 @@ from aeromag_env.environment.checks import RESET_OPTIONS, reset_options
 from aeromag_env.environment.env import (
     AeroMagCompensationEnv,
     EnvConfig,
-    episode_rmse,
     step_settings,
 )
 from aeromag_env.environment.kernels import (
@@ -33,7 +32,6 @@ from aeromag_env.environment.kernels import (
     OUT_ROR,
     OUT_TERMINATED,
     OUT_TRUNCATED,
-    RUN_N_ERR,
     EnvArrays,
 )
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
@@ -45,6 +43,8 @@ STEP_INFO = (("rmse_window_nt", OUT_RMSE), ("ror", OUT_ROR), ("qoq", OUT_QOQ),
              ("q_permanent_scale", OUT_QP_SCALE))  # fmt: skip
 _STEP_KEYS = tuple(key for key, _ in STEP_INFO)
 _STEP_COLS = np.array([col for _, col in STEP_INFO])
+#: The rest of a step's info, in :meth:`AeroMagCompensationVecEnv.step_rows`'s order.
+_TOTAL_KEYS = ("sample", "flight_seed", "episode_rmse_nt", "divergences", "outliers_rejected")
 #: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
 VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS)
 
@@ -106,8 +106,11 @@ class AeroMagCompensationVecEnv(VectorEnv):
 
     ``gym.make_vec("AeroMagCompensation-v0", num_envs=N,
     vectorization_mode="vector_entry_point", config=..., autoreset_mode=..., **overrides)``
-    with the single environment's ``config`` and keyword shortcuts, and ``prefetch``.
-    No rendering. :meth:`close` stops the prefetching worker.
+    with the single environment's ``config`` and keyword shortcuts, ``prefetch`` and
+    ``max_episode_steps`` (each environment truncated after that many steps of its episode, as
+    ``gym.make(..., max_episode_steps=N)`` truncates the single one). The per-scenario ids
+    (``AeroMag/Nonstationary-v0``…, :mod:`aeromag_env.environment.ids`) make it too. No
+    rendering (``render_mode`` None). :meth:`close` stops the prefetching worker.
     """
 
     def __init__(
@@ -117,10 +120,18 @@ class AeroMagCompensationVecEnv(VectorEnv):
         render_mode: str | None = None,
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         prefetch: bool = False,
+        max_episode_steps: int | None = None,
         **overrides: Any,
     ) -> None:
         if not (isinstance(num_envs, int | np.integer) and num_envs >= 1):
             raise ValueError(f"num_envs must be an integer ≥ 1, got {num_envs!r}")
+        if max_episode_steps is not None and not (
+            isinstance(max_episode_steps, int | np.integer)
+            and not isinstance(max_episode_steps, bool)
+            and max_episode_steps >= 1
+        ):
+            raise ValueError(f"max_episode_steps must be an integer ≥ 1 or None, got "
+                             f"{max_episode_steps!r}")  # fmt: skip
         if render_mode is not None:
             raise ValueError("the vector environment does not render; render a single env")
         template = AeroMagCompensationEnv(config, **overrides)
@@ -144,6 +155,8 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self._obs = np.zeros((n, self._settings.low.size), np.float32)
         self._out = np.zeros((n, kernels.N_OUT))
         self._ended = np.zeros(n, bool)
+        self._steps = np.zeros(n, np.int64)  # steps of each environment's current episode
+        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self._prefetcher = FlightPrefetcher() if prefetch else None
 
     @property
@@ -189,7 +202,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
             obs = self._same_step_reset(infos, active)
         else:
             obs = self._obs.copy()
-            self._step_infos(infos, active, self._ended)
+            self._step_infos(infos, active)
         return obs, rewards, terminated, truncated, infos
 
     def step_rows(
@@ -207,11 +220,11 @@ class AeroMagCompensationVecEnv(VectorEnv):
             dict(zip(_STEP_KEYS, values, strict=True))
             for values in self._out[:, _STEP_COLS].tolist()
         ]
-        samples, seeds = filters.ints[:, INT_K].tolist(), self.flight_seeds.tolist()
-        for row, sample, seed in zip(rows, samples, seeds, strict=True):
-            row["sample"], row["flight_seed"] = sample, seed
-        for i in np.flatnonzero(self._ended).tolist():
-            rows[i] = self._info(i)  # with the episode's totals
+        columns = zip(filters.ints[:, INT_K].tolist(), self.flight_seeds.tolist(),
+                      self._out[:, OUT_EPISODE_RMSE].tolist(), filters.ints[:, INT_DIV].tolist(),
+                      filters.ints[:, INT_OUT].tolist(), strict=True)  # fmt: skip
+        for row, values in zip(rows, columns, strict=True):
+            row.update(zip(_TOTAL_KEYS, values, strict=True))
         return self._obs.copy(), rewards, terminated, truncated, rows
 
     def _advance(
@@ -226,12 +239,11 @@ class AeroMagCompensationVecEnv(VectorEnv):
         kernels.env_step_batch(active, filters.mode, filters.n, self._score_start, envs,
                                self._settings, filters.arrays())  # fmt: skip
         out = self._out
+        self._steps[active] += 1
+        if self.max_episode_steps is not None:  # a TimeLimit's cut, as gym.make's
+            out[active & (self._steps >= self.max_episode_steps), OUT_TRUNCATED] = 1.0
         terminated, truncated = out[:, OUT_TERMINATED] > 0, out[:, OUT_TRUNCATED] > 0
         self._ended = terminated | truncated
-        for i in np.flatnonzero(self._ended & (self._run[:, RUN_N_ERR] == 0)).tolist():
-            k = int(filters.ints[i, INT_K])  # ended before score_from: score the part flown
-            out[i, OUT_EPISODE_RMSE] = episode_rmse(out[i], self._run[i], self._truth[i],
-                                                    filters.est[i], k)  # fmt: skip
         return out[:, OUT_REWARD].copy(), terminated, truncated
 
     def _restart_ended(self, infos: dict[str, Any]) -> np.ndarray:
@@ -304,17 +316,18 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self._score_start[i] = int(self.config.score_from * state.n)
         self._obs[i] = 0.0
         self._ended[i] = False
+        self._steps[i] = 0
 
-    def _step_infos(self, infos: dict[str, Any], stepped: np.ndarray, ended: np.ndarray) -> None:
+    def _step_infos(self, infos: dict[str, Any], stepped: np.ndarray) -> None:
         """The single env's step infos of the ``stepped`` environments, batched."""
         filters = self._need_filters()
         for key, col in STEP_INFO:
             _put(infos, key, self._out[:, col], stepped)
         _put(infos, "sample", filters.ints[:, INT_K], stepped)
         _put(infos, "flight_seed", self.flight_seeds, stepped)
-        _put(infos, "episode_rmse_nt", self._out[:, OUT_EPISODE_RMSE], stepped & ended)
-        _put(infos, "divergences", filters.ints[:, INT_DIV], stepped & ended)
-        _put(infos, "outliers_rejected", filters.ints[:, INT_OUT], stepped & ended)
+        _put(infos, "episode_rmse_nt", self._out[:, OUT_EPISODE_RMSE], stepped)
+        _put(infos, "divergences", filters.ints[:, INT_DIV], stepped)
+        _put(infos, "outliers_rejected", filters.ints[:, INT_OUT], stepped)
 
     def _info(self, i: int) -> dict[str, Any]:
         """The single env's info of environment i at the end of its episode."""
@@ -331,7 +344,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         """Reset the ended environments at once; their last observation and info go to
         ``final_obs`` and ``final_info`` (Gymnasium's ``SAME_STEP`` layout)."""
         ended = self._ended.copy()
-        self._step_infos(infos, stepped & ~ended, np.zeros_like(ended))
+        self._step_infos(infos, stepped & ~ended)
         for i in np.flatnonzero(ended):
             final = {"final_obs": self._obs[i].copy(), "final_info": self._info(int(i))}
             infos.update(self._add_info(infos, final, int(i)))

@@ -1,0 +1,81 @@
+"""Our PPO hyperparameters as an RL Baselines3 Zoo (rl_zoo3) file, made from ``ppo.json``.
+
+``agents/hyperparams/ppo.json`` stays the one place the hyperparameters are written;
+``agents/hyperparams/ppo_zoo.yml`` is made from it by ``python -m agents.zoo`` (a test checks
+that the two agree). Each scenario's entry goes under the registered id of its training scenario
+(``AeroMag/NonstationaryDense-v0``: :mod:`aeromag_env.environment.ids`) with its
+``env_kwargs``, the observation and reward normalisation of ``aeromag train``
+(:func:`agents.ppo.normalized`), the network and initial log std, and a Monitor that records each
+episode's RMSE. What the zoo cannot do: the behaviour-cloning pretraining of version 5 (the zoo
+trains PPO from scratch, as version 4 did), validation on our validation seeds and the numpy
+export; ``aeromag train`` does those.
+
+Train with it::
+
+    python -m rl_zoo3.train --algo ppo --env AeroMag/NonstationaryDense-v0 \\
+        --gym-packages aeromag_env --conf-file agents/hyperparams/ppo_zoo.yml
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from aeromag_env.environment.ids import env_id
+from agents.hyperparams_file import read_hyperparams
+
+HYPERPARAMS = Path(__file__).parent / "hyperparams"
+#: Timesteps of the shipped policy's training run (``aeromag train --timesteps``).
+ZOO_TIMESTEPS = 1_500_000
+#: PPO's own settings, copied as they are.
+_PPO_KEYS = ("n_envs", "n_steps", "batch_size", "n_epochs", "learning_rate", "gamma",
+             "gae_lambda", "ent_coef", "clip_range")  # fmt: skip
+#: Clip of the normalised observations (as :func:`agents.ppo.normalized`).
+CLIP_OBS = 10.0
+
+
+def zoo_hyperparams(hyperparams: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The rl_zoo3 hyperparameters (one entry per env id) of a checked ``ppo.json``."""
+    out: dict[str, dict[str, Any]] = {}
+    for scenario, hp in hyperparams["scenarios"].items():
+        entry: dict[str, Any] = {"policy": "MlpPolicy", "n_timesteps": float(ZOO_TIMESTEPS)}
+        entry.update({key: hp[key] for key in _PPO_KEYS})
+        entry["normalize"] = (f"dict(norm_obs=True, norm_reward={bool(hp['normalize_reward'])}, "
+                              f"clip_obs={CLIP_OBS})")  # fmt: skip
+        policy = f"net_arch={list(hp['net_arch'])}, optimizer_kwargs=dict(eps=1e-05)"
+        if "log_std_init" in hp:
+            policy += f", log_std_init={float(hp['log_std_init'])}"
+        entry["policy_kwargs"] = f"dict({policy})"
+        entry["monitor_kwargs"] = "dict(info_keywords=('episode_rmse_nt', 'divergences'))"
+        entry["env_kwargs"] = dict(hp.get("env_kwargs", {}))
+        out[env_id(hp.get("train_scenario", scenario))] = entry
+    return out
+
+
+def write_zoo_file(source: Path, target: Path) -> Path:
+    """Write ``target`` (YAML) from the hyperparameter file ``source``."""
+    import yaml
+
+    hyperparams = read_hyperparams(source)
+    head = (f"# Made from {source.name} (version {hyperparams['version']}) by "
+            "`python -m agents.zoo`: edit that file, not this one.\n# rl_zoo3 trains PPO "
+            "from scratch: no behaviour-cloning pretraining (agents/zoo.py).\n")  # fmt: skip
+    body = yaml.safe_dump(zoo_hyperparams(hyperparams), sort_keys=False, default_flow_style=None)
+    target.write_text(head + body, encoding="utf-8")
+    return target
+
+
+def main(argv: list[str] | None = None) -> int:
+    about = (__doc__ or "").split("\n")[0]
+    parser = argparse.ArgumentParser(prog="python -m agents.zoo", description=about)
+    parser.add_argument("target", nargs="?", default=str(HYPERPARAMS / "ppo_zoo.yml"))
+    parser.add_argument("--source", default=str(HYPERPARAMS / "ppo.json"))
+    args = parser.parse_args(argv)
+    print(f"wrote {write_zoo_file(Path(args.source), Path(args.target))}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

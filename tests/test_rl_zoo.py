@@ -1,0 +1,61 @@
+"""RL Baselines3 Zoo (rl_zoo3) trains on a registered id with our hyperparameters.
+
+``agents/hyperparams/ppo_zoo.yml`` is made from ``ppo.json`` (:mod:`agents.zoo`): the file in
+the repo must be what the converter makes now, and ``python -m rl_zoo3.train --gym-packages
+aeromag_env`` must train with it, its Monitor recording each episode's RMSE.
+"""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from importlib.util import find_spec
+from pathlib import Path
+
+import pytest
+import yaml
+
+from agents.hyperparams_file import read_hyperparams
+from agents.zoo import HYPERPARAMS, write_zoo_file, zoo_hyperparams
+
+# not imported here: importing rl_zoo3 replaces Gymnasium's TimeLimit process-wide (its
+# gym_patches), which would change every later test's environments
+pytestmark = pytest.mark.skipif(find_spec("rl_zoo3") is None, reason="rl_zoo3 not installed")
+
+
+def test_the_zoo_file_is_made_from_ppo_json(tmp_path: Path) -> None:
+    shipped = yaml.safe_load((HYPERPARAMS / "ppo_zoo.yml").read_text(encoding="utf-8"))
+    fresh = yaml.safe_load(write_zoo_file(HYPERPARAMS / "ppo.json", tmp_path / "z.yml").read_text())
+    assert shipped == fresh, "run `python -m agents.zoo` after changing ppo.json"
+    hp = read_hyperparams(HYPERPARAMS / "ppo.json")["scenarios"]["nonstationary"]
+    entry = shipped["AeroMag/NonstationaryDense-v0"]  # trained on the training scenario
+    assert entry["env_kwargs"] == hp["env_kwargs"] and entry["gamma"] == hp["gamma"]
+    assert entry["n_steps"] * entry["n_envs"] % entry["batch_size"] == 0
+
+
+def test_rl_zoo3_trains_on_a_registered_id(tmp_path: Path) -> None:
+    """4096 steps on 2 environments of 60-s flights (60 steps an episode: 10 samples a step at
+    10 Hz), through the zoo's own command line; the model, the normaliser and a Monitor
+    file with ``episode_rmse_nt`` per episode come out."""
+    hyperparams = zoo_hyperparams(read_hyperparams(HYPERPARAMS / "ppo.json"))
+    for entry in hyperparams.values():
+        entry["env_kwargs"]["duration_s"] = 60.0
+    conf = tmp_path / "zoo.yml"
+    conf.write_text(yaml.safe_dump(hyperparams), encoding="utf-8")
+    argv = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo",
+            "--env", "AeroMag/NonstationaryDense-v0", "--gym-packages", "aeromag_env",
+            "--conf-file", str(conf), "-n", "4096", "--eval-freq", "-1", "--seed", "0",
+            "--log-folder", str(tmp_path / "logs"), "--hyperparams", "n_envs:2",
+            "--verbose", "0"]  # fmt: skip
+    run = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=600,
+                         check=False)  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    out = tmp_path / "logs" / "ppo" / "AeroMag-NonstationaryDense-v0_1"
+    assert (out / "AeroMag-NonstationaryDense-v0.zip").stat().st_size > 0
+    assert (out / "AeroMag-NonstationaryDense-v0" / "vecnormalize.pkl").is_file()
+    rows = [row for f in sorted(out.glob("*.monitor.csv"))
+            for row in csv.DictReader(f.read_text().splitlines()[1:])]  # fmt: skip
+    assert len(rows) >= 2 * (4096 // 2 // 61)  # every episode of both environments
+    assert all(0.0 < float(row["episode_rmse_nt"]) < 1e3 for row in rows)
+    assert all(row["l"] == "60" for row in rows)

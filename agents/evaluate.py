@@ -18,6 +18,11 @@ from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS, che
 from aeromag_env.errors import AeromagError
 from agents import make_policy, policy_env_kwargs
 
+#: The normalized score's anchors: 0 is the best constant tuning found offline, 1 the policy
+#: that knows the true noise (the privileged one); score = (RMSE₀ − RMSE) / (RMSE₀ − RMSE₁).
+SCORE_ZERO, SCORE_ONE = "tuned_constant", "oracle"
+#: Paired bootstrap resamples of the flights for the normalized score's interval.
+BOOTSTRAP_RESAMPLES = 2000
 TRAIN_SEEDS = range(0, 50_000)
 VALIDATION_SEEDS = range(50_000, 100_000)
 TEST_SEED_START = 100_000
@@ -93,7 +98,50 @@ def evaluate(
             if progress is not None:
                 progress(1)
         per[name] = {k: np.array([r[k] for r in rows], dtype=float) for k in rows[0]}
-    return {"scenario": scenario, "seeds": list(seeds), "policies": _summaries(per)}
+    summaries = _summaries(per)
+    results: dict[str, Any] = {"scenario": scenario, "seeds": list(seeds), "policies": summaries}
+    score = normalized_scores(per)
+    if score is not None:
+        results["normalized_score"] = score.pop("anchors")
+        for name, row in score.items():
+            summaries[name].update(row)
+    return results
+
+
+def normalized_scores(per: dict[str, dict[str, np.ndarray]]) -> dict[str, Any] | None:
+    """Each policy's normalized score (0 = :data:`SCORE_ZERO`, 1 = :data:`SCORE_ONE`, on mean
+    RMSE) with a paired 95 % percentile-bootstrap interval over the flights (scipy), and
+    ``anchors``: the headroom ``RMSE₀ − RMSE₁`` with its paired t interval. None without both
+    anchors or with fewer than 2 flights; scores None, with a note, when the headroom's
+    interval does not lie above 0 (the privileged policy is not better on these flights)."""
+    if SCORE_ZERO not in per or SCORE_ONE not in per or per[SCORE_ZERO]["rmse_nt"].size < 2:
+        return None
+    zero, one = per[SCORE_ZERO]["rmse_nt"], per[SCORE_ONE]["rmse_nt"]
+    headroom = zero - one  # paired: same flights
+    anchors: dict[str, Any] = {"zero": SCORE_ZERO, "one": SCORE_ONE,
+                               "headroom_nt_mean": float(headroom.mean()),
+                               "headroom_nt_ci95": _ci95(headroom), "note": None}  # fmt: skip
+    out: dict[str, Any] = {"anchors": anchors}
+    if not anchors["headroom_nt_ci95"][0] > 0:
+        anchors["note"] = (f"no headroom: {SCORE_ONE} is not better than {SCORE_ZERO} beyond "
+                           "the interval on these flights, so no score is defined")  # fmt: skip
+        return {**out, **{name: {"normalized_score": None, "normalized_score_ci95": [None, None]}
+                          for name in per}}  # fmt: skip
+
+    def score(z: np.ndarray, o: np.ndarray, p: np.ndarray, axis: int = -1) -> np.ndarray:
+        z_mean = z.mean(axis=axis)
+        with np.errstate(divide="ignore", invalid="ignore"):  # a resample without headroom
+            return (z_mean - p.mean(axis=axis)) / (z_mean - o.mean(axis=axis))
+
+    for name, v in per.items():
+        rmse = v["rmse_nt"]
+        boot = stats.bootstrap(
+            (zero, one, rmse), score, paired=True, vectorized=True,
+            n_resamples=BOOTSTRAP_RESAMPLES, method="percentile", rng=0,
+        )  # fmt: skip
+        ci = [float(boot.confidence_interval.low), float(boot.confidence_interval.high)]
+        out[name] = {"normalized_score": float(score(zero, one, rmse)), "normalized_score_ci95": ci}
+    return out
 
 
 def _summaries(per: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, Any]]:

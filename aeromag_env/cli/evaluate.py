@@ -52,24 +52,36 @@ def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: 
 
 
 def evaluation_table(results: dict[str, Any]) -> str:
-    """Markdown: mean RMSE [95 % CI], paired difference vs fis [95 % CI], divergences."""
+    """Markdown: mean RMSE [95 % CI], paired difference vs fis [95 % CI], normalized score
+    [paired bootstrap 95 % CI] when tuned_constant and oracle were evaluated, divergences."""
+    anchors = results.get("normalized_score")
     lines = [
         f"{results['scenario']}: {len(results['seeds'])} flights (seeds {results['seeds'][0]}–"
         f"{results['seeds'][-1]})",
         "",
         "| policy | RMSE [nT] (95 % CI) | − fis [nT] (paired 95 % CI) | median abs log10 ROR "
-        "| divergences |",
-        "|---|---|---|---|---|",
+        "| divergences |" + (" normalized score (95 % CI) |" if anchors else ""),
+        "|---|---|---|---|---|" + ("---|" if anchors else ""),
     ]
     for name, r in results["policies"].items():
         diff = ""
         if "diff_vs_fis_nt_mean" in r and name != "fis":
             diff = f"{r['diff_vs_fis_nt_mean']:+.3g} {_interval(r['diff_vs_fis_ci95'], '+.3g')}"
         mean = f"{r['rmse_nt_mean']:.3g} {_interval(r['rmse_nt_ci95'], '.3g')}"
+        score = ""
+        if anchors and r.get("normalized_score") is not None:
+            score = f" {r['normalized_score']:.3g} {_interval(r['normalized_score_ci95'], '.3g')} |"
+        elif anchors:
+            score = " n/a |"
         lines.append(f"| {name} | {mean} | {diff} | {r['log_ror_abs_median']:.2g} | "
-                     f"{r['divergences']} |")  # fmt: skip
+                     f"{r['divergences']} |{score}")  # fmt: skip
     if len(results["seeds"]) < 2:
         lines += ["", "n/a: an interval needs at least 2 flights (--episodes ≥ 2)"]
+    if anchors:
+        headroom = _interval(anchors["headroom_nt_ci95"], ".3g")
+        lines += ["", f"normalized score: 0 = {anchors['zero']}, 1 = {anchors['one']} "
+                  f"(headroom {anchors['headroom_nt_mean']:.3g} nT {headroom})"
+                  + (f"; {anchors['note']}" if anchors["note"] else "")]  # fmt: skip
     return "\n".join(lines) + "\n"
 
 

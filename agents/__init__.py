@@ -1,6 +1,7 @@
 """Tuning policies for the compensator's noise covariances, all with the stable-baselines3
 ``predict`` shape: ``constant``, ``fis`` (the paper's rules), classical adaptive (``sage_husa``,
-``ding``), ``tuned_constant``, ``oracle`` and ``ppo`` (the shipped numpy export of a trained
+``ding``), ``tuned_constant``, ``oracle``, ``privileged`` (knows the noise and the steps) and
+``ppo`` (the shipped numpy export of a trained
 stable-baselines3 policy). :mod:`.policies` holds the hand-written ones, :mod:`.numpy_policy` the
 exported PPO, :mod:`.ppo` its training, :mod:`.tuning` and :mod:`.tuned_table` the tuned
 constants, :mod:`.evaluate` the one evaluation path. Imports ``aeromag_env`` (its environment
@@ -18,7 +19,7 @@ from typing import Any
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.errors import ConfigError
 
-POLICIES = ("constant", "fis", "sage_husa", "ding", "tuned_constant", "oracle", "ppo")
+POLICIES = ("constant", "fis", "sage_husa", "ding", "tuned_constant", "oracle", "privileged", "ppo")
 #: The shipped PPO policy (trained on ``nonstationary``; see experiments/train_ppo.py).
 DEFAULT_PPO = Path(__file__).with_name("trained") / "ppo_nonstationary.npz"
 
@@ -29,12 +30,17 @@ def available_policies() -> list[str]:
 
 
 def policy_env_kwargs(name: str) -> dict[str, Any]:
-    """Environment settings a policy needs (PPO: those it was trained with; others: none).
+    """Environment settings a policy needs (PPO: those it was trained with; ``privileged``: its
+    action layout; others: none).
 
     ``ppo`` is the shipped policy; ``ppo:PATH`` loads an exported ``.npz`` (never a pickle).
     """
     if name == "ppo" or name.startswith("ppo:"):
         return _load_ppo(name).env_kwargs
+    if name == "privileged":
+        from agents.policies import PrivilegedPolicy
+
+        return dict(PrivilegedPolicy.ENV_KWARGS)
     return {}
 
 
@@ -62,6 +68,7 @@ def make_policy(name: str, env: Any) -> Any:
         "ding": lambda: p.ClassicalPolicy("ding", env),
         "tuned_constant": lambda: p.TunedConstantPolicy(env),
         "oracle": lambda: p.OraclePolicy(env),
+        "privileged": lambda: p.PrivilegedPolicy(env),
         "ppo": lambda: _load_ppo("ppo"),
     }
     return makers[name]()

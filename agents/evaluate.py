@@ -19,8 +19,9 @@ from aeromag_env.errors import AeromagError
 from agents import make_policy, policy_env_kwargs
 
 #: The normalized score's anchors: 0 is the best constant tuning found offline, 1 the policy
-#: that knows the true noise (the privileged one); score = (RMSE₀ − RMSE) / (RMSE₀ − RMSE₁).
-SCORE_ZERO, SCORE_ONE = "tuned_constant", "oracle"
+#: that knows the true noise and the steps (``privileged``); score = (RMSE₀ − RMSE) /
+#: (RMSE₀ − RMSE₁).
+SCORE_ZERO, SCORE_ONE = "tuned_constant", "privileged"
 #: Paired bootstrap resamples of the flights for the normalized score's interval.
 BOOTSTRAP_RESAMPLES = 2000
 TRAIN_SEEDS = range(0, 50_000)

@@ -222,6 +222,48 @@ class InnovationDetectorPolicy:
         return _out(actions, single), state
 
 
+class PrivilegedPolicy:
+    """Knows what no real tuner can: the true noise variance of each sample (R set to it, as
+    ``oracle``) and when the interference steps (``Episode.step_samples``): T_p's Q at the top
+    of its range for the ``after`` decision windows that begin at or follow a step, at the bottom
+    otherwise; the other 18 states' Q at ``log10_q``. The upper anchor of the normalized score.
+
+    Acts in the layout of ``ENV_KWARGS`` (absolute actions, ``split_q``, ``qp_gate``), which
+    :func:`agents.policy_env_kwargs` gives the environment it is evaluated in.
+    """
+
+    name = "privileged"
+    #: The environment layout it acts in (the shipped PPO's action layout).
+    ENV_KWARGS: dict[str, Any] = {  # noqa: RUF012 (read-only)
+        "action_mode": "absolute", "split_q": True, "qp_gate": True,
+        "absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
+        "absolute_qp_log10": (-2.0, 10.0), "scale_limit": 1e10,
+    }  # fmt: skip
+
+    def __init__(self, env: Any, log10_q: float = 0.0, after: int = 1) -> None:
+        self.env = env.unwrapped
+        c = self.env.config
+        if not (c.split_q and c.qp_gate and c.action_mode == "absolute"):
+            raise ConfigError("privileged needs split_q, qp_gate and action_mode='absolute'")
+        self.q_action = _to_action(log10_q, c.absolute_q_log10)
+        self.after = after
+
+    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+        _single_env(obs, self.name)
+        env, c = self.env, self.env.config
+        ep, k, width = env.episode, env.filter.k, c.decision_window
+        k_r = min(k, ep.n - 1)
+        r0 = float(np.mean(np.diag(env.filter.r0)))
+        action = np.full((1, len(ACTIONS)), -1.0)
+        action[0, ACT_Q] = self.q_action
+        action[0, ACT_R] = _to_action(math.log10(ep.noise_var[k_r] / r0), c.absolute_r_log10)
+        steps = ep.step_samples
+        near = (steps < k + width) & (steps >= k - self.after * width)
+        action[0, ACT_QP] = 1.0 if near.any() else -1.0
+        return _out(action, np.asarray(obs).ndim == 1), state
+
+
 def _to_action(log10_scale: float, lo_hi: tuple[float, ...]) -> float:
     """The absolute-mode action that sets ``log10(scale)`` within the range ``(lo, hi)``."""
     lo, hi = lo_hi

@@ -54,7 +54,24 @@ def matrix(results: dict) -> str:
             mark = "" if name == "fis" else (" ▼" if hi < 0 else " ▲" if lo > 0 else " =")
             cells.append(f"{r['rmse_nt_mean']:.3g}{mark}")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    about = "Normalized score (0 = tuned_constant, 1 = privileged; paired bootstrap 95 % CI):"
+    lines += ["", about, "", lines[0], lines[1]]
+    for name in results[scenarios[0]]["policies"]:
+        cells = [_score(results[sc], name) for sc in scenarios]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _score(result: dict, name: str) -> str:
+    """``0.77 [0.61, 0.9]``, or why there is none on this scenario."""
+    anchors = result.get("normalized_score")
+    if anchors is None:
+        return "–"
+    if anchors["note"]:
+        return "n/a (no headroom)"
+    r = result["policies"][name]
+    lo, hi = r["normalized_score_ci95"]
+    return f"{r['normalized_score']:.2g} [{lo:.2g}, {hi:.2g}]"
 
 
 if __name__ == "__main__":

@@ -24,7 +24,9 @@ def test_unknown_policy_is_a_one_line_error():
         make_policy("ppo2", _env())
 
 
-@pytest.mark.parametrize("name", [p for p in POLICIES if p not in ("tuned_constant", "ppo")])
+@pytest.mark.parametrize(
+    "name", [p for p in POLICIES if p not in ("tuned_constant", "ppo", "privileged")]
+)
 def test_predict_shape(name):
     env = _env()
     obs, _ = env.reset(seed=100_000)
@@ -116,3 +118,33 @@ def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation(
     assert gated[ACT_QP] == -1.0
     with pytest.raises(ConfigError, match="innovation_detector needs"):
         InnovationDetectorPolicy(EnvConfig(extras=True))
+
+
+def test_the_privileged_policy_acts_on_the_true_noise_and_the_steps():
+    """In its own layout (policy_env_kwargs): T_p's Q raised exactly in the decision window
+    that holds a step and the one after, R at the true noise variance; refused elsewhere."""
+    from agents import policy_env_kwargs
+    from agents.policies import PrivilegedPolicy
+
+    with pytest.raises(ConfigError, match="privileged needs split_q"):
+        PrivilegedPolicy(_env())
+    env = gym.make("AeroMagCompensation-v0", scenario="nonstationary",
+                   **policy_env_kwargs("privileged"))  # fmt: skip
+    obs, _ = env.reset(seed=100_000)
+    policy, inner = make_policy("privileged", env), env.unwrapped
+    steps, raised = inner.episode.step_samples, []
+    assert steps.size >= 1
+    done = False
+    while not done:
+        k = inner.filter.k
+        action, _ = policy.predict(obs)
+        assert action.shape == (3,)
+        if action[2] > 0:
+            raised.append(k)
+        r_log10 = -1.0 + (action[1] + 1.0) / 2.0 * 4.0  # absolute_r_log10 = (-1, 3)
+        want = np.log10(inner.episode.noise_var[k] / np.mean(np.diag(inner.filter.r0)))
+        assert r_log10 == pytest.approx(want, abs=1e-5)
+        obs, _, terminated, truncated, _ = env.step(action)
+        done = terminated or truncated
+    want_raised = sorted({w for s in steps for w in (s - s % 10, s - s % 10 + 10)})
+    assert raised == want_raised

@@ -1,5 +1,6 @@
-"""The normalized score of ``aeromag evaluate`` (issue 21): 0 = tuned_constant, 1 = oracle, on
-mean RMSE over the same flights, with a paired bootstrap interval (scipy).
+"""The normalized score of ``aeromag evaluate`` (issue 21): 0 = tuned_constant, 1 = privileged
+(knows the noise and the steps), on mean RMSE over the same flights, with a paired bootstrap
+interval (scipy).
 
 The independent truths are the definition (the anchors score 0 and 1 exactly; a policy whose
 RMSE is the anchors' mean on every flight scores 0.5 with a zero-width interval) and a
@@ -27,18 +28,18 @@ def _flights(seed: int = 0, n: int = 30) -> dict[str, np.ndarray]:
     base = rng.uniform(1.0, 5.0, n)  # flights differ far more than the policies
     return {
         "tuned_constant": base + 1.0 + rng.normal(0, 0.1, n),
-        "oracle": base,
+        "privileged": base,
         "fis": base + 2.0 + rng.normal(0, 0.3, n),
     }
 
 
 def test_the_anchors_score_zero_and_one_and_the_midpoint_half():
     f = _flights()
-    f["half"] = (f["tuned_constant"] + f["oracle"]) / 2
+    f["half"] = (f["tuned_constant"] + f["privileged"]) / 2
     scores = normalized_scores(_per(**f))
     assert scores is not None
     assert scores["tuned_constant"]["normalized_score"] == 0.0
-    assert scores["oracle"]["normalized_score"] == 1.0
+    assert scores["privileged"]["normalized_score"] == 1.0
     assert scores["half"]["normalized_score"] == pytest.approx(0.5, abs=1e-12)
     assert scores["half"]["normalized_score_ci95"] == pytest.approx([0.5, 0.5], abs=1e-12)
     assert scores["fis"]["normalized_score"] < 0  # worse than the tuned constant
@@ -55,7 +56,7 @@ def test_the_interval_is_a_paired_bootstrap_of_the_flights(seed):
     lo, hi = normalized_scores(_per(**f))["fis"]["normalized_score_ci95"]
     rng = np.random.default_rng(seed + 100)
     idx = rng.integers(0, 30, (BOOTSTRAP_RESAMPLES, 30))
-    z, o, p = (f[k][idx].mean(axis=1) for k in ("tuned_constant", "oracle", "fis"))
+    z, o, p = (f[k][idx].mean(axis=1) for k in ("tuned_constant", "privileged", "fis"))
     want = np.percentile((z - p) / (z - o), [2.5, 97.5])
     width = want[1] - want[0]
     assert abs(lo - want[0]) < 0.1 * width and abs(hi - want[1]) < 0.1 * width
@@ -63,15 +64,15 @@ def test_the_interval_is_a_paired_bootstrap_of_the_flights(seed):
 
 def test_no_headroom_gives_no_score_and_says_why():
     f = _flights()
-    f["oracle"] = f["tuned_constant"] + np.random.default_rng(1).normal(0, 0.05, 30)
+    f["privileged"] = f["tuned_constant"] + np.random.default_rng(1).normal(0, 0.05, 30)
     scores = normalized_scores(_per(**f))
     assert all(scores[k]["normalized_score"] is None for k in f)
-    assert scores["anchors"]["note"].startswith("no headroom: oracle is not better")
+    assert scores["anchors"]["note"].startswith("no headroom: privileged is not better")
 
 
 def test_without_both_anchors_or_with_one_flight_there_is_no_score():
     f = _flights()
-    assert normalized_scores(_per(fis=f["fis"], oracle=f["oracle"])) is None
+    assert normalized_scores(_per(fis=f["fis"], privileged=f["privileged"])) is None
     assert normalized_scores(_per(**{k: v[:1] for k, v in f.items()})) is None
 
 
@@ -84,6 +85,6 @@ def test_the_table_shows_the_score_column_and_the_anchors():
     for name, row in scores.items():
         results["policies"][name].update(row)
     table = evaluation_table(results)
-    assert "normalized score (95 % CI) |" in table and "| oracle |" in table
-    assert "0 = tuned_constant, 1 = oracle (headroom 1" in table
+    assert "normalized score (95 % CI) |" in table and "| privileged |" in table
+    assert "0 = tuned_constant, 1 = privileged (headroom 1" in table
     assert table.count(" 1 [1, 1] |") == 1 and table.count(" 0 [0, 0] |") == 1

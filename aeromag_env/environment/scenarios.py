@@ -25,7 +25,7 @@ for analysis) and the true interference (for the reward).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -56,6 +56,8 @@ class Episode:
     noise_var : (n,) true per-axis variance of the sensor noise [nT²] (white + FOGM)
     filter_cfg : the filter's initial tuning
     flight : the simulated flight (after the scenario's modifications)
+    step_samples : sorted sample indices at which an interference step starts (``nonstationary``
+        scenarios; empty otherwise): what a privileged policy may know
     """
 
     y: np.ndarray
@@ -65,6 +67,7 @@ class Episode:
     noise_var: np.ndarray
     filter_cfg: FilterConfig
     flight: Flight
+    step_samples: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
 
     @property
     def n(self) -> int:
@@ -92,9 +95,11 @@ def make_episode(name: str, seed: int, duration_s: float | None = None) -> Episo
         sim_cfg = with_overrides(sim_cfg, {"trajectory.duration_s": duration_s})
     flight = simulate_flight(sim_cfg, sim_seed)
     noise_var = np.full(flight.n, _noise_var(sim_cfg))
+    steps = np.empty(0, np.int64)
     if name in STEP_COUNTS:
         white = sim_cfg.fluxgate_noise.white_std_nt
-        flight, noise_var = _nonstationary(flight, noise_var, white, STEP_COUNTS[name], rng)
+        flight, noise_var, steps = _nonstationary(flight, noise_var, white, STEP_COUNTS[name],
+                                                  rng)  # fmt: skip
     t_b, tdot_b = earth_model(flight, filter_cfg.rate_scheme)
     return Episode(
         y=flight.vector("flux_a") - t_b,
@@ -104,6 +109,7 @@ def make_episode(name: str, seed: int, duration_s: float | None = None) -> Episo
         noise_var=noise_var,
         filter_cfg=filter_cfg,
         flight=flight,
+        step_samples=steps,
     )
 
 
@@ -139,10 +145,10 @@ def _nonstationary(
     white_std: float,
     step_count: tuple[int, int],
     rng: np.random.Generator,
-) -> tuple[Flight, np.ndarray]:
+) -> tuple[Flight, np.ndarray, np.ndarray]:
     """Three noise regimes (white std from :data:`REGIME_STD_NT`, realised by adding white noise
     to the configured ``white_std``) and ``step_count`` (lo, hi inclusive) interference steps, in
-    fluxgate and truth."""
+    fluxgate and truth; returns the flight, the noise variance and the steps' sorted samples."""
     n = flight.n
     cuts = np.sort(rng.integers(n // 6, n - n // 6, 2))
     fields = dict(flight.fields)
@@ -156,11 +162,12 @@ def _nonstationary(
         flux[lo:hi] += extra * rng.standard_normal((hi - lo, 3))
         noise_var[lo:hi] = base_var + extra**2
     count = int(rng.integers(step_count[0], step_count[1] + 1))
-    for start in rng.integers(n // 5, n - n // 10, count):
+    starts = rng.integers(n // 5, n - n // 10, count)
+    for start in starts:
         step = rng.normal(0.0, STEP_STD_NT, 3)
         flux[start:] += step
         interf[start:] += step
     for i, axis in enumerate("xyz"):
         fields[f"flux_a_{axis}"] = flux[:, i]
         fields[f"truth_interf_{axis}"] = interf[:, i]
-    return Flight(fields, flight.attrs), noise_var
+    return Flight(fields, flight.attrs), noise_var, np.sort(starts).astype(np.int64)

@@ -164,3 +164,26 @@ def _summaries(per: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, Any
             row["diff_vs_fis_ci95"] = _ci95(diff)
         out[name] = row
     return out
+
+
+def iqm_interval(
+    scores: np.ndarray, reps: int = BOOTSTRAP_RESAMPLES, seed: int = 0
+) -> tuple[float, list[float]]:
+    """Interquartile mean of normalized scores ``(runs, tasks)`` (training seeds × scenarios)
+    and its 95 % stratified-bootstrap percentile interval: runs are resampled with replacement
+    within each task, as rliable's ``get_interval_estimates`` does (Agarwal et al. 2021). The
+    IQM is scipy's 25 %-trimmed mean of all scores; rliable itself is not used: its 1.2 release
+    fails to import beside pandas 3 (arch 7) and to bootstrap with arch 8."""
+    scores = np.asarray(scores, dtype=float)
+    if scores.ndim != 2 or scores.shape[0] < 1:
+        raise ValueError(f"scores must be (runs, tasks), got shape {scores.shape}")
+    runs, tasks = scores.shape
+    point = float(stats.trim_mean(scores.ravel(), 0.25))
+    if runs < 2:
+        return point, [float("nan"), float("nan")]
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, runs, (reps, runs, tasks))  # per task, its own resample of the runs
+    resampled = np.take_along_axis(scores[None, :, :], picks, axis=1).reshape(reps, -1)
+    boot = stats.trim_mean(resampled, 0.25, axis=1)
+    low, high = np.percentile(boot, [2.5, 97.5])
+    return point, [float(low), float(high)]

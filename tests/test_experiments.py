@@ -90,3 +90,22 @@ def test_fault_effects_table(capsys):
     for row in rows:
         rmse = [float(c.split()[0]) for c in row.strip("|").split("|")[1:]]
         assert max(rmse) < 1.10 * rmse[0], row
+
+
+def test_seed_table_tables_each_seed_and_the_iqm(tmp_path, capsys):
+    """Two "seeds" (the shipped policy and a copy) on 8 nonstationary test flights: a row each
+    with the same numbers, and the IQM line (the score of both)."""
+    import shutil
+
+    from experiments.fault_cases import SHIPPED
+    from experiments.seed_table import main as seed_table
+
+    copy = shutil.copy(SHIPPED["policy"], tmp_path / "seed1.npz")
+    argv = [str(SHIPPED["policy"]), str(copy), "--episodes", "8", "--out", str(tmp_path)]
+    assert seed_table(argv) == 0
+    table = (tmp_path / "table.md").read_text()
+    rows = [line for line in table.splitlines() if line.startswith(("| 0 |", "| 1 |"))]
+    assert len(rows) == 2 and rows[0].split("|")[3:] == rows[1].split("|")[3:]
+    score = rows[0].split("|")[4].split()[0]
+    assert f"IQM of the normalized score over 2 seed(s) × 1 scenario(s): {score}" in table
+    assert "SD 0 nT" in table and "privileged" in table

@@ -88,3 +88,36 @@ def test_the_table_shows_the_score_column_and_the_anchors():
     assert "normalized score (95 % CI) |" in table and "| privileged |" in table
     assert "0 = tuned_constant, 1 = privileged (headroom 1" in table
     assert table.count(" 1 [1, 1] |") == 1 and table.count(" 0 [0, 0] |") == 1
+
+
+def test_the_iqm_is_the_quarter_trimmed_mean_with_a_stratified_interval():
+    from scipy import stats
+
+    from agents.evaluate import iqm_interval
+
+    rng = np.random.default_rng(3)
+    scores = rng.normal(0.7, 0.1, (5, 3))
+    point, (lo, hi) = iqm_interval(scores)
+    assert point == pytest.approx(stats.trim_mean(scores.ravel(), 0.25))
+    assert lo < point < hi
+    # a loop over resamples, each task's runs drawn on their own: the same interval to within
+    # the Monte Carlo error
+    boots = []
+    for _ in range(BOOTSTRAP_RESAMPLES):
+        cols = [scores[rng.integers(0, 5, 5), t] for t in range(3)]
+        boots.append(stats.trim_mean(np.concatenate(cols), 0.25))
+    want = np.percentile(boots, [2.5, 97.5])
+    assert abs(lo - want[0]) < 0.1 * (want[1] - want[0])
+    assert abs(hi - want[1]) < 0.1 * (want[1] - want[0])
+
+
+def test_the_bootstrap_keeps_each_task_s_runs_in_their_task():
+    """Task A scores 0 on every run, task B 1: any stratified resample holds four of each, so
+    the IQM is 0.5 with no spread (an unstratified one would move)."""
+    from agents.evaluate import iqm_interval
+
+    scores = np.column_stack([np.zeros(4), np.ones(4)])
+    assert iqm_interval(scores) == (0.5, [0.5, 0.5])
+    assert np.isnan(iqm_interval(scores[:1])[1]).all()
+    with pytest.raises(ValueError, match=r"\(runs, tasks\)"):
+        iqm_interval(np.zeros(4))

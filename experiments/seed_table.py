@@ -1,0 +1,102 @@
+"""A learned tuner over several training seeds: the README's per-seed table and the IQM.
+
+``python experiments/seed_table.py POLICY.npz [POLICY.npz …] [--scenarios nonstationary]
+[--episodes 30] [--out results/seed_table]`` evaluates each exported policy (one per training
+seed) beside ``tuned_constant``, ``privileged`` and ``fis`` on the same test flights of each
+scenario (``aeromag evaluate``'s path: :func:`agents.evaluate.evaluate`), and prints per seed its
+mean RMSE and normalized score with their intervals, then the interquartile mean of the
+normalized scores over seeds × scenarios with a stratified-bootstrap interval
+(:func:`agents.evaluate.iqm_interval`); scenarios without headroom are left out of the IQM and
+named. Writes ``table.md`` and ``results.json`` to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):  # run as a script: the checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from aeromag_env.atomic import write_text
+from agents.evaluate import TEST_SEED_START, evaluate, iqm_interval
+
+BASELINES = ("tuned_constant", "privileged", "fis")
+
+
+HEADER = (
+    "| training seed | policy | RMSE [nT] (95 % CI) | normalized score (95 % CI) |\n"
+    "|---|---|---|---|"
+)
+
+
+def _interval(value: float | None, ci: list, fmt: str) -> str:
+    if value is None:
+        return "n/a"
+    return f"{value:{fmt}} [{ci[0]:{fmt}}, {ci[1]:{fmt}}]"
+
+
+def seed_rows(results: dict, names: list[str]) -> list[str]:
+    """Markdown rows: one per seed's policy (its file), RMSE and normalized score."""
+    rows = []
+    for k, name in enumerate(names):
+        r = results["policies"][name]
+        rmse = _interval(r["rmse_nt_mean"], r["rmse_nt_ci95"], ".3g")
+        score = _interval(r.get("normalized_score"), r.get("normalized_score_ci95", []), ".2f")
+        rows.append(f"| {k} | `{name[4:]}` | {rmse} | {score} |")
+    return rows
+
+
+def scenario_lines(scenario: str, results: dict, names: list[str]) -> list[str]:
+    """The scenario's heading (its anchors), the per-seed rows and the spread over seeds."""
+    base = results["policies"]
+    anchors = ", ".join(f"{b} {base[b]['rmse_nt_mean']:.3g} nT" for b in BASELINES)
+    rmse = np.array([base[n]["rmse_nt_mean"] for n in names])
+    spread = (f"mean over seeds {rmse.mean():.3g} nT, SD {rmse.std(ddof=1):.2g} nT (min "
+              f"{rmse.min():.3g}, max {rmse.max():.3g})") if len(names) > 1 else ""  # fmt: skip
+    heading = f"{scenario}: {len(results['seeds'])} test flights; {anchors}"
+    return [heading, "", HEADER, *seed_rows(results, names), "", spread, ""]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("policies", nargs="+", help="exported policies, one per training seed")
+    parser.add_argument("--scenarios", default="nonstationary")
+    parser.add_argument("--episodes", type=int, default=30)
+    parser.add_argument("--out", default="results/seed_table")
+    args = parser.parse_args(argv)
+    names = [f"ppo:{p}" for p in args.policies]
+    seeds = list(range(TEST_SEED_START, TEST_SEED_START + args.episodes))
+    lines, scores, skipped, everything = [], [], [], {}
+    for scenario in args.scenarios.split(","):
+        results = evaluate(scenario, [*BASELINES, *names], seeds)
+        everything[scenario] = results
+        lines += scenario_lines(scenario, results, names)
+        anchors = results.get("normalized_score")
+        if anchors is not None and anchors["note"] is None:
+            scores.append([results["policies"][n]["normalized_score"] for n in names])
+        else:
+            skipped.append(scenario)
+    if scores:
+        point, (lo, hi) = iqm_interval(np.array(scores).T)
+        what = f"{len(names)} seed(s) × {len(scores)} scenario(s)"
+        lines.append(f"IQM of the normalized score over {what}: {point:.2f} [{lo:.2f}, {hi:.2f}]"
+                     " (stratified bootstrap)")  # fmt: skip
+    if skipped:
+        lines.append(f"no headroom, left out of the IQM: {', '.join(skipped)}")
+    table = "\n".join(lines) + "\n"
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "table.md", table)
+    write_text(out / "results.json", json.dumps(everything, indent=2, default=str))
+    print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -132,3 +132,20 @@ def test_the_shipped_policy_makes_its_own_environment():
     bare, _ = gym.make("AeroMag/Nonstationary-v0").reset(seed=1)
     with pytest.raises(ValueError, match=r"policy\.make_env\(\), or pass it policy\.env_kwargs"):
         policy.predict(bare)
+
+
+def test_a_scenario_given_twice_is_refused_in_one_line():
+    from aeromag_env.environment.env import EnvConfig
+    from aeromag_env.errors import ConfigError
+
+    for config in ({"scenario": "nominal"}, EnvConfig(scenario="paper")):
+        with pytest.raises(ConfigError, match="scenario given twice: 'nonstationary' by the id"):
+            gym.make("AeroMag/Nonstationary-v0", config=config)
+    agree = gym.make(
+        "AeroMag/Nonstationary-v0", config={"scenario": "nonstationary", "extras": True}
+    )
+    assert agree.unwrapped.config.extras
+    assert gym.make("AeroMag/Nonstationary-v0", config={"extras": True}).unwrapped.config.extras
+    assert gym.make("AeroMagCompensation-v0", config={"scenario": "paper"}).unwrapped.scenario == (
+        "paper"
+    )

@@ -56,6 +56,7 @@ from aeromag_env.environment.spaces import (
     observation_bounds,
     observation_positions,
 )
+from aeromag_env.errors import ConfigError
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -251,6 +252,13 @@ class AeroMagCompensationEnv(gym.Env):
     def __init__(self, config: EnvConfig | dict | None = None, render_mode: str | None = None,
                  **overrides: Any) -> None:  # fmt: skip
         base = from_dict(EnvConfig, config) if config is not None else EnvConfig()
+        said = config.get("scenario") if isinstance(config, dict) else getattr(config, "scenario",
+                                                                                None)  # fmt: skip
+        if said is not None and "scenario" in overrides and overrides["scenario"] != said:
+            raise ConfigError(
+                f"scenario given twice: {overrides['scenario']!r} by the id or keyword, {said!r} "
+                "by config; use AeroMagCompensation-v0 with config, or leave one out"
+            )
         self.config = from_dict(EnvConfig, {**to_dict(base), **overrides})
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")

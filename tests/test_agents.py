@@ -141,7 +141,7 @@ def test_the_privileged_policy_acts_on_the_true_noise_and_the_steps():
         assert action.shape == (3,)
         if action[2] > 0:
             raised.append(k)
-        r_log10 = -1.0 + (action[1] + 1.0) / 2.0 * 4.0  # absolute_r_log10 = (-1, 3)
+        r_log10 = -2.0 + (action[1] + 1.0) / 2.0 * 9.0  # absolute_r_log10 = (-2, 7)
         want = np.log10(inner.episode.noise_var[k] / np.mean(np.diag(inner.filter.r0)))
         assert r_log10 == pytest.approx(want, abs=1e-5)
         obs, _, terminated, truncated, _ = env.step(action)

@@ -179,8 +179,6 @@ def estimated_mounts(flight: Flight) -> dict[str, dict[str, Any]]:
     """Each fluxgate's mount as the data indicate: angles [deg], angle from the body axes [deg]
     and residual [nT] (``aeromag compensate --mount auto`` would use it), or why not."""
     missing = estimate_inputs_missing(flight)
-    if "date" in flight.attrs or ("year" in flight and "doy" in flight):  # there, but unusable
-        missing = missing.replace("date", "usable date")
     out: dict[str, dict[str, Any]] = {}
     for gate in flight.fluxgates():
         if missing:

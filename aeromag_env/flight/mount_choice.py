@@ -260,6 +260,8 @@ def estimate_inputs_missing(flight: Flight) -> str:
         missing.append("position")
     try:
         flight.date()
-    except (KeyError, ValueError, OverflowError):
+    except KeyError:
         missing.append("date")
+    except (ValueError, OverflowError):  # there, but unreadable or outside IGRF-14's years
+        missing.append("usable date")
     return ", ".join(missing)

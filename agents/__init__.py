@@ -1,11 +1,12 @@
 """Tuning policies for the compensator's noise covariances, all with the stable-baselines3
 ``predict`` shape: ``constant``, ``fis`` (the paper's rules), classical adaptive (``sage_husa``,
-``ding``), ``tuned_constant``, ``oracle``, ``privileged`` (knows the noise and the steps) and
-``ppo`` (the shipped numpy export of a trained
-stable-baselines3 policy). :mod:`.policies` holds the hand-written ones, :mod:`.numpy_policy` the
-exported PPO, :mod:`.ppo` its training, :mod:`.tuning` and :mod:`.tuned_table` the tuned
-constants, :mod:`.evaluate` the one evaluation path. Imports ``aeromag_env`` (its environment
-and below); only ``aeromag_env.cli`` imports ``agents``, never the rest of ``aeromag_env``.
+``ding``), ``tuned_constant``, ``oracle``, ``privileged`` (knows the noise and the steps),
+``ppo`` (the shipped numpy export of a trained stable-baselines3 policy, trained on
+``nonstationary``) and ``general`` (one PPO policy trained across the scenario suite, shipped the
+same way). :mod:`.policies` holds the hand-written ones, :mod:`.numpy_policy` the exported PPO,
+:mod:`.ppo` its training, :mod:`.tuning` and :mod:`.tuned_table` the tuned constants,
+:mod:`.evaluate` the one evaluation path. Imports ``aeromag_env`` (its environment and below);
+only ``aeromag_env.cli`` imports ``agents``, never the rest of ``aeromag_env``.
 
 Note: the import name ``agents`` is also used by unrelated PyPI packages; do not install those
 into the same environment.
@@ -19,14 +20,19 @@ from typing import Any
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.errors import ConfigError
 
-POLICIES = ("constant", "fis", "sage_husa", "ding", "tuned_constant", "oracle", "privileged", "ppo")
-#: The shipped PPO policy (trained on ``nonstationary``; see experiments/train_ppo.py).
+POLICIES = ("constant", "fis", "sage_husa", "ding", "tuned_constant", "oracle", "privileged", "ppo",
+            "general")  # fmt: skip
+#: The shipped PPO policies: trained on ``nonstationary`` (see experiments/train_ppo.py), and the
+#: general one trained across the suite (``aeromag train --scenario suite``).
 DEFAULT_PPO = Path(__file__).with_name("trained") / "ppo_nonstationary.npz"
+GENERAL_PPO = Path(__file__).with_name("trained") / "ppo_general.npz"
+SHIPPED = {"ppo": DEFAULT_PPO, "general": GENERAL_PPO}
 
 
 def available_policies() -> list[str]:
-    """:data:`POLICIES` whose artefacts are present (``ppo`` needs the shipped policy file)."""
-    return [p for p in POLICIES if p != "ppo" or DEFAULT_PPO.exists()]
+    """:data:`POLICIES` whose artefacts are present (``ppo`` and ``general`` need their shipped
+    policy files)."""
+    return [p for p in POLICIES if p not in SHIPPED or SHIPPED[p].exists()]
 
 
 def policy_env_kwargs(name: str) -> dict[str, Any]:
@@ -35,7 +41,7 @@ def policy_env_kwargs(name: str) -> dict[str, Any]:
 
     ``ppo`` is the shipped policy; ``ppo:PATH`` loads an exported ``.npz`` (never a pickle).
     """
-    if name == "ppo" or name.startswith("ppo:"):
+    if name in SHIPPED or name.startswith("ppo:"):
         return _load_ppo(name).env_kwargs
     if name == "privileged":
         from agents.policies import PrivilegedPolicy
@@ -47,7 +53,7 @@ def policy_env_kwargs(name: str) -> dict[str, Any]:
 def _load_ppo(name: str) -> Any:
     from agents.numpy_policy import NumpyPPOPolicy
 
-    return NumpyPPOPolicy.load(DEFAULT_PPO if name == "ppo" else name.split(":", 1)[1])
+    return NumpyPPOPolicy.load(SHIPPED[name] if name in SHIPPED else name.split(":", 1)[1])
 
 
 def make_policy(name: str, env: Any) -> Any:
@@ -70,5 +76,6 @@ def make_policy(name: str, env: Any) -> Any:
         "oracle": lambda: p.OraclePolicy(env),
         "privileged": lambda: p.PrivilegedPolicy(env),
         "ppo": lambda: _load_ppo("ppo"),
+        "general": lambda: _load_ppo("general"),
     }
     return makers[name]()

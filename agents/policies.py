@@ -223,32 +223,31 @@ class InnovationDetectorPolicy:
 
 
 class PrivilegedPolicy:
-    """Knows what no real tuner can: the true noise variance of each sample (R set to it, as
-    ``oracle``) and when the interference steps (``Episode.step_samples``): T_p's Q at the top
-    of its range for the ``after`` decision windows that begin at or follow a step, at the bottom
-    otherwise; the other 18 states' Q at ``log10_q`` (Q(0) by default: the scenario's tuned
-    constant Q also carries the steps, which this policy handles through T_p; measured on 10
-    nonstationary flights, 1.92 nT with it against 1.72 with Q(0)). The upper anchor of the
+    """Knows what no real tuner can: the true noise variance of the coming decision window (R
+    set to its largest: a burst that starts within the window is not let in at a small R), the
+    Q the truth implies (``Episode.q_log10_true``: the package's well-tuned Q for the induced and
+    eddy blocks; for T_p zero, or the drift's variance where the permanent field drifts) and
+    when the interference steps (``Episode.step_samples``): T_p's Q at the top of its range for
+    the ``after`` decision windows that begin at or follow a step. The upper anchor of the
     normalized score.
 
-    Acts in the layout of ``ENV_KWARGS`` (absolute actions, ``split_q``, ``qp_gate``), which
-    :func:`agents.policy_env_kwargs` gives the environment it is evaluated in.
+    Acts in the layout of ``ENV_KWARGS`` (absolute actions, ``split_q``, a graded T_p action),
+    which :func:`agents.policy_env_kwargs` gives the environment it is evaluated in.
     """
 
     name = "privileged"
-    #: The environment layout it acts in (the shipped PPO's action layout).
+    #: The environment layout it acts in.
     ENV_KWARGS: dict[str, Any] = {  # noqa: RUF012 (read-only)
-        "action_mode": "absolute", "split_q": True, "qp_gate": True,
+        "action_mode": "absolute", "split_q": True,
         "absolute_q_log10": (-10.0, 6.0), "absolute_r_log10": (-2.0, 7.0),
-        "absolute_qp_log10": (-2.0, 10.0), "scale_limit": 1e10,
+        "absolute_qp_log10": (-6.0, 10.0), "scale_limit": 1e10,
     }  # fmt: skip
 
-    def __init__(self, env: Any, log10_q: float = 0.0, after: int = 1) -> None:
+    def __init__(self, env: Any, after: int = 1) -> None:
         self.env = env.unwrapped
         c = self.env.config
-        if not (c.split_q and c.qp_gate and c.action_mode == "absolute"):
-            raise ConfigError("privileged needs split_q, qp_gate and action_mode='absolute'")
-        self.q_action = _to_action(log10_q, c.absolute_q_log10)
+        if not (c.split_q and c.action_mode == "absolute"):
+            raise ConfigError("privileged needs split_q and action_mode='absolute'")
         self.after = after
 
     def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
@@ -256,14 +255,18 @@ class PrivilegedPolicy:
         _single_env(obs, self.name)
         env, c = self.env, self.env.config
         ep, k, width = env.episode, env.filter.k, c.decision_window
-        k_r = min(k, ep.n - 1)
+        coming = ep.noise_var[min(k, ep.n - 1) : k + width]  # the window it sets R for
         r0 = float(np.mean(np.diag(env.filter.r0)))
-        action = np.full((1, len(ACTIONS)), -1.0)
-        action[0, ACT_Q] = self.q_action
-        action[0, ACT_R] = _to_action(math.log10(ep.noise_var[k_r] / r0), c.absolute_r_log10)
+        q_blocks, q_tp = ep.q_log10_true
+        action = np.zeros((1, len(ACTIONS)))
+        action[0, ACT_Q] = _to_action(q_blocks, c.absolute_q_log10)
+        action[0, ACT_R] = _to_action(math.log10(coming.max() / r0), c.absolute_r_log10)
         steps = ep.step_samples
         near = (steps < k + width) & (steps >= k - self.after * width)
-        action[0, ACT_QP] = 1.0 if near.any() else -1.0
+        if c.qp_gate:
+            action[0, ACT_QP] = 1.0 if near.any() else -1.0
+        else:
+            action[0, ACT_QP] = 1.0 if near.any() else _to_action(q_tp, c.absolute_qp_log10)
         return _out(action, np.asarray(obs).ndim == 1), state
 
 

@@ -173,7 +173,7 @@ def _train_ppo(
     callback = _Callback(out, venv, scenario, hp, seed, curve, timesteps, progress)
     t0 = time.perf_counter()
     if "pretrain" in hp and not ckpt.exists():  # a fresh run: imitate, then validate at step 0
-        behaviour_clone(model, venv, hp)
+        behaviour_clone(model, venv, hp, scenario)
         callback.init_callback(model)
         callback._validate()
     model.learn(timesteps, callback=callback, reset_num_timesteps=not ckpt.exists())
@@ -242,11 +242,16 @@ def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
     return kwargs
 
 
-def behaviour_clone(model: Any, venv: Any, hp: dict[str, Any]) -> None:
+def behaviour_clone(
+    model: Any, venv: Any, hp: dict[str, Any], scenario: str = "nonstationary"
+) -> None:
     """Pretrain ``model``'s actor to imitate a demonstrator and its critic to the discounted
     returns of the demonstrator's rollouts (``hp["pretrain"]``: ``steps`` environment steps
     of the training environments, ``epochs`` passes of Adam at ``learning_rate`` over them,
-    ``threshold_nt`` of the demonstrator :class:`agents.policies.InnovationDetectorPolicy`).
+    ``demonstrator``: ``innovation_detector`` (the default,
+    :class:`agents.policies.InnovationDetectorPolicy` with ``threshold_nt``) or ``privileged``
+    (:class:`agents.policies.PrivilegedPolicy`, which knows the truth: the student learns what
+    the teacher does from the observations alone)).
 
     Why: PPO from scratch settles on a constant random walk for T_p (a local optimum); the
     detector's all-or-nothing response to a rare interference step is a large, coordinated
@@ -256,24 +261,13 @@ def behaviour_clone(model: Any, venv: Any, hp: dict[str, Any]) -> None:
     """
     import torch
 
-    from aeromag_env.environment.env import EnvConfig
-    from agents.policies import InnovationDetectorPolicy
-
     spec = hp["pretrain"]
-    demo = InnovationDetectorPolicy(
-        EnvConfig(**hp["env_kwargs"]), threshold_nt=float(spec.get("threshold_nt", 20.0))
-    )
-    raw_obs, actions, rewards, dones = [], [], [], []
-    venv.reset()
-    obs = venv.get_original_obs()
-    for _ in range(int(spec["steps"]) // venv.num_envs):
-        action = demo.predict(obs)[0]
-        raw_obs.append(obs)
-        actions.append(action)
-        _, _, done, _ = venv.step(action)
-        rewards.append(venv.get_original_reward())
-        dones.append(done)
-        obs = venv.get_original_obs()
+    if spec.get("demonstrator", "innovation_detector") == "privileged":
+        train_scenario = hp.get("train_scenario", scenario)
+        raw_obs, actions, rewards, dones = _privileged_rollouts(venv, hp, train_scenario,
+                                                                int(spec["steps"]))  # fmt: skip
+    else:
+        raw_obs, actions, rewards, dones = _detector_rollouts(venv, hp, int(spec["steps"]))
     returns = _discounted(np.array(rewards), np.array(dones), float(hp["gamma"]))
     x = torch.as_tensor(venv.normalize_obs(np.concatenate(raw_obs)), dtype=torch.float32)
     a = torch.as_tensor(np.concatenate(actions), dtype=torch.float32)
@@ -288,6 +282,70 @@ def behaviour_clone(model: Any, venv: Any, hp: dict[str, Any]) -> None:
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
+
+
+def _detector_rollouts(venv: Any, hp: dict[str, Any], steps: int) -> tuple[list, list, list, list]:
+    """Raw observations, actions, rewards and dones of the innovation detector driving the
+    training environments ``venv`` for ``steps`` steps (their normalisation statistics are
+    updated as PPO's own rollouts would)."""
+    from aeromag_env.environment.env import EnvConfig
+    from agents.policies import InnovationDetectorPolicy
+
+    spec = hp["pretrain"]
+    demo = InnovationDetectorPolicy(
+        EnvConfig(**hp["env_kwargs"]), threshold_nt=float(spec.get("threshold_nt", 20.0))
+    )
+    raw_obs, actions, rewards, dones = [], [], [], []
+    venv.reset()
+    obs = venv.get_original_obs()
+    for _ in range(steps // venv.num_envs):
+        action = demo.predict(obs)[0]
+        raw_obs.append(obs)
+        actions.append(action)
+        _, _, done, _ = venv.step(action)
+        rewards.append(venv.get_original_reward())
+        dones.append(done)
+        obs = venv.get_original_obs()
+    return raw_obs, actions, rewards, dones
+
+
+def _privileged_rollouts(
+    venv: Any, hp: dict[str, Any], scenario: str, steps: int
+) -> tuple[list, list, list, list]:
+    """The same from :class:`agents.policies.PrivilegedPolicy`, which reads each environment's
+    episode (true noise, true Q, step times): it drives ``n_envs`` single environments of the
+    training scenario (training seeds, a stream of their own), and ``venv``'s observation and
+    reward statistics are updated with what they saw. The student imitates what the teacher
+    does from what the student sees (asymmetric imitation: the observations only)."""
+    from agents.policies import PrivilegedPolicy
+
+    n = venv.num_envs
+    envs = [gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"])
+            for _ in range(n)]  # fmt: skip
+    seeds = [_seed_stream(rank, n, offset=TRAIN_SEEDS.stop // 2) for rank in range(n)]
+    teachers = [PrivilegedPolicy(env, after=3) for env in envs]
+    obs = np.stack([env.reset(seed=next(seeds[i]))[0] for i, env in enumerate(envs)])
+    raw_obs, actions, rewards, dones = [], [], [], []
+    returns = np.zeros(n)
+    for _ in range(steps // n):
+        action = np.stack([t.predict(o)[0] for t, o in zip(teachers, obs, strict=True)])
+        reward, done, nxt = np.zeros(n), np.zeros(n, bool), obs.copy()
+        for i, env in enumerate(envs):
+            o, r, term, trunc, _ = env.step(action[i])
+            reward[i], done[i] = r, term or trunc
+            nxt[i] = env.reset(seed=next(seeds[i]))[0] if done[i] else o
+        raw_obs.append(obs)
+        actions.append(action)
+        rewards.append(reward)
+        dones.append(done)
+        venv.obs_rms.update(obs)
+        returns = returns * float(hp["gamma"]) + reward  # as VecNormalize tracks the return
+        venv.ret_rms.update(returns)
+        returns[done] = 0.0
+        obs = nxt
+    for env in envs:
+        env.close()
+    return raw_obs, actions, rewards, dones
 
 
 def _discounted(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.ndarray:

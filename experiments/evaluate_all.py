@@ -1,8 +1,11 @@
 """The README's tuner table: every policy on every scenario, same test flights, paired CIs.
 
 ``python experiments/evaluate_all.py [--episodes 30] [--quick] [--out results/evaluate_all]``
-runs ``aeromag evaluate`` per scenario (test seeds from 100 000) and writes ``table.md`` and one
-``results.json`` per scenario.
+runs ``aeromag evaluate`` per scenario (test seeds from 100 000) and writes ``table.md``, one
+``results.json`` per scenario, ``matrix.md`` (policies × scenarios, RMSE and normalized score)
+and ``headroom.md``: per scenario, the privileged policy against the untuned ``constant`` (issue
+21's bar: at least 15 % better with 95 % intervals apart) and against ``tuned_constant`` (where
+the normalized score is defined).
 """
 
 from __future__ import annotations
@@ -36,8 +39,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         results[scenario] = res
     write_text(out / "table.md", "\n".join(tables))
     write_text(out / "matrix.md", matrix(results))
+    write_text(out / "headroom.md", headroom(results))
     print(matrix(results))
-    print(f"wrote {out}/table.md, matrix.md")
+    print(headroom(results))
+    print(f"wrote {out}/table.md, matrix.md, headroom.md")
     return 0
 
 
@@ -60,6 +65,42 @@ def matrix(results: dict) -> str:
         cells = [_score(results[sc], name) for sc in scenarios]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+#: Issue 21's bar for a scenario with headroom: the privileged policy at least this much better
+#: than the untuned constant, with the two policies' 95 % intervals apart.
+HEADROOM_BAR = 0.15
+
+
+def headroom(results: dict) -> str:
+    """Per scenario: ``constant`` and ``privileged`` mean RMSE with their 95 % intervals, how
+    much better the latter is, whether the intervals are apart and the bar is met, and the
+    headroom over ``tuned_constant`` that defines the normalized score."""
+    lines = [
+        "| scenario | constant [nT] (95 % CI) | privileged [nT] (95 % CI) | better by | "
+        "intervals apart | bar met | tuned_constant [nT] | score defined |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for sc, res in results.items():
+        pol = res["policies"]
+        if not {"constant", "privileged", "tuned_constant"} <= set(pol):
+            continue
+        c, p = pol["constant"], pol["privileged"]
+        better = 1.0 - p["rmse_nt_mean"] / c["rmse_nt_mean"]
+        apart = p["rmse_nt_ci95"][1] < c["rmse_nt_ci95"][0]
+        met = apart and better >= HEADROOM_BAR
+        anchors = res.get("normalized_score") or {}
+        defined = "yes" if anchors and not anchors.get("note") else "no"
+        lines.append(
+            f"| {sc} | {_ci(c)} | {_ci(p)} | {100 * better:.0f} % | {'yes' if apart else 'no'} | "
+            f"{'yes' if met else 'no'} | {pol['tuned_constant']['rmse_nt_mean']:.3g} | {defined} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _ci(row: dict) -> str:
+    lo, hi = row["rmse_nt_ci95"]
+    return f"{row['rmse_nt_mean']:.3g} [{lo:.3g}, {hi:.3g}]"
 
 
 def _score(result: dict, name: str) -> str:

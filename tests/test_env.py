@@ -153,17 +153,85 @@ def test_scenarios_build(name):
 
 
 def test_misspecified_and_nonstationary_do_what_they_say():
-    factors = []
+    """``misspecified``: the filter's Q (of the drifting T_p) and R are each 10 to 100 times off
+    the truth, either way, its prior on T_p is confident (1–32 nT) while the permanent field is
+    hundreds of nT: a step at sample 0 for the privileged policy."""
+    q_off, r_off = [], []
     for seed in range(40):
-        cfg = make_episode("misspecified", seed, duration_s=60.0).filter_cfg
-        factors.append(math.log10((cfg.r_std_nt / 1.5) ** 2))
-    assert min(factors) < -1.0 and max(factors) > 1.0 and max(map(abs, factors)) <= 2.0
+        ep = make_episode("misspecified", seed, duration_s=60.0)
+        cfg = ep.filter_cfg
+        q_off.append(ep.q_log10_true[1])
+        r_off.append(math.log10(ep.noise_var[0] / cfg.r_std_nt**2))
+        assert 1.0 <= cfg.p0_std[0] <= 10**1.5 and list(ep.step_samples) == [0]
+        assert ep.q_log10_true[0] == pytest.approx(-math.log10(cfg.q_std[1] ** 2 / 1e-18))
+    for off in (q_off, r_off):
+        assert all(1.0 - 1e-9 <= abs(x) <= 2.0 + 1e-9 for x in off)
+        assert min(off) < -1.0 and max(off) > 1.0  # both ways
     ep = make_episode("nonstationary", 3)
     levels = set(np.round(np.unique(ep.noise_var), 6))
     assert 2 <= len(levels) <= 3
     assert levels <= {round(s**2 + 1.0, 6) for s in REGIME_STD_NT}  # white² + 1 nT² FOGM
     jumps = np.abs(np.diff(ep.truth_interf, axis=0)).max(axis=1)
     assert np.sum(jumps > 10.0) >= 1  # an interference step (equipment switching on)
+
+
+def test_the_drift_is_in_the_truth_and_the_fluxgate_alike(monkeypatch):
+    """The temperature drift of T_p is interference: it moves the fluxgate and the truth alike,
+    as a random walk whose per-sample std is the one ``q_log10_true`` gives the privileged
+    policy."""
+    from aeromag_env.environment import scenarios
+
+    for name in ("misspecified", "noise_bursts"):
+        ep = make_episode(name, 11)
+        drift = 10 ** (ep.q_log10_true[1] / 2) * ep.filter_cfg.q_std[0]
+        with monkeypatch.context() as m:
+            m.setattr(
+                scenarios, "_drift", lambda change, std, rng: rng.standard_normal(change.flux.shape)
+            )
+            still = make_episode(name, 11)  # the same draws, the walk not added
+        walk = ep.truth_interf - still.truth_interf
+        np.testing.assert_allclose(ep.y - still.y, walk, atol=1e-6)
+        steps = np.diff(walk, axis=0)
+        assert np.std(steps) == pytest.approx(drift, rel=0.05)
+        assert np.abs(walk[-1]).max() > 3 * drift  # it wanders
+
+
+def test_the_equipment_and_sensor_scenarios_do_what_they_say():
+    cts = make_episode("calibration_then_survey", 5)
+    first_line = int(np.flatnonzero(cts.flight.fields["line"] >= 1001)[0])
+    assert list(cts.step_samples) == [first_line]
+    jump = np.abs(cts.truth_interf[first_line] - cts.truth_interf[first_line - 1]).max()
+    assert jump > 1.0  # the survey equipment switches on at the first line
+
+    bursts = make_episode("noise_bursts", 5)
+    loud = bursts.noise_var > 10**3.0  # a burst's std is at least 10^1.7 nT
+    edges = np.flatnonzero(np.diff(loud.astype(int)) == 1).size + int(loud[0])
+    assert 1 <= edges <= 8 and 0.01 < loud.mean() < 0.5
+
+    worn = make_episode("degradation", 5)
+    var = worn.noise_var
+    onset = int(np.flatnonzero(var > var[0] + 1e-9)[0])
+    assert 0.1 * worn.n <= onset + 1 <= 0.6 * worn.n + 1
+    assert np.all(np.diff(var[onset:]) >= -1e-9) and var[-1] >= 10**2.4
+
+    heavy, calm = make_episode("manoeuvre_heavy", 5), make_episode("nominal", 5)
+
+    def swing(ep):  # the 99th percentile of the roll rate [deg/sample]
+        return np.percentile(np.abs(np.diff(ep.flight.fields["ins_roll"])), 99)
+
+    assert swing(heavy) > 1.6 * swing(calm)
+    rate = np.abs(np.gradient(np.unwrap(np.deg2rad(heavy.flight.fields["ins_roll"]))))
+    extra = heavy.noise_var - heavy.noise_var.min()
+    assert np.corrcoef(rate, extra)[0, 1] > 0.5  # the flex noise follows the angular rate
+
+
+def test_suite_draws_every_scenario_of_the_suite():
+    from aeromag_env.environment.ids import SUITE
+
+    drawn = {make_episode("suite", seed, duration_s=30.0).scenario for seed in range(60)}
+    assert drawn == (set(SUITE) - {"nonstationary"}) | {"nonstationary_dense"}
+    a, b = make_episode("suite", 9, duration_s=30.0), make_episode("suite", 9, duration_s=30.0)
+    np.testing.assert_array_equal(a.y, b.y)
 
 
 def test_dense_training_variant_adds_steps_to_the_same_flight():

@@ -25,7 +25,7 @@ TOTALS = ("episode_rmse_nt", "divergences", "outliers_rejected")
 def test_every_scenario_has_an_id_that_makes_it():
     assert env_id("calibration_then_survey") == "AeroMag/CalibrationThenSurvey-v0"
     ids = [env_id(s) for s in SCENARIOS + TRAINING_SCENARIOS]
-    assert len(set(ids)) == 6 and all(i in gym.registry for i in ids)
+    assert len(set(ids)) == len(ids) == 10 and all(i in gym.registry for i in ids)
     assert aeromag_env.ENV_ID in gym.registry
     for scenario in SCENARIOS + TRAINING_SCENARIOS:
         env = gym.make(env_id(scenario), duration_s=20.0)

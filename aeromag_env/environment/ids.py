@@ -15,9 +15,17 @@ from gymnasium.envs.registration import register, registry
 
 #: Scenarios that are evaluated and tabled; what each one tests is in
 #: :mod:`aeromag_env.environment.scenarios`.
-SCENARIOS = ("paper", "nominal", "misspecified", "nonstationary", "calibration_then_survey")
-#: Scenarios for training only (not evaluated or tabled): ``nonstationary_dense``.
-TRAINING_SCENARIOS = ("nonstationary_dense",)
+SCENARIOS = ("paper", "nominal", "misspecified", "nonstationary", "calibration_then_survey",
+             "noise_bursts", "degradation", "manoeuvre_heavy")  # fmt: skip
+#: Evaluated as a control, not part of the suite: the well-tuned start has no headroom by design
+#: (a tuner must not make it worse).
+CONTROL_SCENARIOS = ("nominal",)
+#: The suite: every evaluated scenario with headroom (the general policy trains on these; the
+#: normalized scores aggregate over them).
+SUITE = tuple(s for s in SCENARIOS if s not in CONTROL_SCENARIOS)
+#: Scenarios for training only (not evaluated or tabled): ``nonstationary_dense`` and ``suite``
+#: (each episode one scenario of SUITE).
+TRAINING_SCENARIOS = ("nonstationary_dense", "suite")
 #: The generic id (scenario as a keyword) and the namespace of the per-scenario ids.
 ENV_ID = "AeroMagCompensation-v0"
 NAMESPACE = "AeroMag"

@@ -120,9 +120,21 @@ def normalized(venv: Any, hp: dict[str, Any]) -> Any:
 
 def validate(policy: NumpyPPOPolicy, scenario: str, episodes: int) -> float:
     """Mean episode RMSE on the first ``episodes`` validation seeds [nT]."""
-    env = gym.make("AeroMagCompensation-v0", scenario=scenario, **policy.env_kwargs)
+    return float(np.mean(validation_rmse(policy, scenario, episodes)))
+
+
+def validation_rmse(policy: Any, scenario: str, episodes: int,
+                    env_kwargs: dict[str, Any] | None = None) -> np.ndarray:  # fmt: skip
+    """Each episode's RMSE on the first ``episodes`` validation seeds [nT]; ``policy`` a
+    policy object or a name of :func:`agents.make_policy` (then in ``env_kwargs``)."""
+    from agents import make_policy
+
+    kwargs = policy.env_kwargs if env_kwargs is None else env_kwargs
+    env = gym.make("AeroMagCompensation-v0", scenario=scenario, **kwargs)
+    if isinstance(policy, str):
+        policy = make_policy(policy, env)
     seeds = range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + episodes)
-    return float(np.mean([run_episode(env, policy, s)["rmse_nt"] for s in seeds]))
+    return np.array([run_episode(env, policy, s)["rmse_nt"] for s in seeds])
 
 
 def train_ppo(
@@ -173,7 +185,7 @@ def _train_ppo(
     callback = _Callback(out, venv, scenario, hp, seed, curve, timesteps, progress)
     t0 = time.perf_counter()
     if "pretrain" in hp and not ckpt.exists():  # a fresh run: imitate, then validate at step 0
-        behaviour_clone(model, venv, hp, scenario)
+        behaviour_clone(model, venv, hp, scenario, seed)
         callback.init_callback(model)
         callback._validate()
     model.learn(timesteps, callback=callback, reset_num_timesteps=not ckpt.exists())
@@ -184,7 +196,8 @@ def _train_ppo(
         "timesteps": int(model.num_timesteps),
         "seed": seed,
         "train_seconds_this_run": time.perf_counter() - t0,
-        "best_validation_rmse_nt": callback.best,
+        "best_validation_rmse_nt": callback.best_rmse,
+        "best_validation_score": callback.best,
         "hyperparams": hp,
         "curve": curve,
     }
@@ -243,7 +256,7 @@ def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
 
 
 def behaviour_clone(
-    model: Any, venv: Any, hp: dict[str, Any], scenario: str = "nonstationary"
+    model: Any, venv: Any, hp: dict[str, Any], scenario: str = "nonstationary", seed: int = 0
 ) -> None:
     """Pretrain ``model``'s actor to imitate a demonstrator and its critic to the discounted
     returns of the demonstrator's rollouts (``hp["pretrain"]``: ``steps`` environment steps
@@ -259,19 +272,40 @@ def behaviour_clone(
     PPO then trains from there. The observation statistics and the reward scale of
     ``VecNormalize`` are those the rollouts leave behind, as PPO's own rollouts would.
     """
+    spec = hp["pretrain"]
+    steps = int(spec["steps"])
+    if spec.get("demonstrator", "innovation_detector") != "privileged":
+        _fit(model, venv, hp, [_with_returns(_detector_rollouts(venv, hp, steps), hp)])
+        return
+    train_scenario = hp.get("train_scenario", scenario)
+    parts, actor = [], None
+    for round_ in range(int(spec.get("dagger_rounds", 1))):
+        # each round and training seed flies flights of its own
+        offset = TRAIN_SEEDS.stop // 2 + 5_000 * round_ + 1_000 * seed
+        rollout = _privileged_rollouts(venv, hp, train_scenario, steps, actor, offset)
+        parts.append(_with_returns(rollout, hp))
+        _fit(model, venv, hp, parts)
+        actor = _student(model, venv)
+
+
+def _with_returns(rollout: tuple[list, list, list, list], hp: dict[str, Any]) -> tuple:
+    """Observations, actions and the discounted returns of one rollout."""
+    raw_obs, actions, rewards, dones = rollout
+    returns = _discounted(np.array(rewards), np.array(dones), float(hp["gamma"]))
+    return np.concatenate(raw_obs), np.concatenate(actions), returns.reshape(-1)
+
+
+def _fit(model: Any, venv: Any, hp: dict[str, Any], parts: list[tuple]) -> None:
+    """Adam on the actor's mean (to the demonstrated actions) and the critic (to the returns)
+    over all ``parts`` so far, ``epochs`` passes."""
     import torch
 
     spec = hp["pretrain"]
-    if spec.get("demonstrator", "innovation_detector") == "privileged":
-        train_scenario = hp.get("train_scenario", scenario)
-        raw_obs, actions, rewards, dones = _privileged_rollouts(venv, hp, train_scenario,
-                                                                int(spec["steps"]))  # fmt: skip
-    else:
-        raw_obs, actions, rewards, dones = _detector_rollouts(venv, hp, int(spec["steps"]))
-    returns = _discounted(np.array(rewards), np.array(dones), float(hp["gamma"]))
-    x = torch.as_tensor(venv.normalize_obs(np.concatenate(raw_obs)), dtype=torch.float32)
-    a = torch.as_tensor(np.concatenate(actions), dtype=torch.float32)
-    g = torch.as_tensor(venv.normalize_reward(returns).reshape(-1), dtype=torch.float32)
+    x = torch.as_tensor(venv.normalize_obs(np.concatenate([p[0] for p in parts])),
+                        dtype=torch.float32)  # fmt: skip
+    a = torch.as_tensor(np.concatenate([p[1] for p in parts]), dtype=torch.float32)
+    returns = np.concatenate([p[2] for p in parts])
+    g = torch.as_tensor(venv.normalize_reward(returns), dtype=torch.float32)
     policy = model.policy
     optimiser = torch.optim.Adam(policy.parameters(), lr=float(spec.get("learning_rate", 1e-3)))
     for _ in range(int(spec["epochs"])):
@@ -282,6 +316,16 @@ def behaviour_clone(
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
+
+
+def _student(model: Any, venv: Any) -> Any:
+    """The model's deterministic actions on raw observations (normalised as in training)."""
+
+    def act(raw_obs: np.ndarray) -> np.ndarray:
+        action, _ = model.policy.predict(venv.normalize_obs(raw_obs), deterministic=True)
+        return np.clip(action, -1.0, 1.0)
+
+    return act
 
 
 def _detector_rollouts(venv: Any, hp: dict[str, Any], steps: int) -> tuple[list, list, list, list]:
@@ -310,28 +354,38 @@ def _detector_rollouts(venv: Any, hp: dict[str, Any], steps: int) -> tuple[list,
 
 
 def _privileged_rollouts(
-    venv: Any, hp: dict[str, Any], scenario: str, steps: int
+    venv: Any,
+    hp: dict[str, Any],
+    scenario: str,
+    steps: int,
+    actor: Any = None,
+    offset: int = TRAIN_SEEDS.stop // 2,
 ) -> tuple[list, list, list, list]:
     """The same from :class:`agents.policies.PrivilegedPolicy`, which reads each environment's
     episode (true noise, true Q, step times): it drives ``n_envs`` single environments of the
-    training scenario (training seeds, a stream of their own), and ``venv``'s observation and
-    reward statistics are updated with what they saw. The student imitates what the teacher
-    does from what the student sees (asymmetric imitation: the observations only)."""
+    training scenario (training seeds from ``offset``, a stream of their own), and ``venv``'s
+    observation and reward statistics are updated with what they saw. The student imitates
+    what the teacher does from what the student sees (asymmetric imitation: the observations
+    only); the teacher raises T_p's Q for three windows after a step (the student sees a step
+    a window late) and starts cautiously (see its ``cautious_start``). With ``actor`` (a
+    function of the raw observations), the flights follow its actions and the teacher only
+    labels them (DAgger)."""
     from agents.policies import PrivilegedPolicy
 
     n = venv.num_envs
     envs = [gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"])
             for _ in range(n)]  # fmt: skip
-    seeds = [_seed_stream(rank, n, offset=TRAIN_SEEDS.stop // 2) for rank in range(n)]
-    teachers = [PrivilegedPolicy(env, after=3) for env in envs]
+    seeds = [_seed_stream(rank, n, offset=offset) for rank in range(n)]
+    teachers = [PrivilegedPolicy(env, after=3, cautious_start=True) for env in envs]
     obs = np.stack([env.reset(seed=next(seeds[i]))[0] for i, env in enumerate(envs)])
     raw_obs, actions, rewards, dones = [], [], [], []
     returns = np.zeros(n)
     for _ in range(steps // n):
         action = np.stack([t.predict(o)[0] for t, o in zip(teachers, obs, strict=True)])
+        taken = action if actor is None else actor(obs)
         reward, done, nxt = np.zeros(n), np.zeros(n, bool), obs.copy()
         for i, env in enumerate(envs):
-            o, r, term, trunc, _ = env.step(action[i])
+            o, r, term, trunc, _ = env.step(taken[i])
             reward[i], done[i] = r, term or trunc
             nxt[i] = env.reset(seed=next(seeds[i]))[0] if done[i] else o
         raw_obs.append(obs)
@@ -397,7 +451,12 @@ class _Callback(_callback_base()):  # type: ignore[misc]
         super().__init__()
         self.out, self.venv, self.scenario, self.hp, self.seed = out, venv, scenario, hp, seed
         self.curve, self.total, self.progress = curve, total, progress
-        self.best = min((c["validation_rmse_nt"] for c in curve), default=float("inf"))
+        self.best = min((c.get("validation_score", c["validation_rmse_nt"]) for c in curve),
+                        default=float("inf"))  # fmt: skip
+        self.reference: np.ndarray | None = None
+        best = min(curve, key=lambda c: c.get("validation_score", c["validation_rmse_nt"]),
+                   default={"validation_rmse_nt": float("inf")})  # fmt: skip
+        self.best_rmse = best["validation_rmse_nt"]
         self.next_eval = 0
         self.t0 = time.perf_counter()
         self.bar: Any = None
@@ -432,13 +491,22 @@ class _Callback(_callback_base()):  # type: ignore[misc]
             "hyperparams_version": self.hp["version"],
         }
         candidate = export_policy(self.model, self.venv, self.out / "candidate.npz", meta)
-        rmse = validate(
-            NumpyPPOPolicy.load(candidate), self.scenario, int(self.hp["eval_episodes"])
-        )
-        self.curve.append({"timesteps": int(self.model.num_timesteps), "validation_rmse_nt": rmse,
-                           "seconds": time.perf_counter() - self.t0})  # fmt: skip
-        if rmse < self.best:
-            self.best = rmse
+        episodes = int(self.hp["eval_episodes"])
+        each = validation_rmse(NumpyPPOPolicy.load(candidate), self.scenario, episodes)
+        point = {"timesteps": int(self.model.num_timesteps),
+                 "validation_rmse_nt": float(each.mean()),
+                 "seconds": time.perf_counter() - self.t0}  # fmt: skip
+        score = point["validation_rmse_nt"]
+        if self.hp.get("select_by", "rmse") == "ratio_to_privileged":
+            if self.reference is None:  # the privileged policy on the same flights, once
+                from agents import policy_env_kwargs
+
+                self.reference = validation_rmse("privileged", self.scenario, episodes,
+                                                 policy_env_kwargs("privileged"))  # fmt: skip
+            score = point["validation_score"] = float(np.mean(each / self.reference))
+        self.curve.append(point)
+        if score < self.best:
+            self.best, self.best_rmse = score, point["validation_rmse_nt"]
             candidate.replace(self.out / "policy.npz")
 
     def checkpoint(self, model: Any) -> None:

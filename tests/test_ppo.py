@@ -177,3 +177,48 @@ def test_training_setup_changes_no_result_and_restores_torch():
     assert (torch.get_num_threads(), Distribution._validate_args) == (threads, checks)
     with pytest.raises(ValueError):  # checks on again (torch's default, outside python -O)
         Normal(torch.zeros(1), -torch.ones(1))
+
+
+def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teacher():
+    """DAgger with the privileged teacher (the general policy's pretraining): a later round's
+    flights go where the student's actions take them, labelled with what the teacher would do
+    there; after the rounds the student acts much closer to the teacher on the teacher's own
+    flights (from the observations alone)."""
+    import torch
+
+    from agents.ppo import _privileged_rollouts, behaviour_clone
+
+    torch.manual_seed(0)
+    hp = {**load_hyperparams("suite"), "n_envs": 2, "prefetch": False}
+    venv = make_training_env("suite", hp, seed=0)
+    zeros = lambda obs: np.zeros((obs.shape[0], 3), np.float32)  # noqa: E731
+    obs, labels, _, _ = _privileged_rollouts(venv, hp, "suite", 400, zeros)
+    # the flights followed the zero actions: the same as flying them with zero actions alone
+    env = gym.make("AeroMagCompensation-v0", scenario="suite", **hp["env_kwargs"])
+    first = env.reset(seed=next(iter(_first_seed())))[0]
+    np.testing.assert_array_equal(obs[0][0], first)
+    flown = [env.step(np.zeros(3, np.float32))[0] for _ in range(5)]
+    np.testing.assert_array_equal(np.stack([o[0] for o in obs[1:6]]), np.stack(flown))
+    assert np.abs(np.concatenate(labels)).max() > 0.5  # the teacher would have acted
+
+    model = make_ppo(venv, hp, seed=0)
+    held_out = _privileged_rollouts(venv, hp, "suite", 2000, None)  # teacher's own flights
+
+    def gap() -> float:
+        x = venv.normalize_obs(np.concatenate(held_out[0]))
+        mean, _ = model.policy.predict(x, deterministic=True)
+        return float(np.abs(np.clip(mean, -1, 1) - np.concatenate(held_out[1])).mean())
+
+    before = gap()
+    hp["pretrain"] = {**hp["pretrain"], "steps": 3000, "epochs": 20, "dagger_rounds": 2}
+    behaviour_clone(model, venv, hp, "suite")
+    assert gap() < 0.6 * before, (before, gap())
+    venv.close()
+
+
+def _first_seed():
+    """The first seed of the privileged rollouts' stream for environment 0 of 2."""
+    from agents.evaluate import TRAIN_SEEDS
+    from agents.ppo import _seed_stream
+
+    return _seed_stream(0, 2, offset=TRAIN_SEEDS.stop // 2)

@@ -9,12 +9,14 @@ scenario                    what varies and what the tuner must do
 ``nominal``                 realistic installation (1 nT white + 1 nT FOGM), the package's
                             well-tuned filter defaults; one calibration box. The control: no
                             headroom by design (a tuner must not make it worse)
-``misspecified``            1200 s of boxes; the permanent field drifts with the temperature of
-                            the airframe (a random walk of per-sample std ``10^U(−2, −0.5)`` nT,
-                            up to 40 nT over the flight); the filter starts with Q and R each
-                            off by ``10^U(−2, 2)`` (variance) and a confident, wrong prior on
-                            T_p (std ``10^U(0, 1.5)`` nT around zero) — Q must be found per
-                            flight: too small lags the drift, too large follows the noise
+``misspecified``            1200 s of boxes; the permanent field drifts with the airframe's
+                            temperature (a random walk of ``10^U(−1, 0)`` nT per sample: a
+                            strong drift, 11–110 nT RMS over the flight); white sensor noise of
+                            ``10^U(0, 1)`` nT; the filter starts with Q (of the drift) and R
+                            each 10 to 100 times off (variance, either way) and a confident,
+                            wrong prior on T_p (std ``10^U(0, 1.5)`` nT around zero, against a
+                            permanent field of hundreds of nT) — Q and R must be found per
+                            flight: too small a Q lags the drift, too large follows the noise
 ``nonstationary``           ``nominal`` physics over 1200 s with three noise regimes (white
                             noise std drawn from {1, 5, 15} nT per regime, switching at random
                             times) and one or two interference steps (equipment switching on:
@@ -23,22 +25,28 @@ scenario                    what varies and what the tuner must do
                             equipment switches on at the first line (a ``T_p`` step of
                             N(0, 30²) nT per axis): the filter learns in the box, must take the
                             step and then hold on the poorly excited lines
-``noise_bursts``            1200 s of boxes with 3 to 8 bursts of equipment noise (HF radio,
-                            heaters: 5–60 s of white noise, std ``10^U(1, 2)`` nT) — R must rise
-                            for a burst and fall after it
+``noise_bursts``            1200 s of boxes with 4 to 8 bursts of equipment noise (HF radio,
+                            heaters: 5–60 s of white noise, std ``10^U(1.7, 2.3)`` nT) — R must
+                            rise for a burst and fall after it
 ``degradation``             1200 s of boxes; the fluxgate's white noise grows linearly from
-                            1 nT, from a random onset, to ``10^U(0.7, 1.5)`` nT at the end — R
-                            must follow a slow trend
+                            1 nT, from a random onset, to ``10^U(1.2, 2)`` nT at the end — R must
+                            follow a slow trend
 ``manoeuvre_heavy``         1200 s of boxes at twice the swing (20° roll, 10° pitch and yaw);
                             airframe flex and control-surface currents add noise proportional to
-                            the angular rate (``10^U(0.5, 1.3)`` nT at 0.1 rad/s) — R must move
-                            with the manoeuvres, Q is well excited
+                            the angular rate (``10^U(1, 1.5)`` nT at 0.1 rad/s) — R must move
+                            with the manoeuvres
 ``nonstationary_dense``     ``nonstationary`` with 4 to 8 interference steps: a training
                             variant that shows a learner the rare event more often
 ``suite``                   training only: each episode one of :data:`SUITE` (drawn from the
-                            seed, ``nonstationary`` flown as ``nonstationary_dense``), for the
-                            general policy
+                            seed with :data:`SUITE_WEIGHTS`, ``nonstationary`` flown as
+                            ``nonstationary_dense``), for the general policy
 =========================== ================================================================
+
+In ``noise_bursts``, ``degradation`` and ``manoeuvre_heavy`` the permanent field also drifts with
+the temperature (``10^U(−1.5, −1)`` nT per sample) at a rate the filter knows (its T_p Q), so the
+filter keeps tracking and a wrong R costs accuracy (with constant coefficients a converged filter
+hardly listens to the data, whatever R is); their sensor noise is white (no FOGM), so that the
+true noise variance is the right R.
 
 Every episode also carries the true noise variance per sample and the Q the truth implies
 (for the ``oracle`` and ``privileged`` policies and for analysis) and the true interference
@@ -78,6 +86,9 @@ MISSPECIFIED_LOG10_VARIANCE = (1.0, 2.0)
 #: ``misspecified``: log10 range of the fluxgate's white noise [nT] (constant over a flight).
 MISSPECIFIED_WHITE_LOG10_NT = (0.0, 1.0)
 PRIOR_TP_LOG10_NT = (0.0, 1.5)
+#: ``suite``: how often each scenario is drawn relative to the others, ∝ 1 / its flight length so
+#: that each gives about as many training steps (``paper`` flies one 527-s box; others 1200 s).
+SUITE_WEIGHTS = {"paper": 2.3, "calibration_then_survey": 0.8}
 #: Scenarios whose permanent field drifts with the airframe's temperature at a rate the filter
 #: knows (its T_p Q), and that drift's log10 range per sample [nT]: R must follow the noise
 #: while T_p is being tracked.
@@ -143,7 +154,8 @@ def make_episode(name: str, seed: int, duration_s: float | None = None) -> Episo
     check_scenario(name)
     rng = np.random.default_rng(seed)
     if name == "suite":
-        drawn = SUITE[int(rng.integers(len(SUITE)))]
+        weights = np.array([SUITE_WEIGHTS.get(s, 1.0) for s in SUITE])
+        drawn = SUITE[int(rng.choice(len(SUITE), p=weights / weights.sum()))]
         flown = "nonstationary_dense" if drawn == "nonstationary" else drawn
         return make_episode(flown, int(rng.integers(2**31)), duration_s)
     sim_seed = int(rng.integers(2**31))

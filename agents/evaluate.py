@@ -55,7 +55,7 @@ def run_episode(env: gym.Env, policy: Any, seed: int) -> dict[str, float]:
     }
 
 
-def _ci95(x: np.ndarray) -> list[float]:
+def ci95(x: np.ndarray) -> list[float]:
     if x.size < 2:
         return [float("nan"), float("nan")]
     half = stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size)
@@ -121,7 +121,7 @@ def normalized_scores(per: dict[str, dict[str, np.ndarray]]) -> dict[str, Any] |
     headroom = zero - one  # paired: same flights
     anchors: dict[str, Any] = {"zero": SCORE_ZERO, "one": SCORE_ONE,
                                "headroom_nt_mean": float(headroom.mean()),
-                               "headroom_nt_ci95": _ci95(headroom), "note": None}  # fmt: skip
+                               "headroom_nt_ci95": ci95(headroom), "note": None}  # fmt: skip
     out: dict[str, Any] = {"anchors": anchors}
     if not anchors["headroom_nt_ci95"][0] > 0:
         anchors["note"] = (f"no headroom: {SCORE_ONE} is not better than {SCORE_ZERO} beyond "
@@ -151,7 +151,7 @@ def _summaries(per: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, Any
     for name, v in per.items():
         row = {
             "rmse_nt_mean": float(v["rmse_nt"].mean()),
-            "rmse_nt_ci95": _ci95(v["rmse_nt"]),
+            "rmse_nt_ci95": ci95(v["rmse_nt"]),
             "reward_mean": float(v["reward"].mean()),
             "divergences": int(v["divergences"].sum()),
             "outliers_rejected": int(v["outliers_rejected"].sum()),
@@ -161,7 +161,7 @@ def _summaries(per: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, Any
         if ref is not None:
             diff = v["rmse_nt"] - ref["rmse_nt"]  # paired: same flights
             row["diff_vs_fis_nt_mean"] = float(diff.mean())
-            row["diff_vs_fis_ci95"] = _ci95(diff)
+            row["diff_vs_fis_ci95"] = ci95(diff)
         out[name] = row
     return out
 

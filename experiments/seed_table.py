@@ -24,7 +24,7 @@ if __package__ in (None, ""):  # run as a script: the checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.atomic import write_text
-from agents.evaluate import TEST_SEED_START, evaluate, iqm_interval
+from agents.evaluate import TEST_SEED_START, ci95, evaluate, iqm_interval
 
 BASELINES = ("tuned_constant", "privileged", "fis")
 
@@ -63,6 +63,34 @@ def scenario_lines(scenario: str, results: dict, names: list[str]) -> list[str]:
     return [heading, "", HEADER, *seed_rows(results, names), "", spread, ""]
 
 
+def general_lines(everything: dict, names: list[str]) -> list[str]:
+    """Issue 21's two bars for a policy over several scenarios, per training seed: its mean RMSE
+    over the scenarios against ``fis``'s (at least 20 % lower), and the scenarios where it is
+    worse than ``tuned_constant`` beyond the paired 95 % interval (none allowed)."""
+    fis = np.mean([r["policies"]["fis"]["rmse_nt_mean"] for r in everything.values()])
+    rows = ["| training seed | mean RMSE over scenarios [nT] | lower than fis's mean | worse than "
+            "tuned_constant beyond the paired 95 % CI |", "|---|---|---|---|"]  # fmt: skip
+    gains = []
+    for k, name in enumerate(names):
+        mean = np.mean([r["policies"][name]["rmse_nt_mean"] for r in everything.values()])
+        gains.append(1.0 - mean / fis)
+        worse = []
+        for sc, r in everything.items():
+            diff = np.subtract(r["policies"][name]["rmse_nt"],
+                               r["policies"]["tuned_constant"]["rmse_nt"])  # fmt: skip
+            lo, _ = ci95(diff)
+            if lo > 0:
+                worse.append(f"{sc} (+{diff.mean():.2g} nT)")
+        rows.append(
+            f"| {k} | {mean:.3g} | {100 * gains[-1]:.0f} % | {', '.join(worse) or 'none'} |"
+        )
+    over = f"fis's mean over the {len(everything)} scenarios: {fis:.3g} nT"
+    if len(gains) > 1:
+        over += (f"; lower than it by {100 * np.mean(gains):.0f} % on the mean over seeds "
+                 f"(SD {100 * np.std(gains, ddof=1):.1f} points)")  # fmt: skip
+    return [*rows, "", over]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("policies", nargs="+", help="exported policies, one per training seed")
@@ -89,6 +117,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                      " (stratified bootstrap)")  # fmt: skip
     if skipped:
         lines.append(f"no headroom, left out of the IQM: {', '.join(skipped)}")
+    if len(everything) > 1:
+        lines += ["", *general_lines(everything, names)]
     table = "\n".join(lines) + "\n"
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -188,7 +188,7 @@ class InnovationDetectorPolicy:
     :class:`aeromag_env.environment.env.EnvConfig`); with ``qp_gate`` its T_p action is ±1.
     ``r0_nt2`` is the filter's initial R per axis [nT²] (the package default, which the
     ``nonstationary`` scenarios use). Not a tuner to table: the demonstrator of PPO's optional
-    pretraining (:func:`agents.ppo.behaviour_clone`).
+    pretraining (:func:`agents.imitation.behaviour_clone`).
     """
 
     name = "innovation_detector"

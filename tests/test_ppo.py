@@ -95,7 +95,7 @@ def test_shipped_policy_runs_without_torch_imports():
 
 
 def test_discounted_returns_restart_after_an_episode_end():
-    from agents.ppo import _discounted
+    from agents.imitation import _discounted
 
     rewards = np.array([[1.0, 2.0], [1.0, 2.0], [1.0, 2.0]])
     dones = np.array([[False, True], [False, False], [False, False]])
@@ -111,8 +111,8 @@ def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     import torch
 
     from aeromag_env.environment.env import EnvConfig
+    from agents.imitation import behaviour_clone
     from agents.policies import InnovationDetectorPolicy
-    from agents.ppo import behaviour_clone
 
     torch.manual_seed(0)
     hp = {**load_hyperparams("nonstationary"), "n_envs": 4, "prefetch": False}
@@ -186,7 +186,7 @@ def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teac
     flights (from the observations alone)."""
     import torch
 
-    from agents.ppo import _privileged_rollouts, behaviour_clone
+    from agents.imitation import _privileged_rollouts, behaviour_clone
 
     torch.manual_seed(0)
     hp = {**load_hyperparams("suite"), "n_envs": 2, "prefetch": False}
@@ -219,6 +219,6 @@ def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teac
 def _first_seed():
     """The first seed of the privileged rollouts' stream for environment 0 of 2."""
     from agents.evaluate import TRAIN_SEEDS
-    from agents.ppo import _seed_stream
+    from agents.imitation import seed_stream
 
-    return _seed_stream(0, 2, offset=TRAIN_SEEDS.stop // 2)
+    return seed_stream(0, 2, offset=TRAIN_SEEDS.stop // 2)

@@ -1,0 +1,181 @@
+"""Pretraining of PPO by imitation (``pretrain`` in ``agents/hyperparams/ppo.json``): behaviour
+cloning of the hand-written innovation detector, or DAgger with the privileged policy as the
+teacher. Used by :mod:`agents.ppo`; torch is imported here only when called.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from agents.evaluate import TRAIN_SEEDS
+
+
+def seed_stream(rank: int, n_envs: int, offset: int) -> Iterator[int]:
+    """Training seeds for environment ``rank`` of ``n_envs``, from ``offset`` (wrapping in the
+    training range)."""
+    k = offset + rank
+    while True:
+        yield TRAIN_SEEDS.start + k % TRAIN_SEEDS.stop
+        k += n_envs
+
+
+def behaviour_clone(
+    model: Any, venv: Any, hp: dict[str, Any], scenario: str = "nonstationary", seed: int = 0
+) -> None:
+    """Pretrain ``model``'s actor to imitate a demonstrator and its critic to the discounted
+    returns of the demonstrator's rollouts (``hp["pretrain"]``: ``steps`` environment steps
+    of the training environments, ``epochs`` passes of Adam at ``learning_rate`` over them,
+    ``demonstrator``: ``innovation_detector`` (the default,
+    :class:`agents.policies.InnovationDetectorPolicy` with ``threshold_nt``) or ``privileged``
+    (:class:`agents.policies.PrivilegedPolicy`, which knows the truth: the student learns what
+    the teacher does from the observations alone)).
+
+    Why: PPO from scratch settles on a constant random walk for T_p (a local optimum); the
+    detector's all-or-nothing response to a rare interference step is a large, coordinated
+    departure from it that Gaussian exploration does not find. The demonstrator shows it;
+    PPO then trains from there. The observation statistics and the reward scale of
+    ``VecNormalize`` are those the rollouts leave behind, as PPO's own rollouts would.
+    """
+    spec = hp["pretrain"]
+    steps = int(spec["steps"])
+    if spec.get("demonstrator", "innovation_detector") != "privileged":
+        _fit(model, venv, hp, [_with_returns(_detector_rollouts(venv, hp, steps), hp)])
+        return
+    train_scenario = hp.get("train_scenario", scenario)
+    parts, actor = [], None
+    for round_ in range(int(spec.get("dagger_rounds", 1))):
+        # each round and training seed flies flights of its own
+        offset = TRAIN_SEEDS.stop // 2 + 5_000 * round_ + 1_000 * seed
+        rollout = _privileged_rollouts(venv, hp, train_scenario, steps, actor, offset)
+        parts.append(_with_returns(rollout, hp))
+        _fit(model, venv, hp, parts)
+        actor = _student(model, venv)
+
+
+def _with_returns(rollout: tuple[list, list, list, list], hp: dict[str, Any]) -> tuple:
+    """Observations, actions and the discounted returns of one rollout."""
+    raw_obs, actions, rewards, dones = rollout
+    returns = _discounted(np.array(rewards), np.array(dones), float(hp["gamma"]))
+    return np.concatenate(raw_obs), np.concatenate(actions), returns.reshape(-1)
+
+
+def _fit(model: Any, venv: Any, hp: dict[str, Any], parts: list[tuple]) -> None:
+    """Adam on the actor's mean (to the demonstrated actions) and the critic (to the returns)
+    over all ``parts`` so far, ``epochs`` passes."""
+    import torch
+
+    spec = hp["pretrain"]
+    x = torch.as_tensor(venv.normalize_obs(np.concatenate([p[0] for p in parts])),
+                        dtype=torch.float32)  # fmt: skip
+    a = torch.as_tensor(np.concatenate([p[1] for p in parts]), dtype=torch.float32)
+    returns = np.concatenate([p[2] for p in parts])
+    g = torch.as_tensor(venv.normalize_reward(returns), dtype=torch.float32)
+    policy = model.policy
+    optimiser = torch.optim.Adam(policy.parameters(), lr=float(spec.get("learning_rate", 1e-3)))
+    for _ in range(int(spec["epochs"])):
+        for idx in torch.randperm(x.shape[0]).split(int(hp["batch_size"])):
+            latent_pi, latent_vf = policy.mlp_extractor(policy.extract_features(x[idx]))
+            mean, value = policy.action_net(latent_pi), policy.value_net(latent_vf).flatten()
+            loss = ((mean - a[idx]) ** 2).mean() + 0.5 * ((value - g[idx]) ** 2).mean()
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+
+
+def _student(model: Any, venv: Any) -> Any:
+    """The model's deterministic actions on raw observations (normalised as in training)."""
+
+    def act(raw_obs: np.ndarray) -> np.ndarray:
+        action, _ = model.policy.predict(venv.normalize_obs(raw_obs), deterministic=True)
+        return np.clip(action, -1.0, 1.0)
+
+    return act
+
+
+def _detector_rollouts(venv: Any, hp: dict[str, Any], steps: int) -> tuple[list, list, list, list]:
+    """Raw observations, actions, rewards and dones of the innovation detector driving the
+    training environments ``venv`` for ``steps`` steps (their normalisation statistics are
+    updated as PPO's own rollouts would)."""
+    from aeromag_env.environment.env import EnvConfig
+    from agents.policies import InnovationDetectorPolicy
+
+    spec = hp["pretrain"]
+    demo = InnovationDetectorPolicy(
+        EnvConfig(**hp["env_kwargs"]), threshold_nt=float(spec.get("threshold_nt", 20.0))
+    )
+    raw_obs, actions, rewards, dones = [], [], [], []
+    venv.reset()
+    obs = venv.get_original_obs()
+    for _ in range(steps // venv.num_envs):
+        action = demo.predict(obs)[0]
+        raw_obs.append(obs)
+        actions.append(action)
+        _, _, done, _ = venv.step(action)
+        rewards.append(venv.get_original_reward())
+        dones.append(done)
+        obs = venv.get_original_obs()
+    return raw_obs, actions, rewards, dones
+
+
+def _privileged_rollouts(
+    venv: Any,
+    hp: dict[str, Any],
+    scenario: str,
+    steps: int,
+    actor: Any = None,
+    offset: int = TRAIN_SEEDS.stop // 2,
+) -> tuple[list, list, list, list]:
+    """The same from :class:`agents.policies.PrivilegedPolicy`, which reads each environment's
+    episode (true noise, true Q, step times): it drives ``n_envs`` single environments of the
+    training scenario (training seeds from ``offset``, a stream of their own), and ``venv``'s
+    observation and reward statistics are updated with what they saw. The student imitates
+    what the teacher does from what the student sees (asymmetric imitation: the observations
+    only); the teacher raises T_p's Q for three windows after a step (the student sees a step
+    a window late) and starts cautiously (see its ``cautious_start``). With ``actor`` (a
+    function of the raw observations), the flights follow its actions and the teacher only
+    labels them (DAgger)."""
+    from agents.policies import PrivilegedPolicy
+
+    n = venv.num_envs
+    envs = [gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"])
+            for _ in range(n)]  # fmt: skip
+    seeds = [seed_stream(rank, n, offset=offset) for rank in range(n)]
+    teachers = [PrivilegedPolicy(env, after=3, cautious_start=True) for env in envs]
+    obs = np.stack([env.reset(seed=next(seeds[i]))[0] for i, env in enumerate(envs)])
+    raw_obs, actions, rewards, dones = [], [], [], []
+    returns = np.zeros(n)
+    for _ in range(steps // n):
+        action = np.stack([t.predict(o)[0] for t, o in zip(teachers, obs, strict=True)])
+        taken = action if actor is None else actor(obs)
+        reward, done, nxt = np.zeros(n), np.zeros(n, bool), obs.copy()
+        for i, env in enumerate(envs):
+            o, r, term, trunc, _ = env.step(taken[i])
+            reward[i], done[i] = r, term or trunc
+            nxt[i] = env.reset(seed=next(seeds[i]))[0] if done[i] else o
+        raw_obs.append(obs)
+        actions.append(action)
+        rewards.append(reward)
+        dones.append(done)
+        venv.obs_rms.update(obs)
+        returns = returns * float(hp["gamma"]) + reward  # as VecNormalize tracks the return
+        venv.ret_rms.update(returns)
+        returns[done] = 0.0
+        obs = nxt
+    for env in envs:
+        env.close()
+    return raw_obs, actions, rewards, dones
+
+
+def _discounted(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.ndarray:
+    """Discounted returns (T, N) of rewards (T, N), restarting after ``dones`` (the tail of
+    the last, unfinished episodes is cut: γ^t makes it negligible for γ ≤ 0.9 beyond a few
+    dozen steps)."""
+    out, acc = np.zeros_like(rewards, dtype=np.float64), np.zeros(rewards.shape[1])
+    for t in range(rewards.shape[0] - 1, -1, -1):
+        acc = rewards[t] + gamma * acc * ~dones[t]
+        out[t] = acc
+    return out

@@ -270,10 +270,8 @@ class PrivilegedPolicy:
             action[0, ACT_R] = 1.0
         steps = ep.step_samples
         near = (steps < k + width) & (steps >= k - self.after * width)
-        if c.qp_gate:
-            action[0, ACT_QP] = 1.0 if near.any() else -1.0
-        else:
-            action[0, ACT_QP] = 1.0 if near.any() else _to_action(q_tp, c.absolute_qp_log10)
+        quiet = -1.0 if c.qp_gate else _to_action(q_tp, c.absolute_qp_log10)
+        action[0, ACT_QP] = 1.0 if near.any() else quiet
         return _out(action, np.asarray(obs).ndim == 1), state
 
 

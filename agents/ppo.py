@@ -279,6 +279,11 @@ def _callback_base() -> Any:
     return BaseCallback
 
 
+def _selection_score(point: dict[str, float]) -> float:
+    """What a validation point is chosen by: its score (``select_by``), else its RMSE."""
+    return point.get("validation_score", point["validation_rmse_nt"])
+
+
 class _Callback(_callback_base()):  # type: ignore[misc]
     """Progress bar, periodic validation (keeps the best export) and checkpoints."""
 
@@ -287,12 +292,10 @@ class _Callback(_callback_base()):  # type: ignore[misc]
         super().__init__()
         self.out, self.venv, self.scenario, self.hp, self.seed = out, venv, scenario, hp, seed
         self.curve, self.total, self.progress = curve, total, progress
-        self.best = min((c.get("validation_score", c["validation_rmse_nt"]) for c in curve),
-                        default=float("inf"))  # fmt: skip
+        best = min(curve, key=_selection_score, default=None)
+        self.best = float("inf") if best is None else _selection_score(best)
+        self.best_rmse = float("inf") if best is None else best["validation_rmse_nt"]
         self.reference: np.ndarray | None = None
-        best = min(curve, key=lambda c: c.get("validation_score", c["validation_rmse_nt"]),
-                   default={"validation_rmse_nt": float("inf")})  # fmt: skip
-        self.best_rmse = best["validation_rmse_nt"]
         self.next_eval = 0
         self.t0 = time.perf_counter()
         self.bar: Any = None

@@ -194,7 +194,7 @@ def make_episode(name: str, seed: int, duration_s: float | None = None) -> Episo
         filter_cfg=filter_cfg,
         flight=flight,
         step_samples=np.sort(np.asarray(change.steps, np.int64)),
-        q_log10_true=_q_log10_true(filter_cfg, change.drift_std),
+        q_log10_true=_q_log10_true(filter_cfg, drift_std),
         scenario=name,
     )
 
@@ -208,7 +208,6 @@ class Change:
     interf: np.ndarray
     noise_var: np.ndarray
     steps: list[int] = field(default_factory=list)
-    drift_std: float = 0.0
 
     def add_noise(
         self, lo: int, hi: int, std: np.ndarray | float, rng: np.random.Generator
@@ -319,7 +318,6 @@ def _drift(change: Change, std: float, rng: np.random.Generator) -> None:
     per axis, from zero at the start."""
     walk = np.cumsum(std * rng.standard_normal(change.flux.shape), axis=0)
     change.add_interference(0, walk)
-    change.drift_std = std
 
 
 def _bursts(change: Change, rate_hz: float, rng: np.random.Generator) -> None:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aeromag_env.compensation.compensate import compensate_scalar
+from aeromag_env.compensation.compensate import _last_complete_box, compensate_scalar
 from aeromag_env.compensation.metrics import figure_of_merit
 from aeromag_env.compensation.real_metrics import FOM_NEEDS_LABELS, headline
 from aeromag_env.compensation.tolles_lawson import TollesLawson
@@ -60,3 +60,13 @@ def test_without_a_box_the_headline_says_fom_needs_one() -> None:
     mag = f["mag_1_uc"]
     head = headline(f, mag, mag - f["truth_interf_mag_1"], None)
     assert head["fom_nt"] is None and head["fom_note"] == FOM_NEEDS_LABELS
+
+
+def test_a_corrupt_manoeuvre_id_does_not_stall_the_box_search() -> None:
+    """A corrupted byte turned one label into 2**33 (found by hypothesis: the search walked every
+    box up to it, 7e8 of them); the complete box is still found, at once."""
+    f = simulated("nominal", 0)
+    labels = f["maneuver"].copy()
+    labels[np.flatnonzero(labels == 0)[-1]] = 2.0**33
+    corrupt = Flight({**f.fields, "maneuver": labels}, dict(f.attrs))
+    assert _last_complete_box(corrupt) == _last_complete_box(f) == 0

@@ -44,6 +44,7 @@ def _with(flight: Flight, keep: np.ndarray | None = None, **edits: tuple[int, fl
 def test_no_false_alarm_on_clean_flights(pattern: str, seed: int, name: str) -> None:
     report = fault_report(_flight(pattern, seed, name))
     assert report["spikes"] == {} and report["gap_count"] == 0 and report["segments"] == 1
+    assert report["bad_maneuver_labels"] == 0
 
 
 def test_no_false_alarm_on_steps_and_sharp_turns() -> None:
@@ -84,3 +85,19 @@ def test_info_reports_both_faults(clean: Flight, tmp_path) -> None:
     spike = "mag_1_uc: 1 spike(s) (t = 500 s…), flagged: left out wherever mag_1_uc is used"
     assert any(p.startswith(spike) for p in report.problems)
     assert report.to_dict()["faults"]["spikes"]["mag_1_uc"]["times_s"] == [500.0]
+
+
+def test_labels_that_are_not_window_ids_are_warned_and_read_as_outside(
+    clean: Flight, tmp_path
+) -> None:
+    """A corrupt byte made a ``maneuver`` label 2**33 (hypothesis found it): the label reads as
+    0, the windows are those of the clean file, and ``info`` says so."""
+    labels = clean["maneuver"].copy()
+    labels[[10, 20, 30]] = [2.0**33, -1.0, 2.5]
+    labels[40] = np.nan  # a missing label is not a bad one
+    bad = Flight({**clean.fields, "maneuver": labels}, dict(clean.attrs))
+    assert bad.maneuver_windows() == clean.maneuver_windows()
+    assert fault_report(bad)["bad_maneuver_labels"] == 3
+    report = describe(write_flight(bad, tmp_path / "bad.h5"))
+    assert any(p.startswith("maneuver: 3 sample(s) hold labels that are not window ids")
+               for p in report.problems)  # fmt: skip

@@ -282,7 +282,7 @@ def score(flight: Flight, comp: Compensation) -> dict[str, Any]:
     box = _last_complete_box(flight)
     if box is not None:
         windows = range(12 * box + 1, 12 * box + 13)
-        fom_args = (flight.tt, flight["maneuver"], fs, 0.05, windows, samples.segments)
+        fom_args = (flight.tt, flight.maneuver_ids(), fs, 0.05, windows, samples.segments)
         out["fom_nt"] = _safe(metrics.figure_of_merit, comp.total_after, *fom_args)
         out["fom_uncompensated_nt"] = _safe(metrics.figure_of_merit, comp.total_before, *fom_args)
         out["fom_windows"] = [windows.start, windows.stop - 1]
@@ -304,12 +304,10 @@ def held_out_rmse(flight: Flight, comp: Compensation, mask: np.ndarray) -> float
 def _last_complete_box(flight: Flight) -> int | None:
     """Index b of the last box whose 12 windows ``12b + 1 … 12b + 12`` are all present."""
     ids = {m for m, _, _ in flight.maneuver_windows()}
-    complete = [
-        b
-        for b in range(max(ids, default=0) // 12 + 1)
-        if ids >= set(range(12 * b + 1, 12 * b + 13))
-    ]
-    return complete[-1] if complete else None
+    # only the boxes some id falls in: a corrupt id (2**33) must not make this loop 10**9 times
+    boxes = {(m - 1) // 12 for m in ids}
+    complete = [b for b in boxes if ids >= set(range(12 * b + 1, 12 * b + 13))]
+    return max(complete, default=None)
 
 
 def _truth_and_estimate(flight: Flight, comp: Compensation) -> tuple[np.ndarray | None, np.ndarray]:

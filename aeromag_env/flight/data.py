@@ -38,6 +38,9 @@ from aeromag_env.geo.earth import check_model_date, parse_date
 ALTITUDE_NAMES = ("alt", "utm_z", "ins_alt")
 ATTITUDE_NAMES = ("ins_roll", "ins_pitch", "ins_yaw")
 POSITION_NAMES = ("lat", "lon")
+#: The largest manoeuvre window id read [-]: a box has 12, a file a few boxes; a label beyond it
+#: (a corrupt byte: 2**33), negative or fractional is not a window id and reads as 0.
+MAX_MANEUVER_ID = 10_000
 AUX_PREFIXES = ("cur_", "vol_", "temp_")
 AXES = ("x", "y", "z")
 
@@ -156,9 +159,22 @@ class Flight:
         """Maneuver windows ``(id, t_start, t_end)`` [s], from the ``maneuver`` field."""
         if "maneuver" not in self.fields:
             return []
-        m = np.nan_to_num(self.fields["maneuver"]).astype(int)
+        m = self.maneuver_ids()
         out = []
         for mid in np.unique(m[m > 0]):
             k = np.flatnonzero(m == mid)
             out.append((int(mid), float(self.tt[k[0]]), float(self.tt[k[-1]])))
         return out
+
+    def maneuver_ids(self) -> np.ndarray:
+        """(n,) int window ids from the ``maneuver`` field (zeros without one); a label that is
+        not a whole number in 0…:data:`MAX_MANEUVER_ID` (NaN, a corrupt value) reads as 0."""
+        m = self.fields.get("maneuver", np.zeros(self.n))
+        return np.where(self.bad_maneuver_labels() | ~np.isfinite(m), 0, m).astype(int)
+
+    def bad_maneuver_labels(self) -> np.ndarray:
+        """(n,) True where a finite ``maneuver`` label is not a window id (see
+        :meth:`maneuver_ids`); NaN is a missing label, not a bad one."""
+        m = self.fields.get("maneuver", np.zeros(self.n))
+        finite = np.isfinite(m)
+        return finite & ((m < 0) | (m > MAX_MANEUVER_ID) | (m != np.round(m)))

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aeromag_env.flight.data import Flight, vector_names
+from aeromag_env.flight.data import MAX_MANEUVER_ID, Flight, vector_names
 from aeromag_env.units import WGS84_A_M
 
 #: A time step above this many median steps is a gap [-].
@@ -174,6 +174,7 @@ def fault_report(flight: Flight, max_listed: int = 10) -> dict[str, object]:
             for name, f in spikes.items()
             if f.any()
         },
+        "bad_maneuver_labels": int(flight.bad_maneuver_labels().sum()),
     }
 
 
@@ -198,6 +199,12 @@ def fault_problems(report: dict[str, object]) -> list[str]:
         problems.append(
             f"{name}: {entry['count']} spike(s) (t = {times} s…), flagged: left out wherever "
             f"{name} is used (fits, filter updates; the compensated output there is NaN)"
+        )
+    bad = report.get("bad_maneuver_labels", 0)
+    if bad:
+        problems.append(
+            f"maneuver: {bad} sample(s) hold labels that are not window ids (whole numbers "
+            f"0–{MAX_MANEUVER_ID}); read as 0 (outside any manoeuvre)"
         )
     return problems
 

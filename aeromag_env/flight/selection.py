@@ -150,7 +150,7 @@ def _labelled_line(flight: Flight, ids: np.ndarray) -> CalibrationLine | None:
     """The line holding most samples inside labelled manoeuvres, if any are labelled."""
     if "maneuver" not in flight:
         return None
-    inside = np.nan_to_num(flight["maneuver"]) > 0
+    inside = flight.maneuver_ids() > 0
     if not inside.any():
         return None
     values, counts = np.unique(ids[inside & np.isfinite(ids)], return_counts=True)

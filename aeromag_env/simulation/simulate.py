@@ -331,7 +331,7 @@ def _replayed_trajectory(flight: Flight) -> Trajectory:
     return Trajectory(
         tt=flight.tt.copy(), lat=lat, lon=lon, alt=np.asarray(alt, float), roll=roll,
         pitch=pitch, yaw=yaw,
-        maneuver=np.nan_to_num(flight["maneuver"]).astype(int) if "maneuver" in flight else zeros,
+        maneuver=flight.maneuver_ids(),
         line=np.nan_to_num(flight["line"]) if "line" in flight else zeros,
     )  # fmt: skip
 

@@ -149,3 +149,49 @@ def test_a_scenario_given_twice_is_refused_in_one_line():
     assert gym.make("AeroMagCompensation-v0", config={"scenario": "paper"}).unwrapped.scenario == (
         "paper"
     )
+
+
+def test_the_vector_env_renders_each_environment_as_the_single_env_does():
+    """``gym.make_vec(id, render_mode="rgb_array")``: one frame per environment, the single env's
+    panels for the same flight and actions (against samples); SB3 tiles them; None without."""
+    pytest.importorskip("matplotlib")
+    from aeromag_env.environment.render import render_panels
+
+    vec = gym.make_vec("AeroMag/Nominal-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                       render_mode="rgb_array", duration_s=20.0)  # fmt: skip
+    single = gym.make("AeroMag/Nominal-v0", duration_s=20.0).unwrapped
+    vec.reset(seed=5)
+    single.reset(seed=6)  # environment 1 of the vector env is seeded 5 + 1
+    actions = np.array([[0.5, -0.5], [1.0, 0.25]], np.float32)
+    for _ in range(3):
+        vec.step(actions)
+        single.step(actions[1])
+    frames = vec.render()
+    assert len(frames) == 2 and all(f.dtype == np.uint8 and f.ndim == 3 for f in frames)
+    k, f = single.filter.k, single.filter
+    err = single.episode.truth_interf[:k] - f.est[:k]
+    expected = render_panels("nominal", np.arange(k), "sample", err, f.ror[:k], f.qoq[:k],
+                             f.q_scale[:k], f.r_scale[:k])  # fmt: skip
+    np.testing.assert_array_equal(frames[1], expected)
+    assert not np.array_equal(frames[0], frames[1])
+    quiet = gym.make_vec("AeroMag/Nominal-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                         duration_s=20.0)  # fmt: skip
+    quiet.reset(seed=5)
+    assert quiet.render() is None
+    with pytest.raises(ValueError, match="render_mode must be None or 'rgb_array'"):
+        gym.make_vec("AeroMag/Nominal-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     render_mode="human")  # fmt: skip
+
+
+def test_stable_baselines3_tiles_the_frames():
+    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("matplotlib")
+    from aeromag_env.environment.sb3 import AeroMagSB3VecEnv
+
+    venv = AeroMagSB3VecEnv(2, render_mode="rgb_array", duration_s=5.0)
+    venv.reset()
+    venv.step(np.zeros((2, 2), np.float32))
+    frames = venv.get_images()
+    tiled = venv.render()
+    assert venv.render_mode == "rgb_array" and len(frames) == 2
+    assert tiled.shape[2] == 3 and tiled.size >= 2 * frames[0].size

@@ -50,6 +50,7 @@ class AeroMagSB3VecEnv(VecEnv):
     prefetch : simulate each environment's next flight in a worker process while the current
         one runs (:mod:`aeromag_env.environment.prefetch`; the same flights, resets cost no
         simulation).
+    render_mode : None or ``"rgb_array"``: SB3's ``render()`` tiles one frame per environment.
 
     Attributes
     ----------
@@ -62,11 +63,12 @@ class AeroMagSB3VecEnv(VecEnv):
         config: EnvConfig | dict | None = None,
         reset_seeds: Sequence[Iterator[int]] | None = None,
         prefetch: bool = False,
+        render_mode: str | None = None,
         **overrides: Any,
     ) -> None:
         self.venv = AeroMagCompensationVecEnv(
             num_envs, config, autoreset_mode=AutoresetMode.DISABLED, prefetch=prefetch,
-            **overrides,
+            render_mode=render_mode, **overrides,
         )  # fmt: skip
         if reset_seeds is not None and len(reset_seeds) != num_envs:
             raise ValueError(f"reset_seeds needs one iterator per environment ({num_envs})")
@@ -113,6 +115,11 @@ class AeroMagSB3VecEnv(VecEnv):
 
     def close(self) -> None:
         self.venv.close()
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        """One frame per environment (``render_mode="rgb_array"``; SB3's ``render`` tiles them)."""
+        frames = self.venv.render()
+        return [None] * self.num_envs if frames is None else list(frames)
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """The vector environment's attribute (shared by all environments), once per index."""

@@ -110,7 +110,8 @@ class AeroMagCompensationVecEnv(VectorEnv):
     ``max_episode_steps`` (each environment truncated after that many steps of its episode, as
     ``gym.make(..., max_episode_steps=N)`` truncates the single one). The per-scenario ids
     (``AeroMag/Nonstationary-v0``…, :mod:`aeromag_env.environment.ids`) make it too. No
-    rendering (``render_mode`` None). :meth:`close` stops the prefetching worker.
+    ``render_mode`` None or ``"rgb_array"`` (:meth:`render`: a frame per environment, as the
+    single env draws it but against samples). :meth:`close` stops the prefetching worker.
     """
 
     def __init__(
@@ -132,13 +133,14 @@ class AeroMagCompensationVecEnv(VectorEnv):
         ):
             raise ValueError(f"max_episode_steps must be an integer ≥ 1 or None, got "
                              f"{max_episode_steps!r}")  # fmt: skip
-        if render_mode is not None:
-            raise ValueError("the vector environment does not render; render a single env")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         template = AeroMagCompensationEnv(config, **overrides)
         self.config = template.config
         self.num_envs = int(num_envs)
         self.autoreset_mode = AutoresetMode(autoreset_mode)
-        self.metadata = {"render_modes": [], "autoreset_mode": self.autoreset_mode}
+        self.render_mode = render_mode
+        self.metadata = {"render_modes": ["rgb_array"], "autoreset_mode": self.autoreset_mode}
         self.single_action_space = template.action_space
         self.single_observation_space = template.observation_space
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -168,6 +170,15 @@ class AeroMagCompensationVecEnv(VectorEnv):
     def filters(self) -> BatchFilterState:
         """The stacked filter states (read them; stepping goes through :meth:`step`)."""
         return self._need_filters()
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """Each environment's episode so far as an RGB array; None without ``rgb_array``."""
+        if self.render_mode != "rgb_array":
+            return None
+        from aeromag_env.environment.render import render_vector
+
+        f = self._need_filters()
+        return render_vector(self.scenarios, f.ints[:, INT_K], self._truth, f)
 
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict | None = None

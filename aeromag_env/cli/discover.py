@@ -94,14 +94,17 @@ def markdown(report: dict[str, Any]) -> str:
         "",
     ]
     if report["missing_effects"]:
-        head = "| effect | channel | F | log10 p | Holm threshold | ΔBIC | held-out RMS [nT] |"
-        lines += ["## Missing effects", "", head, "|---|---|---|---|---|---|---|"]
+        head = ("| effect | channel | test | F | log10 p | Holm threshold | ΔBIC "
+                "| held-out RMS [nT] | held-out gap without → with it [nT] |")  # fmt: skip
+        lines += ["## Missing effects", "", head, "|---|---|---|---|---|---|---|---|---|"]
         for e in report["missing_effects"]:
-            ev = e["evidence"]
+            ev, g = e["evidence"], e["held_out_gap"]
+            test = ev.get("test", "F-test, fixed noise model")
             lines.append(
-                f"| `{e['name']}` | {e['channel'] or '–'} | {ev['f_statistic']:.1f} | "
+                f"| `{e['name']}` | {e['channel'] or '–'} | {test} | {ev['f_statistic']:.1f} | "
                 f"{ev['log10_p_value']:.1f} | {ev['holm_threshold']:.2g} | {ev['delta_bic']:.0f} | "
-                f"{ev['held_out_rms_nt']:.2f} |"
+                f"{ev['held_out_rms_nt']:.2f} | {g['rms_without_nt']:.3f} → "
+                f"{g['rms_with_nt']:.3f} |"
             )
         lines.append("")
         for e in report["missing_effects"]:
@@ -148,8 +151,12 @@ def plot_discovery(result: Discovery, out: Path) -> None:
 
     s = result.series
     tt, held = s["tt"], s["held_out"]
-    fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
-    for i, ax in enumerate(axes):
+    rows = 3 + len(result.drivers)
+    fig, axes = plt.subplots(rows, 1, figsize=(10, 2.3 * rows), squeeze=False)
+    axes = axes[:, 0]
+    for ax in axes[1:3]:
+        ax.sharex(axes[0])
+    for i, ax in enumerate(axes[:3]):
         ax.plot(tt, s["residual_before"][:, i], lw=0.4, label="base model")
         ax.plot(tt, s["residual_after"][:, i], lw=0.4, label="with named effects")
         ax.fill_between(tt, 0, 1, where=held, transform=ax.get_xaxis_transform(), color="0.9",
@@ -157,7 +164,9 @@ def plot_discovery(result: Discovery, out: Path) -> None:
         ax.set_ylabel(f"{'xyz'[i]} [nT]")
     axes[0].legend(loc="upper right", fontsize=8)
     axes[0].set_title(f"Measured − simulated ({result.report['verdict']})")
-    axes[-1].set_xlabel("time [s]")
+    axes[2].set_xlabel("time [s]")
+    for ax, driver in zip(axes[3:], result.drivers, strict=True):
+        _plot_against_driver(ax, s["residual_before"], s["residual_after"], *driver)
     fig.tight_layout()
     with atomic_path(out / "residual.png") as tmp:
         fig.savefig(tmp, dpi=100, format="png")
@@ -188,3 +197,16 @@ def plot_discovery(result: Discovery, out: Path) -> None:
     with atomic_path(out / "diagnostics.png") as tmp:
         fig.savefig(tmp, dpi=100, format="png")
     plt.close(fig)
+
+
+def _plot_against_driver(
+    ax: Any, before: np.ndarray, after: np.ndarray, name: str, driver: str, x: np.ndarray
+) -> None:
+    """The residual before and after against what drives a named effect, on the axis where the
+    effect changed the residual most (at most 4000 points)."""
+    i = int(np.nanargmax(np.nanstd(before - after, axis=0)))
+    step = max(1, x.size // 4000)
+    for r, label in ((before, "base model"), (after, "with named effects")):
+        ax.plot(x[::step], r[::step, i], ".", ms=1.5, alpha=0.5, label=label)
+    ax.set(xlabel=driver, ylabel=f"{'xyz'[i]} [nT]", title=f"{name}: residual against {driver}")
+    ax.legend(loc="upper right", fontsize=8, markerscale=6)

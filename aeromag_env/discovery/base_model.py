@@ -114,12 +114,14 @@ class BaseSpan:
         """Share of the group's centred variance outside the base span, mean over its columns
         (0 when the group does not vary)."""
         g = group[self.rows]
+        gs = stack(g)
         gc = stack(g - g.mean(axis=0, keepdims=True))
         norms = np.linalg.norm(gc, axis=0)
-        ok = norms > 1e-9 * max(float(np.linalg.norm(stack(g), axis=0).max()), 1e-300)
+        ok = norms > 1e-9 * max(float(np.linalg.norm(gs, axis=0).max()), 1e-300)
         if not ok.any():
             return 0.0
-        perp = self.perp(group[:, :, ok])
+        xs = gs[:, ok]
+        perp = xs - self.q @ (self.q.T @ xs)
         return float(np.mean(np.sum(perp**2, axis=0) / norms[ok] ** 2))
 
 

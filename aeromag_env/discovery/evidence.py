@@ -17,6 +17,8 @@ from aeromag_env.simulation.effects import Group
 
 #: Family-wise false-alarm level of the effect tests (Holm-corrected over candidate groups).
 ALPHA = 0.01
+#: ``test`` of statistics from the joint noise-model fit (:mod:`~aeromag_env.discovery.joint`).
+JOINT_TEST = "joint noise model"
 #: A group needs ΔBIC above this (besides the Holm-corrected F-test) to enter or to stay.
 MIN_DELTA_BIC = 0.0
 
@@ -78,7 +80,15 @@ def significant(stats: dict[str, float], threshold: float) -> bool:
     leaves a margin for the fitted noise model, whose slow part a short calibration under-
     states (the whitened residual keeps slow power, and slow channels then look significant).
     """
+    if stats.get("test") == JOINT_TEST:  # the noise model re-fitted with it: the LR test alone
+        return stats["p_value"] < threshold
     return stats["p_value"] < threshold and stats["delta_bic"] > MIN_DELTA_BIC
+
+
+def strength(stats: dict[str, float]) -> tuple[float, float]:
+    """Sort key of a group's evidence, strongest first: its log10 p-value (comparable across
+    F- and likelihood-ratio tests and group sizes), then its ΔBIC (p-values below 1e-300 tie)."""
+    return stats["log10_p_value"], -stats["delta_bic"]
 
 
 def best_of_families(

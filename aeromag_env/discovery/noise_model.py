@@ -134,7 +134,17 @@ def whiten(x: np.ndarray, gap: np.ndarray, white: float, fogm: float, tau: float
     return out
 
 
-def fit_noise(r: np.ndarray, gap: np.ndarray) -> NoiseModel:
+def log_likelihood(r: np.ndarray, gap: np.ndarray, noise: NoiseModel) -> float:
+    """Gaussian log-likelihood of the residual ``r`` (m, 3) under ``noise`` (axes independent)."""
+    buf = np.empty((r.shape[0], 1))
+    return sum(
+        _innovations(np.ascontiguousarray(r[:, i : i + 1]), gap, noise.fogm_tau_s[i],
+                     noise.fogm_std_nt[i] ** 2, noise.white_std_nt[i] ** 2, buf)
+        for i in range(3)
+    )  # fmt: skip
+
+
+def fit_noise(r: np.ndarray, gap: np.ndarray, start: NoiseModel | None = None) -> NoiseModel:
     """Maximum-likelihood white + FOGM model of each column of the residual ``r`` (m, 3).
 
     Parameters
@@ -143,20 +153,28 @@ def fit_noise(r: np.ndarray, gap: np.ndarray) -> NoiseModel:
         Residual (m, 3), rows in time order.
     gap : numpy.ndarray
         Time since the previous row (m,) [s]; ``inf`` for an independent restart.
+    start : NoiseModel, optional
+        A model to start from (a re-fit after a small change of the residual): one search from
+        it instead of the two default starts.
 
     Returns
     -------
     NoiseModel
         The fitted model, one value per axis.
     """
-    fits = [_fit_one(np.ascontiguousarray(r[:, i : i + 1]), gap) for i in range(3)]
+    starts = [None if start is None else
+              (start.white_std_nt[i], start.fogm_std_nt[i], start.fogm_tau_s[i])
+              for i in range(3)]  # fmt: skip
+    fits = [_fit_one(np.ascontiguousarray(r[:, i : i + 1]), gap, starts[i]) for i in range(3)]
     white, fogm, tau = (np.array(v) for v in zip(*fits, strict=True))
     return NoiseModel(white, fogm, tau)
 
 
-def _fit_one(col: np.ndarray, gap: np.ndarray) -> tuple[float, float, float]:
+def _fit_one(
+    col: np.ndarray, gap: np.ndarray, start: tuple[float, float, float] | None = None
+) -> tuple[float, float, float]:
     """Maximum-likelihood (white std, FOGM std, FOGM τ) of one residual column (m, 1); Nelder–Mead
-    in log parameters from a 60-s and a 600-s start, the better kept."""
+    in log parameters from ``start``, or else from a 60-s and a 600-s start, the better kept."""
     from scipy.optimize import minimize
 
     buf = np.empty_like(col)
@@ -169,9 +187,10 @@ def _fit_one(col: np.ndarray, gap: np.ndarray) -> tuple[float, float, float]:
         return -_innovations(col, gap, t, f * f, w * w, buf)
 
     opts = {"xatol": 1e-2, "fatol": 1e-2, "maxiter": 200}
+    points = [(w0, f0, 60.0), (w0, f0, 600.0)] if start is None else [start]
     runs = [
-        minimize(nll, np.log([w0, f0, t0]), method="Nelder-Mead", options=opts)
-        for t0 in (60.0, 600.0)
+        minimize(nll, np.log(np.maximum(x0, 1e-6)), method="Nelder-Mead", options=opts)
+        for x0 in points
     ]
     w, f, t = np.exp(min(runs, key=lambda res: res.fun).x)
     return float(w), float(f), float(min(t, 1e6))

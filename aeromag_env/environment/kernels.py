@@ -381,13 +381,19 @@ def _env_step_range(
 
 def env_step_batch(
     active: np.ndarray, modes: np.ndarray, n: np.ndarray, score_start: np.ndarray,
-    envs: EnvArrays, settings: EnvSettings, filters: FilterArrays,
+    envs: EnvArrays | Packed, settings: EnvSettings | Packed, filters: FilterArrays | Packed,
 ) -> None:  # fmt: skip
     """:func:`env_step` for every environment i with ``active[i]`` (N,) bool, on all cores.
 
     ``modes``, ``n``, ``score_start`` (N,) int64 and the arrays of ``envs`` and ``filters`` have
     a leading environment axis (the actions (N, 2 or 3) float64 finite); ``settings`` are
-    shared.
+    shared. Each group as a NamedTuple or already :func:`~aeromag_env.compensation.arrays.packed`
+    (a caller stepping the same arrays again and again packs them once).
     """
     run_chunks(_env_step_range, int(active.shape[0]), active, modes, n, score_start,
-               packed(envs), packed(settings), packed(filters))  # fmt: skip
+               _packed(envs), _packed(settings), _packed(filters))  # fmt: skip
+
+
+def _packed(arrays: tuple) -> Packed:
+    """``arrays`` packed, unless they already are (a plain tuple, not a NamedTuple)."""
+    return arrays if type(arrays) is tuple else packed(arrays)

@@ -59,6 +59,17 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
     assert np.isfinite(peak_rss_mb()) and peak_rss_mb() > 0
 
 
+def test_env_share_rows_carry_the_target_at_8_envs_only():
+    shares = {"": 0.12, "_min": 0.1, "_max": 0.17}
+    figures = {**FIGURES, **{f"{prefix}_env_share{end}": value for prefix in ("ppo", "ppo64")
+                             for end, value in shares.items()}}  # fmt: skip
+    rows = {r[0]: r for r in _rows(figures)}
+    assert rows["PPO learn, the env's share, 8 envs"][1:] == (
+        "12.0%", "1 − batched/zero-cost, paired repeats 10.0%–17.0%", "≤ 15%", True)  # fmt: skip
+    assert rows["PPO learn, the env's share, 64 envs"][3:] == ("", None)
+    assert "PPO learn, the env's share, 8 envs" not in {r[0] for r in _rows(FIGURES)}
+
+
 def test_zero_cost_env_ends_episodes_as_sb3_expects():
     from gymnasium import spaces
 

@@ -268,7 +268,7 @@ def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
         low, high = f[f"{prefix}_env_share_min"], f[f"{prefix}_env_share_max"]
         capped = n == 8
         rows.append((f"PPO learn, the env's share, {n} envs", f"{share:.1%}",
-                     f"1 − batched/zero-cost, paired repeats {low:.1%}–{high:.1%}",
+                     f"1 − batched/zero-cost, paired repeats {100 * low:.1f}–{100 * high:.1f}%",
                      f"≤ {ENV_SHARE_TARGET:.0%}" if capped else "",
                      share <= ENV_SHARE_TARGET if capped else None))  # fmt: skip
     return rows

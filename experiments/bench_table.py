@@ -18,8 +18,9 @@ from typing import Any
 
 from aeromag_env.cli.bench import _rows
 
-#: A number in a cell (thousands separators, decimals), or a range of two ("1.11–1.33").
-_NUMBER = re.compile(r"[0-9][0-9,]*(?:\.[0-9]+)?(?:–[0-9][0-9,]*(?:\.[0-9]+)?)?")
+#: A number in a cell (sign, thousands separators, decimals), or a range of two ("1.11–1.33",
+#: "-5.5–59.2": a paired difference may come out negative on a noisy machine).
+_NUMBER = re.compile(r"-?[0-9][0-9,]*(?:\.[0-9]+)?(?:–-?[0-9][0-9,]*(?:\.[0-9]+)?)?")
 
 
 def load_runs(paths: Sequence[Path]) -> list[dict[str, Any]]:

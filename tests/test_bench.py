@@ -59,6 +59,17 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
     assert np.isfinite(peak_rss_mb()) and peak_rss_mb() > 0
 
 
+def test_env_share_rows_carry_the_target_at_8_envs_only():
+    shares = {"": 0.12, "_min": 0.1, "_max": 0.17}
+    figures = {**FIGURES, **{f"{prefix}_env_share{end}": value for prefix in ("ppo", "ppo64")
+                             for end, value in shares.items()}}  # fmt: skip
+    rows = {r[0]: r for r in _rows(figures)}
+    assert rows["PPO learn, the env's share, 8 envs"][1:] == (
+        "12.0%", "1 − batched/zero-cost, paired repeats 10.0–17.0%", "≤ 15%", True)  # fmt: skip
+    assert rows["PPO learn, the env's share, 64 envs"][3:] == ("", None)
+    assert "PPO learn, the env's share, 8 envs" not in {r[0] for r in _rows(FIGURES)}
+
+
 def test_zero_cost_env_ends_episodes_as_sb3_expects():
     from gymnasium import spaces
 
@@ -85,6 +96,8 @@ def test_bench_table_joins_runs_and_counts_met_targets(tmp_path):
     assert join_cells(["1,000 /s", "1,000 /s"]) == "1,000 /s"
     ranges = ["1.2× a (repeats 1.1–1.3; env 5%)", "1.3× a (repeats 1.2–1.4; env 5%)"]
     assert join_cells(ranges) == "1.2 / 1.3× a (repeats 1.1–1.3 / 1.2–1.4; env 5%)"
+    shares = ["share 35.7% (repeats -5.5–59.2%)", "share 31.7% (repeats 31.5–57.7%)"]
+    assert join_cells(shares) == "share 35.7 / 31.7% (repeats -5.5–59.2 / 31.5–57.7%)"
     cells = ["1.2× a", "1.3× b"]
     assert join_cells(cells) == "<br>".join(cells)  # they differ in words
     slow = {**FIGURES, "env_single_steps_per_s": 1.5e4}

@@ -4,7 +4,14 @@ import numpy as np
 import ppigrf
 import pytest
 
-from aeromag_env.geo.earth import external_variation_ned, igrf_ned, igrf_ned_along_track, parse_date
+from aeromag_env.geo.earth import (
+    _same_bits,
+    clear_caches,
+    external_variation_ned,
+    igrf_ned,
+    igrf_ned_along_track,
+    parse_date,
+)
 from tests._flights import simulated
 
 
@@ -43,6 +50,25 @@ def test_interpolated_igrf_within_0p1_nt_of_direct(pattern):
     direct = igrf_ned(lat, lon, alt, f.date())
     interp = igrf_ned_along_track(f.tt, lat, lon, alt, f.date(), grid_spacing_s=10.0)
     assert np.max(np.abs(interp - direct)) < 0.1  # [nT], the bound
+
+
+def test_a_remembered_track_is_bitwise_its_evaluation_and_is_the_callers_to_change():
+    tt = np.arange(0, 120, 0.1)
+    lat = np.deg2rad(45.0) + 1e-5 * np.sin(tt / 7)
+    lon = np.full(tt.size, np.deg2rad(-75.0))
+    alt = 3000 + 4 * np.sin(2 * np.pi * tt / 5)
+    clear_caches()
+    cold = igrf_ned_along_track(tt, lat, lon, alt, "2026-06-01")
+    cold[:] = 0.0  # the caller's copy: the remembered field is not touched
+    warm = igrf_ned_along_track(tt, lat, lon, alt, "2026-06-01")
+    clear_caches()
+    again = igrf_ned_along_track(tt, lat, lon, alt, "2026-06-01")
+    assert warm.tobytes() == again.tobytes()
+    moved = igrf_ned_along_track(tt, lat + 1e-4, lon, alt, "2026-06-01")  # not a hit
+    assert np.all(np.abs(moved - again).max(axis=0) > 0.1)  # [nT]: 0.6 km north moves it
+    # the track is compared bit for bit: zero signs and NaN payloads count, == would not
+    assert not _same_bits(np.array([0.0]), np.array([-0.0]))
+    assert _same_bits(np.array([np.nan]), np.array([np.nan]))
 
 
 def test_vertical_gradient_term_matters():

@@ -356,6 +356,32 @@ def test_step_statistic_follows_its_definition_and_flags_a_step():
         _make(step_statistic=True)
 
 
+def _lag1(r: np.ndarray) -> float:
+    """Lag-1 autocorrelation of the rows of ``r``, per-axis mean removed, pooled over axes."""
+    c = r - r.mean(axis=0)
+    return float(np.sum(c[1:] * c[:-1]) / np.sum(c * c))
+
+
+def test_whiteness_without_gaps_is_bitwise_the_general_loop_and_is_the_lag1_correlation():
+    """The whiteness observation has a fast loop for a window without skipped samples; it
+    equals the general loop (which drops non-finite rows) bit for bit, and both equal the
+    pooled lag-1 autocorrelation computed with numpy to 1e-12 (relative: summation order)."""
+    from aeromag_env.environment.kernels import _whiteness, _whiteness_with_gaps
+
+    rng = np.random.default_rng(3)
+    r = np.cumsum(rng.standard_normal((120, 3)), axis=0) * 7.0  # correlated, not zero-mean
+    for k1, window in ((120, 50), (30, 50), (3, 50), (120, 120)):
+        lo = max(0, k1 - window)
+        fast = _whiteness(k1, window, r)
+        assert fast == _whiteness_with_gaps(lo, k1, k1 - lo, r)
+        assert fast == pytest.approx(_lag1(r[lo:k1]), rel=1e-12)
+    gaps = r.copy()
+    gaps[[75, 76, 100]] = np.nan  # skipped samples: the rows around a gap become neighbours
+    kept = gaps[70:120][np.all(np.isfinite(gaps[70:120]), axis=1)]
+    assert _whiteness(120, 50, gaps) == pytest.approx(_lag1(kept), rel=1e-12)
+    assert _whiteness(2, 50, r) == 0.0  # fewer than 3 rows
+
+
 def test_spaces_lay_out_the_observations_and_actions_as_documented():
     """The layouts the environment's docstring states: two observations, seven with extras, then
     T_p's Q scale (split_q), the two innovation powers and the change statistic, in that

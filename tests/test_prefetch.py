@@ -42,3 +42,24 @@ def test_a_stopped_worker_falls_back_to_simulating_here():
         got, want = prefetcher.take(slot, key), simulate(key)
         np.testing.assert_array_equal(got.y, want.y)
         assert got.filter_cfg == want.filter_cfg
+
+
+def test_a_flight_the_worker_has_delivered_is_taken_from_it(monkeypatch):
+    """A ready flight comes from the worker (here: simulating would fail), and equals the flight
+    simulated here."""
+    from aeromag_env.environment import prefetch
+
+    want = simulate(FlightKey("nominal", 5, 5.0))
+    prefetcher = FlightPrefetcher()
+    key = FlightKey("nominal", 5, 5.0)
+    prefetcher.expect(0, key)
+    prefetcher._pending[0][1].result(timeout=120)  # the worker's answer has come
+
+    def no_simulation(key):
+        raise AssertionError("simulated here, not taken from the worker")
+
+    monkeypatch.setattr(prefetch, "simulate", no_simulation)
+    got = prefetcher.take(0, key)
+    np.testing.assert_array_equal(got.y, want.y)
+    np.testing.assert_array_equal(got.truth_interf, want.truth_interf)
+    prefetcher.close()

@@ -239,6 +239,20 @@ def _healthy(ok: bool, z: np.ndarray, p: np.ndarray, ints: np.ndarray, work: np.
     return healthy
 
 
+@per_sample
+def _store_row(x: np.ndarray, k: int, x0: float, x1: float, x2: float) -> None:
+    """Row k of the (n, 3) array ``x``: ``(x0, x1, x2)`` (element by element: a slice
+    assignment would need numba's runtime)."""
+    x[k, 0], x[k, 1], x[k, 2] = x0, x1, x2
+
+
+@per_sample
+def _copy(src: np.ndarray, dst: np.ndarray) -> None:
+    """``dst[:] = src`` for vectors, element by element."""
+    for a in range(src.shape[0]):
+        dst[a] = src[a]
+
+
 @njit(cache=True)  # on a divergence only; copies arrays: needs the runtime
 def _restart(
     z: np.ndarray, z_good: np.ndarray, p: np.ndarray, p0: np.ndarray, qd: np.ndarray,
@@ -328,11 +342,11 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
         _estimate(k, t, td, d, z, col, hv, est)
         rejected = False
         if not valid[k]:
-            innov[k, :] = np.nan
+            _store_row(innov, k, np.nan, np.nan, np.nan)
             ints[INT_SKIP] += 1
         else:
             _innovation(k, y, est, p, rm, col, hv, gt, s, r)
-            innov[k, :] = r
+            _store_row(innov, k, r[0], r[1], r[2])
             ok = _inv3(s, sinv)
             rejected = ok and outlier(r, sinv, acc, ints)
             inconsistent = rejected and reject(r, acc, ints)  # a window of shifted outliers
@@ -349,7 +363,7 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
                     if inconsistent:  # restarted below; no more adaptation
                         mode, adaptive, ints[INT_FELL_BACK] = FilterMode.KF, False, 1
                     else:
-                        z_good[:] = z
+                        _copy(z, z_good)
             if inconsistent:  # restart, and the window starts again at the new level
                 _restart(z, z_good, p, p0, qd, q0, rm, r0, ints)
                 clear_window(acc, ints)

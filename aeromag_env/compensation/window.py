@@ -28,7 +28,7 @@ from aeromag_env.compensation.kernel_layout import (
 per_sample = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
 
 
-@njit(cache=True)  # writes a row of rbuf: needs the runtime
+@per_sample
 def window_add(r, trs, rbuf, sbuf, acc, ints) -> None:
     """Push one innovation into the circular window and update the running sums; re-sum them
     when the term that left carried nearly all of a sum (:data:`RESUM_RATIO`: subtracting it
@@ -37,14 +37,14 @@ def window_add(r, trs, rbuf, sbuf, acc, ints) -> None:
     pos = ints[INT_POS]
     old_rr, old_s = 0.0, 0.0
     if ints[INT_COUNT] == m:
-        old = rbuf[pos]
-        old_rr, old_s = old[0] ** 2 + old[1] ** 2 + old[2] ** 2, sbuf[pos]
+        old_rr, old_s = rbuf[pos, 0] ** 2 + rbuf[pos, 1] ** 2 + rbuf[pos, 2] ** 2, sbuf[pos]
         acc[ACC_RR] -= old_rr
         acc[ACC_S] -= old_s
         for i in range(3):
             for j in range(3):
-                acc[ACC_C + 3 * i + j] -= old[i] * old[j]
-    rbuf[pos, :] = r
+                acc[ACC_C + 3 * i + j] -= rbuf[pos, i] * rbuf[pos, j]
+    for i in range(3):
+        rbuf[pos, i] = r[i]
     sbuf[pos] = trs
     acc[ACC_RR] += r[0] ** 2 + r[1] ** 2 + r[2] ** 2
     acc[ACC_S] += trs
@@ -54,7 +54,8 @@ def window_add(r, trs, rbuf, sbuf, acc, ints) -> None:
     ints[INT_POS] = (pos + 1) % m
     ints[INT_COUNT] = min(ints[INT_COUNT] + 1, m)
     if ints[INT_POS] == 0:  # re-sum once per lap: no drift of the running sums
-        acc[:] = 0.0
+        for a in range(acc.shape[0]):
+            acc[a] = 0.0
         window_sums(rbuf, sbuf, acc, ints[INT_COUNT])
         acc[ACC_REF] = acc[ACC_RR] / m  # the outlier gate's reference for the next lap
     elif old_rr > RESUM_RATIO * acc[ACC_RR] or old_s > RESUM_RATIO * acc[ACC_S]:

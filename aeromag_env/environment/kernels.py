@@ -155,11 +155,31 @@ def _whiteness(k1: int, window: int, innov: np.ndarray) -> float:
     """Lag-1 autocorrelation of the innovations of the last ``window`` samples (finite rows,
     per-axis mean removed, pooled over axes); 0 with fewer than 3 rows or no variance."""
     lo = max(0, k1 - window)
-    rows = 0
+    rows, mean0, mean1, mean2 = 0, 0.0, 0.0, 0.0
     for k in range(lo, k1):
-        rows += _finite_row(innov, k)
+        if _finite_row(innov, k):
+            rows += 1
+            mean0, mean1, mean2 = mean0 + innov[k, 0], mean1 + innov[k, 1], mean2 + innov[k, 2]
     if rows < 3:
         return 0.0
+    if rows < k1 - lo:  # skipped samples in the window
+        return _whiteness_with_gaps(lo, k1, rows, innov)
+    means = (mean0 / rows, mean1 / rows, mean2 / rows)
+    num, den = 0.0, 0.0
+    for i in range(3):  # the sums in the order of the loop with gaps: bitwise its result
+        prev = innov[lo, i] - means[i]
+        den += prev * prev
+        for k in range(lo + 1, k1):
+            c = innov[k, i] - means[i]
+            den += c * c
+            num += c * prev
+            prev = c
+    return num / den if den > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _whiteness_with_gaps(lo: int, k1: int, rows: int, innov: np.ndarray) -> float:
+    """:func:`_whiteness` over samples ``lo ≤ k < k1`` of which ``rows`` are finite rows."""
     num, den = 0.0, 0.0
     for i in range(3):
         mean = 0.0
@@ -178,13 +198,20 @@ def _whiteness(k1: int, window: int, innov: np.ndarray) -> float:
     return num / den if den > 0.0 else 0.0
 
 
+@njit(cache=True, inline="always")
+def _previous(w: int, size: int) -> int:
+    """The slot before ``w`` in a circular buffer of ``size`` slots: ``(w − 1) mod size``
+    without an integer division (these loops run over the window at every step)."""
+    return w - 1 if w > 0 else size - 1
+
+
 @njit(cache=True)
 def _recent_ratio(m: int, ints: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray) -> float:
     """ROR over the last ``m`` updates only: ``Σ|r|² / Σ tr S`` (NaN before any update)."""
     m = min(m, ints[INT_COUNT])
-    num, den = 0.0, 0.0
-    for j in range(m):
-        w = (ints[INT_POS] - 1 - j) % ints[INT_WINDOW]
+    num, den, w = 0.0, 0.0, ints[INT_POS]
+    for _ in range(m):  # newest first
+        w = _previous(w, ints[INT_WINDOW])
         num += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
         den += sbuf[w]
     return num / den if den > 0.0 else np.nan
@@ -198,9 +225,9 @@ def _recent_power(m: int, ints: np.ndarray, rbuf: np.ndarray) -> tuple[float, fl
     m = min(m, ints[INT_COUNT])
     if m == 0:
         return np.nan, np.nan
-    power, s0, s1, s2 = 0.0, 0.0, 0.0, 0.0
-    for j in range(m):
-        w = (ints[INT_POS] - 1 - j) % ints[INT_WINDOW]
+    power, s0, s1, s2, w = 0.0, 0.0, 0.0, 0.0, ints[INT_POS]
+    for _ in range(m):  # newest first
+        w = _previous(w, ints[INT_WINDOW])
         power += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
         s0, s1, s2 = s0 + rbuf[w, 0], s1 + rbuf[w, 1], s2 + rbuf[w, 2]
     return power / m, (s0 * s0 + s1 * s1 + s2 * s2) / (m * m)
@@ -212,31 +239,39 @@ def _step_statistic(m: int, ints: np.ndarray, rbuf: np.ndarray) -> float:
     the last ``m`` updates against that of the earlier updates in the statistics window, over
     the earlier ones' innovation covariance trace. About 1 + m/(M − m) without a change,
     whatever the noise level or R; an interference step raises it by m |step|² / tr C₀. NaN
-    with fewer than 3 earlier updates."""
+    with fewer than 3 earlier updates. (Per axis in scalars, newest first: no allocation.)"""
     count = ints[INT_COUNT]
     m = min(m, count)
     earlier = count - m
     if m < 1 or earlier < 3:
         return np.nan
     size = ints[INT_WINDOW]
-    recent, before, sq = np.zeros(3), np.zeros(3), np.zeros(3)
+    recent0, recent1, recent2, before0, before1, before2 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    w = ints[INT_POS]
     for j in range(count):
-        w = (ints[INT_POS] - 1 - j) % size
-        for i in range(3):
-            if j < m:
-                recent[i] += rbuf[w, i]
-            else:
-                before[i] += rbuf[w, i]
-    recent /= m
-    before /= earlier
-    for j in range(m, count):
-        w = (ints[INT_POS] - 1 - j) % size
-        for i in range(3):
-            sq[i] += (rbuf[w, i] - before[i]) ** 2
-    tr_c = sq.sum() / (earlier - 1)
+        w = _previous(w, size)
+        if j < m:
+            recent0 += rbuf[w, 0]
+            recent1 += rbuf[w, 1]
+            recent2 += rbuf[w, 2]
+        else:
+            before0 += rbuf[w, 0]
+            before1 += rbuf[w, 1]
+            before2 += rbuf[w, 2]
+    recent0, recent1, recent2 = recent0 / m, recent1 / m, recent2 / m
+    before0, before1, before2 = before0 / earlier, before1 / earlier, before2 / earlier
+    sq0, sq1, sq2 = 0.0, 0.0, 0.0
+    w = (ints[INT_POS] - m) % size  # the earlier updates, newest first
+    for _ in range(m, count):
+        w = _previous(w, size)
+        sq0 += (rbuf[w, 0] - before0) ** 2
+        sq1 += (rbuf[w, 1] - before1) ** 2
+        sq2 += (rbuf[w, 2] - before2) ** 2
+    tr_c = (sq0 + sq1 + sq2) / (earlier - 1)
     if not tr_c > 0.0:
         return np.nan
-    return m * ((recent - before) ** 2).sum() / tr_c
+    change = (recent0 - before0) ** 2 + (recent1 - before1) ** 2 + (recent2 - before2) ** 2
+    return m * change / tr_c
 
 
 @njit(cache=True)
@@ -346,13 +381,19 @@ def _env_step_range(
 
 def env_step_batch(
     active: np.ndarray, modes: np.ndarray, n: np.ndarray, score_start: np.ndarray,
-    envs: EnvArrays, settings: EnvSettings, filters: FilterArrays,
+    envs: EnvArrays | Packed, settings: EnvSettings | Packed, filters: FilterArrays | Packed,
 ) -> None:  # fmt: skip
     """:func:`env_step` for every environment i with ``active[i]`` (N,) bool, on all cores.
 
     ``modes``, ``n``, ``score_start`` (N,) int64 and the arrays of ``envs`` and ``filters`` have
     a leading environment axis (the actions (N, 2 or 3) float64 finite); ``settings`` are
-    shared.
+    shared. Each group as a NamedTuple or already :func:`~aeromag_env.compensation.arrays.packed`
+    (a caller stepping the same arrays again and again packs them once).
     """
     run_chunks(_env_step_range, int(active.shape[0]), active, modes, n, score_start,
-               packed(envs), packed(settings), packed(filters))  # fmt: skip
+               _packed(envs), _packed(settings), _packed(filters))  # fmt: skip
+
+
+def _packed(arrays: tuple) -> Packed:
+    """``arrays`` packed, unless they already are (a plain tuple, not a NamedTuple)."""
+    return arrays if type(arrays) is tuple else packed(arrays)

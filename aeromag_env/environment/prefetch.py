@@ -5,9 +5,15 @@ long as hundreds of batched environment steps, and during training the learner l
 core idle. So the vector environment names each environment's next flight as soon as the current one
 starts (:meth:`FlightPrefetcher.expect`), a worker process simulates it meanwhile, and the reset
 takes it (:meth:`FlightPrefetcher.take`). ``make_episode`` is deterministic, so a prepared
-flight is exactly the one the reset would have simulated; a flight that is not ready is waited
-for, one that is no longer wanted (a reset with another seed) is ignored, and if the worker
+flight is exactly the one the reset would have simulated; a flight that is not ready yet is
+simulated in the calling process instead of waited for (the worker's copy is dropped when it
+comes), one that is no longer wanted (a reset with another seed) is ignored, and if the worker
 fails the flight is simulated in the calling process.
+
+The worker runs at a lower priority (``nice`` +:data:`WORKER_NICENESS`): a flight is wanted only
+at the end of an episode, hundreds of steps later, so on a machine whose cores are all busy it
+should not take the core from the learner; on an idle core it runs as fast as ever, and if it
+falls behind, the reset simulates the flight itself as without prefetching.
 
 The worker is a plain Python child (:func:`worker_main`) exchanging pickles over its stdin and
 stdout: unlike ``multiprocessing``'s spawn it never re-imports the caller's main script, so a
@@ -30,6 +36,9 @@ import numpy as np
 
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.environment.scenarios import make_episode
+
+#: How much lower the worker's scheduling priority is than its parent's (POSIX ``nice``).
+WORKER_NICENESS = 10
 
 
 class FlightKey(NamedTuple):
@@ -92,9 +101,9 @@ class FlightPrefetcher:
 
     def take(self, slot: int, key: FlightKey) -> FlightArrays:
         """The flight ``key`` for slot ``slot``: the prepared one if that is what was expected
-        and the worker delivered it, else simulated here."""
+        and the worker has delivered it, else simulated here."""
         pending = self._pending.pop(slot, None)
-        if pending is not None and pending[0] == key:
+        if pending is not None and pending[0] == key and pending[1].done():
             try:
                 return pending[1].result()
             except Exception:  # worker gone or failed: simulate here (raises the same error)
@@ -142,6 +151,8 @@ def worker_main() -> None:
     results = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)
     requests = sys.stdin.buffer
+    if hasattr(os, "nice"):
+        os.nice(WORKER_NICENESS)
     simulate(FlightKey("nominal", 0, 10.0))  # load what the first flight would (~1 s) now
     while True:
         try:

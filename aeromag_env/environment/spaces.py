@@ -120,12 +120,16 @@ def observation_bounds(config: Layout) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check_actions(
-    actions: object, num_envs: int | None = None, size: int = len(BASE_ACTIONS)
+    actions: object,
+    num_envs: int | None = None,
+    size: int = len(BASE_ACTIONS),
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """The action of one environment as float64 (size,), or with ``num_envs`` the actions of a
-    vector environment (num_envs, size); a one-line ValueError when the size is wrong, the
-    values are not real numbers (complex, bool, text, objects) or one is not finite (values
-    outside [-1, 1] are clipped later, not refused)."""
+    vector environment (num_envs, size), written into ``out`` (float64 (num_envs, size)) if
+    given; a one-line ValueError when the size is wrong, the values are not real numbers
+    (complex, bool, text, objects) or one is not finite (values outside [-1, 1] are clipped
+    later, not refused)."""
     try:
         given = np.asarray(actions)
     except (TypeError, ValueError):
@@ -135,16 +139,21 @@ def check_actions(
             f"actions must be real numbers in [-1, 1], got {_kind_name(given.dtype)} "
             f"({given.dtype})"
         )
-    a = given.astype(np.float64, copy=False)
     if num_envs is None:
+        a = given.astype(np.float64, copy=False)
         if a.size != size or not np.all(np.isfinite(a)):
             raise ValueError(f"action must be {size} finite numbers in [-1, 1], got {_shown(a)}")
         return a.reshape(size)
-    if a.shape != (num_envs, size):
+    if given.shape != (num_envs, size):
         raise ValueError(
             f"actions must have shape ({num_envs}, {size}) (one action per environment), "
-            f"got shape {a.shape}"
+            f"got shape {given.shape}"
         )
+    if out is None:
+        a = given.astype(np.float64, copy=False)
+    else:
+        a = out
+        np.copyto(a, given)
     finite = np.isfinite(a)
     if not finite.all():
         i = int(np.flatnonzero(~finite.all(axis=1))[0])

@@ -11,6 +11,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from aeromag_env.compensation.arrays import Packed, packed
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_OUT
@@ -41,10 +42,11 @@ from aeromag_env.environment.spaces import action_size, check_actions
 STEP_INFO = (("rmse_window_nt", OUT_RMSE), ("ror", OUT_ROR), ("qoq", OUT_QOQ),
              ("q_scale", OUT_Q_SCALE), ("r_scale", OUT_R_SCALE),
              ("q_permanent_scale", OUT_QP_SCALE))  # fmt: skip
-_STEP_KEYS = tuple(key for key, _ in STEP_INFO)
+#: The keys of a step's info dict (:meth:`AeroMagCompensationVecEnv.step_rows`), in the single
+#: environment's order: the entries above, then the counts and totals.
+_ROW_KEYS = (*(key for key, _ in STEP_INFO), "sample", "flight_seed", "episode_rmse_nt",
+             "divergences", "outliers_rejected")  # fmt: skip
 _STEP_COLS = np.array([col for _, col in STEP_INFO])
-#: The rest of a step's info, in :meth:`AeroMagCompensationVecEnv.step_rows`'s order.
-_TOTAL_KEYS = ("sample", "flight_seed", "episode_rmse_nt", "divergences", "outliers_rejected")
 #: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
 VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS)
 
@@ -158,6 +160,10 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self._out = np.zeros((n, kernels.N_OUT))
         self._ended = np.zeros(n, bool)
         self._steps = np.zeros(n, np.int64)  # steps of each environment's current episode
+        self._everyone = np.ones(n, bool)  # the mask of a step without restarts (never written)
+        self._actions = np.zeros((n, action_size(self.config)))  # the step's checked actions
+        # the kernel's arrays, packed once (rebuilt after a reset, which may reallocate them)
+        self._step_arrays: tuple[Packed, Packed, Packed] | None = None
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self._prefetcher = FlightPrefetcher() if prefetch else None
 
@@ -226,16 +232,11 @@ class AeroMagCompensationVecEnv(VectorEnv):
             raise ValueError("step_rows needs autoreset_mode=AutoresetMode.DISABLED")
         active = self._restart_ended({})
         rewards, terminated, truncated = self._advance(actions, active)
-        filters = self._need_filters()
-        rows = [
-            dict(zip(_STEP_KEYS, values, strict=True))
-            for values in self._out[:, _STEP_COLS].tolist()
-        ]
-        columns = zip(filters.ints[:, INT_K].tolist(), self.flight_seeds.tolist(),
-                      self._out[:, OUT_EPISODE_RMSE].tolist(), filters.ints[:, INT_DIV].tolist(),
-                      filters.ints[:, INT_OUT].tolist(), strict=True)  # fmt: skip
-        for row, values in zip(rows, columns, strict=True):
-            row.update(zip(_TOTAL_KEYS, values, strict=True))
+        ints, out = self._need_filters().ints, self._out
+        columns = (*out[:, _STEP_COLS].T.tolist(), ints[:, INT_K].tolist(),
+                   self.flight_seeds.tolist(), out[:, OUT_EPISODE_RMSE].tolist(),
+                   ints[:, INT_DIV].tolist(), ints[:, INT_OUT].tolist())  # fmt: skip
+        rows = [dict(zip(_ROW_KEYS, values, strict=True)) for values in zip(*columns, strict=True)]
         return self._obs.copy(), rewards, terminated, truncated, rows
 
     def _advance(
@@ -244,13 +245,16 @@ class AeroMagCompensationVecEnv(VectorEnv):
         """Step the ``active`` environments (the others' outcome rows zeroed): rewards,
         terminated, truncated; sets ``_ended``."""
         filters = self._need_filters()
-        a = check_actions(actions, self.num_envs, action_size(self.config))
-        self._out[~active] = 0.0
-        envs = EnvArrays(a, self._run, self._truth, self._obs, self._out)
-        kernels.env_step_batch(active, filters.mode, filters.n, self._score_start, envs,
-                               self._settings, filters.arrays())  # fmt: skip
+        check_actions(actions, self.num_envs, action_size(self.config), out=self._actions)
+        if active is not self._everyone:
+            self._out[~active] = 0.0
+        if self._step_arrays is None:
+            envs = EnvArrays(self._actions, self._run, self._truth, self._obs, self._out)
+            self._step_arrays = packed(envs), packed(self._settings), packed(filters.arrays())
+        kernels.env_step_batch(active, filters.mode, filters.n, self._score_start,
+                               *self._step_arrays)  # fmt: skip
         out = self._out
-        self._steps[active] += 1
+        self._steps += active
         if self.max_episode_steps is not None:  # a TimeLimit's cut, as gym.make's
             out[active & (self._steps >= self.max_episode_steps), OUT_TRUNCATED] = 1.0
         terminated, truncated = out[:, OUT_TERMINATED] > 0, out[:, OUT_TRUNCATED] > 0
@@ -261,7 +265,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         """Environments that ended on the previous step: ``NEXT_STEP`` restarts them now, which
         is their whole step; ``DISABLED`` refuses. Returns the environments to step."""
         if not self._ended.any():
-            return np.ones(self.num_envs, bool)
+            return self._everyone
         if self.autoreset_mode != AutoresetMode.NEXT_STEP:
             raise ResetNeeded(
                 f"environments {np.flatnonzero(self._ended).tolist()} ended; reset them with "
@@ -328,6 +332,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self._obs[i] = 0.0
         self._ended[i] = False
         self._steps[i] = 0
+        self._step_arrays = None  # the filters' or the truth's arrays may have grown
 
     def _step_infos(self, infos: dict[str, Any], stepped: np.ndarray) -> None:
         """The single env's step infos of the ``stepped`` environments, batched."""

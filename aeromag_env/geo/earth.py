@@ -166,14 +166,30 @@ def igrf_ned_along_track(
     -----
     ``B(t) ≈ S_B(t) + S_g(t) (h(t) - S_h(t))`` where ``S_B``, ``S_g`` and ``S_h`` are cubic
     splines through the grid values of the field, its vertical gradient ``∂B/∂h`` and the
-    altitude; the last term carries altitude changes faster than the grid.
+    altitude; the last term carries altitude changes faster than the grid. A track evaluated
+    before is remembered (:func:`_remembered_track`): every episode of a training run flies the
+    same pattern, and the splines cost milliseconds.
     """
+    tt, lat, lon, alt_m = (np.asarray(x, dtype=float) for x in (tt, lat, lon, alt_m))
+    if tt.size < 4:
+        return igrf_ned(lat, lon, alt_m, date)
+    key = (str(parse_date(date)), float(grid_spacing_s))
+    hit = _remembered_track(key, (tt, lat, lon, alt_m))
+    if hit is None:
+        hit = _along_track(tt, lat, lon, alt_m, date, grid_spacing_s)
+        if tt.size <= _TRACK_CACHE_MAX_SAMPLES:
+            _remember_track(key, (tt, lat, lon, alt_m), hit)
+    return hit.copy()
+
+
+def _along_track(
+    tt: np.ndarray, lat: np.ndarray, lon: np.ndarray, alt_m: np.ndarray,
+    date: str | _dt.datetime, grid_spacing_s: float,
+) -> np.ndarray:  # fmt: skip
+    """:func:`igrf_ned_along_track` computed (float64 inputs, at least 4 samples)."""
     from scipy.interpolate import CubicSpline
 
-    tt = np.asarray(tt, dtype=float)
     n = tt.size
-    if n < 4:
-        return igrf_ned(lat, lon, alt_m, date)
     step = max(1, round(grid_spacing_s / float(np.median(np.diff(tt)))))
     idx = np.unique(np.r_[np.arange(0, n, step), n - 1])
     if idx.size < 4:
@@ -211,9 +227,43 @@ def _igrf_grid(
     return hit
 
 
+#: Tracks kept by :func:`_remember_track`, and the longest one kept [samples] (a training
+#: flight has 12 000–15 000; a long survey file is evaluated once).
+_TRACK_CACHE_SIZE, _TRACK_CACHE_MAX_SAMPLES = 8, 100_000
+_track_cache: list[tuple[tuple[str, float], tuple[np.ndarray, ...], np.ndarray]] = []
+
+
+def _remembered_track(key: tuple[str, float], track: tuple[np.ndarray, ...]) -> np.ndarray | None:
+    """The field remembered for ``track`` (tt, lat, lon, alt) with ``key`` (date, grid
+    spacing), or None. The arrays are compared bit for bit (not ``==``: -0.0 and 0.0 differ
+    here), so a hit returns exactly what the evaluation would."""
+    for known_key, known, field in _track_cache:
+        if known_key == key and all(_same_bits(a, b) for a, b in zip(known, track, strict=True)):
+            return field
+    return None
+
+
+def _remember_track(
+    key: tuple[str, float], track: tuple[np.ndarray, ...], field: np.ndarray
+) -> None:
+    """Keep ``field`` (made read-only) for a copy of ``track``, forgetting the oldest if full."""
+    if len(_track_cache) >= _TRACK_CACHE_SIZE:
+        del _track_cache[0]  # the oldest
+    field.flags.writeable = False
+    _track_cache.append((key, tuple(a.copy() for a in track), field))
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    """Float64 arrays ``a`` and ``b`` hold the same bits (NaN payloads and zero signs too)."""
+    return a.shape == b.shape and np.array_equal(
+        np.ascontiguousarray(a).view(np.int64), np.ascontiguousarray(b).view(np.int64)
+    )
+
+
 def clear_caches() -> None:
-    """Forget remembered IGRF grid evaluations (benchmarks time a cold simulation)."""
+    """Forget remembered IGRF grid and track evaluations (benchmarks time a cold simulation)."""
     _grid_cache.clear()
+    _track_cache.clear()
 
 
 def first_order_lag(x: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:

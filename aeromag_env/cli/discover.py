@@ -93,23 +93,7 @@ def markdown(report: dict[str, Any]) -> str:
         f"Held-out scheme: {gap['held_out_scheme']}.",
         "",
     ]
-    if report["missing_effects"]:
-        head = ("| effect | channel | test | F | log10 p | Holm threshold | ΔBIC "
-                "| held-out RMS [nT] | held-out gap without → with it [nT] |")  # fmt: skip
-        lines += ["## Missing effects", "", head, "|---|---|---|---|---|---|---|---|---|"]
-        for e in report["missing_effects"]:
-            ev, g = e["evidence"], e["held_out_gap"]
-            test = ev.get("test", "F-test, fixed noise model")
-            lines.append(
-                f"| `{e['name']}` | {e['channel'] or '–'} | {test} | {ev['f_statistic']:.1f} | "
-                f"{ev['log10_p_value']:.1f} | {ev['holm_threshold']:.2g} | {ev['delta_bic']:.0f} | "
-                f"{ev['held_out_rms_nt']:.2f} | {g['rms_without_nt']:.3f} → "
-                f"{g['rms_with_nt']:.3f} |"
-            )
-        lines.append("")
-        for e in report["missing_effects"]:
-            lines.append(f"* `{e['name']}` parameters: `{json.dumps(e['physical'])[:400]}`")
-        lines.append("")
+    lines += _effects_table(report["missing_effects"])
     head = "| effect | channel | regressors | identifiable fraction | verdict |"
     lines += ["## Candidates", "", head, "|---|---|---|---|---|"]
     for c in report["candidates"]:
@@ -210,3 +194,25 @@ def _plot_against_driver(
         ax.plot(x[::step], r[::step, i], ".", ms=1.5, alpha=0.5, label=label)
     ax.set(xlabel=driver, ylabel=f"{'xyz'[i]} [nT]", title=f"{name}: residual against {driver}")
     ax.legend(loc="upper right", fontsize=8, markerscale=6)
+
+
+def _effects_table(missing: list[dict[str, Any]]) -> list[str]:
+    """The named effects' Markdown: their tests, sizes, held-out gaps and parameters."""
+    if not missing:
+        return []
+    head = ("| effect | channel | test | F | log10 p | Holm threshold | ΔBIC "
+            "| held-out RMS [nT] | held-out gap without → with it [nT] |")  # fmt: skip
+    lines = ["## Missing effects", "", head, "|---|---|---|---|---|---|---|---|---|"]
+    for e in missing:
+        ev, g = e["evidence"], e["held_out_gap"]
+        test = ev.get("test", "F-test, fixed noise model")
+        lines.append(
+            f"| `{e['name']}` | {e['channel'] or '–'} | {test} | {ev['f_statistic']:.1f} | "
+            f"{ev['log10_p_value']:.1f} | {ev['holm_threshold']:.2g} | {ev['delta_bic']:.0f} | "
+            f"{ev['held_out_rms_nt']:.2f} | {g['rms_without_nt']:.3f} → "
+            f"{g['rms_with_nt']:.3f} |"
+        )
+    lines.append("")
+    for e in missing:
+        lines.append(f"* `{e['name']}` parameters: `{json.dumps(e['physical'])[:400]}`")
+    return [*lines, ""]

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env.discovery.evidence import JOINT_TEST
+from aeromag_env.discovery.evidence import JOINT_TEST, best_of_families
 from aeromag_env.discovery.noise_model import (
     ABSORBABLE_SHARE,
     NoiseModel,
@@ -48,6 +48,7 @@ from aeromag_env.discovery.noise_model import (
 )
 from aeromag_env.discovery.preparation import PreparedFlight
 from aeromag_env.discovery.whitened_problem import WhitenedProblem
+from aeromag_env.simulation.effects import Group
 
 #: Alternations of the GLS fit and the noise model's maximum-likelihood fit: for the model
 #: without a candidate (fitted once per step), and with one (each stops at a lower bound of its
@@ -206,3 +207,13 @@ def _held_out_rms(
     x = np.concatenate([columns[j][data.held_out] for j in chosen], axis=2)
     r = data.y[data.held_out] - np.einsum("kip,p->ki", x, beta)
     return float(np.sqrt(np.mean(r**2)))
+
+
+def step_tests(
+    prob: WhitenedProblem, groups: list[Group], chosen: list[int], remaining: list[int]
+) -> dict[int, dict[str, Any]]:
+    """A forward step's statistics: each remaining family's best group against ``chosen``,
+    fixed-noise, or joint where :func:`retest` re-tests it (problem index ``j`` is
+    ``groups[j − 1]``)."""
+    live = best_of_families(groups, {j: prob.test(chosen, j) for j in remaining})
+    return retest(prob, chosen, live, {j: groups[j - 1].profile is not None for j in live})

@@ -27,13 +27,12 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.discovery.evidence import (
-    best_of_families,
     group_statistics,
     rounded,
     significant,
     strength,
 )
-from aeromag_env.discovery.joint import held_out_veto, retest
+from aeromag_env.discovery.joint import held_out_veto, retest, step_tests
 from aeromag_env.discovery.noise_model import NoiseModel, fit_noise, ljung_box, ratchet
 from aeromag_env.discovery.preparation import PreparedFlight
 from aeromag_env.discovery.whitened_problem import WhitenedProblem, ols
@@ -270,10 +269,8 @@ def forward(
     remaining = list(range(1, len(prob.columns)))
     while remaining and len(chosen) - 1 < MAX_EFFECTS:
         say(f"testing {len(remaining)} candidate groups")
-        live = best_of_families(groups, {j: prob.test(chosen, j) for j in remaining})
+        live = step_tests(prob, groups, chosen, remaining)
         m = len(live)
-        profiled = {j: groups[j - 1].profile is not None for j in live}
-        live = retest(prob, chosen, live, profiled)
         passing = {j: t for j, t in live.items() if significant(t, alpha / m)}
         steps.append(
             {

@@ -17,11 +17,7 @@ from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_OUT
 from aeromag_env.environment import kernels
 from aeromag_env.environment.checks import RESET_OPTIONS, reset_options
-from aeromag_env.environment.env import (
-    AeroMagCompensationEnv,
-    EnvConfig,
-    step_settings,
-)
+from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig, step_settings
 from aeromag_env.environment.kernels import (
     OUT_EPISODE_RMSE,
     OUT_Q_SCALE,

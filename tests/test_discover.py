@@ -184,6 +184,11 @@ def test_evidence_needs_both_the_holm_f_test_and_a_positive_delta_bic() -> None:
     assert significant({"p_value": 1e-5, "delta_bic": MIN_DELTA_BIC + 1.0}, 1e-3)
     assert not significant({"p_value": 1e-5, "delta_bic": MIN_DELTA_BIC - 10.0}, 1e-3)
     assert not significant({"p_value": 2e-3, "delta_bic": MIN_DELTA_BIC + 50.0}, 1e-3)
+    # a joint test: Holm and the calibrated per-dof penalty, not ΔBIC (here -400)
+    joint = {"test": "joint noise model", "p_value": 1e-12, "dof": 54, "delta_bic": -400.0}
+    assert significant({**joint, "lr_statistic": 6.5 * 54}, 1e-3)
+    assert not significant({**joint, "lr_statistic": 5.5 * 54}, 1e-3)
+    assert not significant({**joint, "lr_statistic": 6.5 * 54, "p_value": 2e-3}, 1e-3)
 
 
 @pytest.mark.parametrize(

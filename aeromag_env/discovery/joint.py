@@ -12,12 +12,12 @@ maximum likelihood *jointly* with their own noise model, and the likelihood rati
   and the noise model's maximum-likelihood fit to the residual (:data:`NULL_ROUNDS` and
   :data:`CANDIDATE_ROUNDS` rounds, from the current noise model); each half-step raises it.
 * ``LR = 2 (ℓ₁ − ℓ₀)`` replaces the fixed-noise ``ΔRSS / σ²``: the p-value is χ² with the
-  group's degrees of freedom, and the group has evidence when it passes Holm's correction
-  (:func:`~aeromag_env.discovery.evidence.significant`). The ΔBIC guard of the fixed-noise test
-  (a margin for a noise model a short calibration under-states) is not asked of it: here the
-  noise model is fitted with the group in, and ``p log(rows)`` — 640 for the 60 columns of the
-  external-field splines on a 35-min flight — wrote off a slow field whose p was 1e-62 and
-  whose naming shrank the held-out gap 3×. ``ΔBIC = LR − p log(rows)`` is still reported.
+  group's degrees of freedom, and the group has evidence when it passes Holm's correction and
+  ``LR > 6 · dof`` (:data:`~aeromag_env.discovery.evidence.JOINT_PENALTY`, calibrated on null
+  flights: the χ² reference is asymptotic and named slow spurious groups). The fixed-noise test's
+  ΔBIC guard, ``LR > log(rows) · dof``, is not asked: ``p log(rows)`` — 640 for the 60 columns
+  of the external-field splines on a 35-min flight — wrote off a slow field whose p was 1e-62
+  and whose naming shrank the held-out gap 3×. ``ΔBIC = LR − p log(rows)`` is still reported.
 
 Which groups are re-tested: the *slow* ones (a group that could absorb at least
 :data:`~aeromag_env.discovery.noise_model.ABSORBABLE_SHARE` of the slow noise's variance) that

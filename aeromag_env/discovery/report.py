@@ -15,7 +15,7 @@ import numpy as np
 
 from aeromag_env.discovery.base_model import BaseSpan, base_dict, base_state
 from aeromag_env.discovery.candidates import Candidates
-from aeromag_env.discovery.evidence import MIN_DELTA_BIC, rounded
+from aeromag_env.discovery.evidence import JOINT_PENALTY, MIN_DELTA_BIC, rounded
 from aeromag_env.discovery.gap import effect_gap, rms
 from aeromag_env.discovery.joint import SCREEN_P
 from aeromag_env.discovery.preparation import PreparedFlight
@@ -227,10 +227,12 @@ def _selection_record(alpha: float, groups: list[Group], sel: Selection) -> dict
         "correction": "Holm over candidate groups at each step",
         "criterion": (
             "partial F-test on GLS-whitened residuals below the Holm threshold and "
-            f"ΔBIC > {MIN_DELTA_BIC:g}; a group with p < {SCREEN_P:g} that fails is re-tested "
-            "with the noise model re-fitted jointly (likelihood ratio, χ² p-value, ΔBIC = LR − "
-            "p log rows; evidence.test = 'joint noise model'); best ΔBIC enters; backward: "
-            "each named effect must meet the same rule given all the others"
+            f"ΔBIC > {MIN_DELTA_BIC:g}; a slow group with p < {SCREEN_P:g} is re-tested with the "
+            "noise model re-fitted jointly (evidence.test = 'joint noise model': χ² p-value of "
+            f"the likelihood ratio below the Holm threshold, the ratio above {JOINT_PENALTY:g} "
+            "per degree of freedom, "
+            "and a better held-out prediction than without it); the strongest by p-value "
+            "enters; backward: each named effect must meet the same rule given all the others"
         ),
         "sensor_lag_model": (
             "the whole modelled signal (Earth field, base aircraft field, other named "

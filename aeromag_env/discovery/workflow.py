@@ -31,21 +31,21 @@ module of :mod:`aeromag_env.discovery`:
    The F-test alone keeps a fixed false-inclusion rate per flight (about α) and trusts the fitted
    noise model, whose slow part a 20-min calibration under-states; the BIC penalty, ``log(rows)``
    per regressor, grows with the data and asks a 3-regressor group for F > 10 rather than F > 6. A
-   group with some evidence (p < 0.01) that fails, and every slow group that passes, is re-tested
-   with the noise model fitted jointly with it (:mod:`~aeromag_env.discovery.joint`: a
-   likelihood-ratio test, Holm alone): a slow effect is not written off as slow noise. The
-   strongest group by p-value enters, and the search repeats until none has evidence. Groups that
-   differ only in a non-linear parameter (the eddy time constant, the lag) are profiled: the best
-   grid value competes with one more degree of freedom, and is refined between its grid neighbours
-   once it enters. After each entry the noise model is re-fitted; its coloured part may shrink only
-   where the entered group cannot have absorbed it
-   (:func:`~aeromag_env.discovery.noise_model.ratchet`). A chosen ``sensor_lag`` shifts the whole
-   modelled signal — Earth field, base aircraft field and the other named additive effects — not
-   the Earth field alone (:func:`~aeromag_env.discovery.selection.lag_on_signal`): a lag also
-   delays the aircraft's eddy field, ``−τ B T̈``, which is exactly the signature of
-   ``eddy_time_constant``; with the Earth field alone shifted, that remainder let
-   ``eddy_time_constant`` follow a true lag. A backward pass then drops any named effect without
-   evidence (same rule, Holm over the named ones) given all the others.
+   slow group with some evidence (p < 0.01), passing or not, is re-tested with the noise model
+   fitted jointly with it (:mod:`~aeromag_env.discovery.joint`: a likelihood-ratio test: Holm and 6
+   per degree of freedom): a slow effect is not written off as slow noise. The strongest group by
+   p-value enters, and the search repeats until none has evidence. Groups that differ only in a
+   non-linear parameter (the eddy time constant, the lag) are profiled: the best grid value
+   competes with one more degree of freedom, and is refined between its grid neighbours once it
+   enters. After each entry the noise model is re-fitted; its coloured part may shrink only where
+   the entered group cannot have absorbed it (:func:`~aeromag_env.discovery.noise_model.ratchet`).
+   A chosen ``sensor_lag`` shifts the whole modelled signal — Earth field, base aircraft field and
+   the other named additive effects — not the Earth field alone
+   (:func:`~aeromag_env.discovery.selection.lag_on_signal`): a lag also delays the aircraft's eddy
+   field, ``−τ B T̈``, which is exactly the signature of ``eddy_time_constant``; with the Earth
+   field alone shifted, that remainder let ``eddy_time_constant`` follow a true lag. A backward
+   pass then drops any named effect without evidence (same rule, Holm over the named ones) given
+   all the others.
 5. **Gap** (:mod:`~aeromag_env.discovery.gap`). Base and augmented models predict the held-out
    part; the gap is the RMS of measured minus simulated there above the white-noise floor,
    ``sqrt(RMS² − σ_w²)`` with ``σ_w`` from the final noise model (the sensor's white noise is no

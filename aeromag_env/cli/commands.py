@@ -62,11 +62,13 @@ def cmd_discover(args: argparse.Namespace) -> int:
 
     report = run_discover(Path(args.file), out, args.flux, window, say, mount=args.mount,
                           selection=selection_options(args))  # fmt: skip
-    gap = report["gap"]
+    gap, problems = report["gap"], report["input_problems"]
+    warned = (f"; {len(problems)} input warning(s), listed in report.json (aeromag info explains "
+              "them)") if problems else ""  # fmt: skip
     print(
         f"{report['verdict']}; held-out gap {gap['rms_before_nt']:.3g} → "
         f"{gap['rms_after_nt']:.3g} nT ({gap['shrink']:.2f}×); wrote {out}/report.json, "
-        "report.md, model_config.json, residual.png, diagnostics.png"
+        f"report.md, model_config.json, residual.png, diagnostics.png{warned}"
     )
     return 0
 

@@ -123,7 +123,13 @@ class WhitenedProblem:
         beta = beta_s / norm
         rss = float(np.sum((self.yw - x @ beta) ** 2))
         dof = x.shape[0] - x.shape[1]
-        cov = np.linalg.pinv((x / norm).T @ (x / norm)) / np.outer(norm, norm) * (rss / dof)
+        cov = np.linalg.pinv((x / norm).T @ (x / norm)) * (rss / dof)
+        # a column that is zero on every fitted row (a spline outside a calibration window) is
+        # not identified: its coefficient is 0 and its variance infinite, not 0/0
+        seen = np.linalg.norm(x, axis=0) > 0
+        cov[np.ix_(seen, seen)] /= np.outer(norm[seen], norm[seen])
+        cov[~seen, :], cov[:, ~seen] = 0.0, 0.0
+        cov[~seen, ~seen] = np.inf
         return beta, cov
 
     def residual(self, chosen: list[int], beta: np.ndarray) -> np.ndarray:

@@ -50,13 +50,12 @@ from aeromag_env.discovery.preparation import PreparedFlight
 from aeromag_env.discovery.whitened_problem import WhitenedProblem
 from aeromag_env.simulation.effects import Group
 
-#: Alternations of the GLS fit and the noise model's maximum-likelihood fit: for the model
-#: without a candidate (fitted once per step), and with one (each stops at a lower bound of its
-#: maximum, so the likelihood ratio errs low: towards not naming).
+#: Alternations of the GLS fit and the noise model's maximum-likelihood fit: two for the model
+#: without a candidate (fitted once per step), one for each candidate (a lower bound of its
+#: maximum, so its ratio errs low, towards not naming; it is the costly part).
 NULL_ROUNDS = 2
 CANDIDATE_ROUNDS = 1
-#: A group whose fixed-noise p-value is below this, but which fails the rule, is re-tested
-#: jointly.
+#: A slow group whose fixed-noise p-value is below this is re-tested jointly.
 SCREEN_P = 0.01
 
 

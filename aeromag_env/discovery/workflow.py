@@ -82,6 +82,7 @@ from aeromag_env.discovery.report import build_report, missing_effects
 from aeromag_env.discovery.selection import select_effects
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.data import Flight
+from aeromag_env.simulation.effects import EffectContext, Group
 
 
 @dataclass
@@ -185,7 +186,7 @@ def _discover(
     return Discovery(report=report, model=model, series=series, drivers=drivers)
 
 
-def _driver(ctx: Any, group: Any) -> tuple[str, str, np.ndarray]:
+def _driver(ctx: EffectContext, group: Group) -> tuple[str, str, np.ndarray]:
     """A named effect, what drives it and that channel's samples (n,): its auxiliary channel (a
     current, a temperature), the altitude for ``altitude_gradient``, else time."""
     if group.channel is not None and group.channel in ctx.aux:

@@ -159,6 +159,19 @@ def test_fast_groups_cannot_absorb_slow_sensor_noise_but_the_external_splines_ca
     share = [prob.absorbable_share([0], j, np.full(3, 600.0))[0] for j in range(1, 6)]
     assert max(s.max() for s in share[:4]) < ABSORBABLE_SHARE / 4
     assert share[4].min() > 4 * ABSORBABLE_SHARE
+    # the Gram-matrix basis (for speed) against a tall SVD of the same projected columns
+    from aeromag_env.discovery.base_model import orthonormal, stack
+
+    m = prob.idx.size
+    for j, got in zip(range(1, 6), share, strict=True):
+        x = stack(prob.columns[j])
+        q0 = orthonormal(stack(prob.columns[0]))
+        xp = (x - q0 @ (q0.T @ x)) / np.linalg.norm(x, axis=0)
+        u, sv, _ = np.linalg.svd(xp, full_matrices=False)
+        u = u[:, sv > 1e-6]
+        ref = [fogm_quadratic(np.ascontiguousarray(u[i * m : (i + 1) * m]), prob.gap, 600.0).sum()
+               / m for i in range(3)]  # fmt: skip
+        np.testing.assert_allclose(got, ref, rtol=1e-8, atol=1e-12)
 
 
 def test_ratchet_keeps_the_coloured_part_only_where_the_entered_group_could_absorb_it() -> None:

@@ -44,6 +44,7 @@ class WhitenedProblem:
         self.r0 = np.empty(0)
         self.perp: list[np.ndarray] = []
         self._spans: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._raw_spans: dict[tuple[int, ...], np.ndarray] = {}
 
     def set_noise(self, noise: NoiseModel) -> None:
         """Whiten the data and every group under ``noise`` and project the base out of them."""
@@ -71,7 +72,7 @@ class WhitenedProblem:
         self.columns[index] = columns[self.idx]
         self.white[index] = self._whiten_columns(self.columns[index])
         self.perp[index] = self._off_base(self.white[index])
-        self._spans = {}
+        self._spans, self._raw_spans = {}, {}
 
     def _off_base(self, x: np.ndarray) -> np.ndarray:
         return x - self._q0 @ (self._q0.T @ x)
@@ -150,11 +151,20 @@ class WhitenedProblem:
         groups (the external-field splines) absorb much of it.
         """
         x = stack(self.columns[candidate])
-        q0 = orthonormal(stack(np.concatenate([self.columns[j] for j in chosen], axis=2)))
+        key = tuple(chosen)
+        if key not in self._raw_spans:  # un-whitened: the same under every noise model
+            cols = np.concatenate([self.columns[j] for j in chosen], axis=2)
+            self._raw_spans[key] = orthonormal(stack(cols))
+        q0 = self._raw_spans[key]
         xp = (x - q0 @ (q0.T @ x)) / np.maximum(np.linalg.norm(x, axis=0), 1e-300)
-        u, s, _ = np.linalg.svd(xp, full_matrices=False)
+        # an orthonormal basis of xp's columns from the p × p Gram matrix, not a tall SVD:
+        # singular values s > 1e-6 are eigenvalues s² > 1e-12 (the sum below does not depend on
+        # which basis of the span)
+        lam, v = np.linalg.eigh(xp.T @ xp)
+        keep = lam > 1e-12
+        u = xp @ (v[:, keep] / np.sqrt(lam[keep]))
         m = self.idx.size
-        q = [np.ascontiguousarray(u[i * m : (i + 1) * m, s > 1e-6]) for i in range(3)]
+        q = [np.ascontiguousarray(u[i * m : (i + 1) * m]) for i in range(3)]
         return np.array(
             [[fogm_quadratic(q[i], self.gap, t).sum() / m for i, t in enumerate(row)]
              for row in np.atleast_2d(tau_s)]

@@ -25,10 +25,11 @@ JOINT_TEST = "joint noise model"
 #: A group named by the joint test needs its likelihood ratio above this per degree of freedom
 #: (besides Holm): the χ² reference is asymptotic and was anti-conservative for slow groups (a
 #: time polynomial or a slow decoy channel named on 3 of 60 null flights with Holm alone).
-#: Calibrated on 46 development null flights (seeds 90000+, not the suite's): spurious slow
-#: groups passing Holm reached LR/dof 4.1, 4.6, 4.9 and 8.5 (one flight); true effects at SNR
-#: 0.5–1 and the nominal preset's external variation had 7.4–29. BIC's log(rows) (10.6) wrote
-#: off those, AIC's 2 names the spurious ones.
+#: Calibrated on 46 development null flights (seeds 90000+, not the suite's;
+#: ``experiments/discovery_calibration.py``): spurious slow groups passing Holm reached LR/dof
+#: 4.1, 4.6, 4.9 and 8.5 (one flight); true effects at SNR 0.5–1 and the nominal preset's
+#: external variation had 7.4–29. BIC's log(rows) (10.6) wrote off those, AIC's 2 names the
+#: spurious ones.
 JOINT_PENALTY = 6.0
 #: A group needs ΔBIC above this (besides the Holm-corrected F-test) to enter or to stay.
 MIN_DELTA_BIC = 0.0

@@ -122,6 +122,19 @@ def _add_selection_options(p: argparse.ArgumentParser, calibration: bool = True)
         )
 
 
+def _add_ray_option(p: argparse.ArgumentParser) -> None:
+    """``--ray [ADDRESS]`` (evaluate, train, tune, compensate, discover, bench)."""
+    p.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        metavar="ADDRESS",
+        help="run the tasks on Ray (extra ray): without ADDRESS Ray starts on this machine with "
+        "its cores; with one (host:port of `ray start --head`, or ray://host:10001) it joins "
+        "that cluster (default: this process, no Ray)",
+    )
+
+
 def _add_mount_option(p: argparse.ArgumentParser) -> None:
     """``--mount auto|identity|FILE`` (compensate, discover)."""
     p.add_argument(

@@ -1,0 +1,13 @@
+"""Run independent tasks here or on a Ray cluster: one face for evaluation sweeps, training
+seeds and fleets of flight files.
+
+:func:`runner` gives a :class:`SerialRunner` (the default: this process, in order) or, for
+``--ray [ADDRESS]``, a :class:`~aeromag_env.parallel.ray_runner.RayRunner`. Both take a list of
+:class:`Task` and give one :class:`Outcome` per task, in the tasks' order: its value, or the
+one-line error it raised with the task's label (its input), and how many attempts it took. A
+task that raises does not stop the others. Ray is imported only by the Ray runner.
+"""
+
+from aeromag_env.parallel.tasks import Outcome, Runner, SerialRunner, Task, failures, runner
+
+__all__ = ["Outcome", "Runner", "SerialRunner", "Task", "failures", "runner"]

@@ -1,0 +1,121 @@
+"""Tasks on Ray: started on this machine (``--ray``) or on a cluster (``--ray ADDRESS``).
+
+Each task is a Ray task reserving ``Task.num_cpus``; a task whose worker dies (killed, out of
+memory, node lost) is retried up to :data:`MAX_RETRIES` times by Ray; a task that raises is not
+retried (the same input would raise again) and is reported with its label. Attempts are counted
+by a small actor, so a summary can say which tasks were retried. The workers import this package
+by name: on a cluster it must be installed on every node (README, "Running on a cluster").
+"""
+
+from __future__ import annotations
+
+import logging
+import traceback
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from aeromag_env.errors import AeromagError
+from aeromag_env.parallel.tasks import Outcome, Task, one_line
+from aeromag_env.threads import cores
+
+#: Ray restarts a task whose worker died at most this many times.
+MAX_RETRIES = 3
+
+
+def _import_ray() -> Any:
+    try:
+        import ray
+    except ImportError:
+        raise AeromagError("--ray needs the ray extra: pip install 'aeromag-env[ray]'") from None
+    return ray
+
+
+class RayRunner:
+    """Ray tasks; joins the Ray session already running in this process if there is one."""
+
+    name = "ray"
+
+    def __init__(self, address: str | None = None) -> None:
+        self.address = address
+        self._started = False
+        self._ray: Any = None
+        self._log: Any = None
+
+    def __enter__(self) -> RayRunner:
+        ray = self._ray = _import_ray()
+        if not ray.is_initialized():
+            kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
+                                      "logging_level": logging.ERROR}  # fmt: skip
+            if self.address is None:
+                kwargs["num_cpus"] = cores()
+            try:
+                ray.init(address=self.address, **kwargs)
+            except (ConnectionError, RuntimeError, ValueError) as e:
+                where = self.address or "this machine"
+                raise AeromagError(f"cannot start or join Ray at {where}: {one_line(e)}") from None
+            self._started = True
+        self._log = ray.remote(num_cpus=0)(AttemptLog).remote()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._started:
+            self._ray.shutdown()
+
+    @property
+    def cpus(self) -> int:
+        """CPUs of the cluster (this machine's, locally)."""
+        return int(self._ray.cluster_resources().get("CPU", 1))
+
+    def run(
+        self, tasks: Sequence[Task], progress: Callable[[Outcome], None] | None = None
+    ) -> list[Outcome]:
+        ray = self._ray
+        remote = ray.remote(aeromag_task)
+        refs = [remote.options(num_cpus=t.num_cpus, max_retries=MAX_RETRIES,
+                               retry_exceptions=False).remote(self._log, i, t.fn, *t.args)
+                for i, t in enumerate(tasks)]  # fmt: skip
+        index = {ref: i for i, ref in enumerate(refs)}
+        outcomes: list[Outcome | None] = [None] * len(tasks)
+        pending = list(refs)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            i = index[done[0]]
+            outcomes[i] = self._outcome(tasks[i], done[0])
+            if progress is not None:
+                progress(outcomes[i])  # type: ignore[arg-type]
+        attempts = ray.get(self._log.counts.remote())
+        for i, o in enumerate(outcomes):
+            o.attempts = attempts.get(i, 0)  # type: ignore[union-attr]
+        return outcomes  # type: ignore[return-value]
+
+    def _outcome(self, task: Task, ref: Any) -> Outcome:
+        ray = self._ray
+        try:
+            return Outcome(task.label, value=ray.get(ref))
+        except ray.exceptions.RayTaskError as e:  # the task raised: report its own exception
+            cause = e.cause if getattr(e, "cause", None) is not None else e
+            return Outcome(task.label, error=one_line(cause), details=str(e))
+        except ray.exceptions.RayError as e:  # its worker died more often than retried
+            return Outcome(task.label, error=one_line(e), details=traceback.format_exc())
+
+
+class AttemptLog:
+    """A Ray actor counting how often each task started (a retried task starts again)."""
+
+    def __init__(self) -> None:
+        self._counts: dict[int, int] = {}
+
+    def start(self, index: int) -> None:
+        self._counts[index] = self._counts.get(index, 0) + 1
+
+    def counts(self) -> dict[int, int]:
+        return dict(self._counts)
+
+
+def aeromag_task(log: Any, index: int, fn: Callable[..., Any], *args: Any) -> Any:
+    """The Ray task: record the attempt, then ``fn(*args)`` (the worker's process title reads
+    ``ray::aeromag_task`` while it runs)."""
+    import ray
+
+    ray.get(log.start.remote(index))
+    return fn(*args)

@@ -1,0 +1,99 @@
+"""Tasks, outcomes and the serial runner; :func:`runner` picks serial or Ray."""
+
+from __future__ import annotations
+
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+#: ``--ray`` without an address: start Ray on this machine with its cores.
+LOCAL = "local"
+
+
+@dataclass(frozen=True)
+class Task:
+    """One independent piece of work: ``fn(*args)``.
+
+    ``fn`` must be a module-level function (a Ray worker imports it by name); ``label`` names
+    the input in reports (a file, a policy and its seeds); ``num_cpus`` is what Ray reserves.
+    """
+
+    label: str
+    fn: Callable[..., Any]
+    args: tuple[Any, ...] = ()
+    num_cpus: float = 1.0
+
+
+@dataclass
+class Outcome:
+    """What became of a task: ``value``, or ``error`` (one line: type and message)."""
+
+    label: str
+    value: Any = None
+    error: str | None = None
+    #: times the task was started (more than 1: its worker died and Ray retried it)
+    attempts: int = 1
+    details: str = field(default="", repr=False)  # the traceback, for AEROMAG_DEBUG
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+
+class Runner(Protocol):
+    """Runs tasks; ``progress(outcome)`` is called as each one ends (any order)."""
+
+    name: str
+
+    def run(
+        self, tasks: Sequence[Task], progress: Callable[[Outcome], None] | None = None
+    ) -> list[Outcome]: ...
+
+
+def one_line(e: BaseException) -> str:
+    """``Type: message`` on one line."""
+    text = " ".join(str(e).split())
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
+
+
+class SerialRunner:
+    """This process, one task after another (the default; nothing imports Ray)."""
+
+    name = "serial"
+
+    def __enter__(self) -> SerialRunner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def run(
+        self, tasks: Sequence[Task], progress: Callable[[Outcome], None] | None = None
+    ) -> list[Outcome]:
+        outcomes = []
+        for task in tasks:
+            try:
+                outcome = Outcome(task.label, value=task.fn(*task.args))
+            except Exception as e:  # reported with its input; the other tasks go on
+                outcome = Outcome(task.label, error=one_line(e), details=traceback.format_exc())
+            outcomes.append(outcome)
+            if progress is not None:
+                progress(outcome)
+        return outcomes
+
+
+def runner(ray: str | None) -> Any:
+    """The runner for ``--ray``: None → :class:`SerialRunner`; ``"local"`` → Ray started here
+    with this machine's cores; an address (``host:port`` or ``ray://…``) → join that cluster.
+    Use as a context manager (Ray is shut down on exit if this call started it)."""
+    if ray is None:
+        return SerialRunner()
+    from aeromag_env.parallel.ray_runner import RayRunner
+
+    return RayRunner(None if ray == LOCAL else ray)
+
+
+def failures(outcomes: Sequence[Outcome]) -> list[Outcome]:
+    """The outcomes that ended in an error."""
+    return [o for o in outcomes if not o.ok]

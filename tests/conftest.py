@@ -27,3 +27,13 @@ def sb3_logs_in_pytest_tmp(tmp_path_factory: pytest.TempPathFactory) -> Iterator
         del os.environ["SB3_LOGDIR"]
     else:
         os.environ["SB3_LOGDIR"] = before
+
+
+@pytest.fixture(scope="session")
+def local_ray() -> Iterator[None]:
+    """One local Ray session with 2 CPUs (the machines' cores) for the ``ray`` tests; the
+    commands' ``--ray`` joins it instead of starting their own."""
+    ray = pytest.importorskip("ray")  # the ray extra is installed by scripts/bootstrap
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="ERROR")
+    yield
+    ray.shutdown()

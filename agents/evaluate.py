@@ -16,6 +16,7 @@ from scipy import stats
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS, check_scenario
 from aeromag_env.errors import AeromagError
+from aeromag_env.parallel import Runner, SerialRunner, Task, failures
 from agents import make_policy, policy_env_kwargs
 
 #: The normalized score's anchors: 0 is the best constant tuning found offline, 1 the policy
@@ -27,6 +28,8 @@ BOOTSTRAP_RESAMPLES = 2000
 TRAIN_SEEDS = range(0, 50_000)
 VALIDATION_SEEDS = range(50_000, 100_000)
 TEST_SEED_START = 100_000
+#: Flights per task when evaluation runs on Ray (one task per policy here).
+CHUNK = 8
 
 
 def run_episode(env: gym.Env, policy: Any, seed: int) -> dict[str, float]:
@@ -68,17 +71,37 @@ def evaluate(
     seeds: Sequence[int],
     env_kwargs: dict[str, Any] | None = None,
     progress: Any = None,
+    runner: Runner | None = None,
 ) -> dict[str, Any]:
     """Every policy on the same seeds; ``results.json`` layout of ``aeromag evaluate``.
 
     ``scenario`` is one of :data:`~aeromag_env.environment.scenarios.SCENARIOS`; a training-only
-    one (:data:`~aeromag_env.environment.scenarios.TRAINING_SCENARIOS`) is refused.
+    one (:data:`~aeromag_env.environment.scenarios.TRAINING_SCENARIOS`) is refused. See
+    :func:`evaluate_scenarios` for ``runner`` and ``progress``.
     """
-    check_scenario(scenario)
-    if scenario in TRAINING_SCENARIOS:
-        raise AeromagError(
-            f"scenario {scenario!r} is for training only; evaluate one of {', '.join(SCENARIOS)}"
-        )
+    return evaluate_scenarios([scenario], policies, seeds, env_kwargs, progress, runner)[scenario]
+
+
+def evaluate_scenarios(
+    scenarios: Sequence[str],
+    policies: Sequence[str],
+    seeds: Sequence[int],
+    env_kwargs: dict[str, Any] | None = None,
+    progress: Any = None,
+    runner: Runner | None = None,
+) -> dict[str, dict[str, Any]]:
+    """:func:`evaluate` for each scenario, all episodes submitted together.
+
+    The episodes run as tasks of ``runner`` (default: here, one task per scenario and policy;
+    on Ray, chunks of at most :data:`CHUNK` flights); each episode depends only on its seed,
+    scenario and policy, so the results are the same bit for bit whatever ran them.
+    ``progress(k)`` counts episodes done.
+    """
+    for scenario in scenarios:
+        check_scenario(scenario)
+        if scenario in TRAINING_SCENARIOS:
+            raise AeromagError(f"scenario {scenario!r} is for training only; evaluate one of "
+                               f"{', '.join(SCENARIOS)}")  # fmt: skip
     if not seeds:
         raise AeromagError("evaluation needs at least one seed")
     if min(seeds) < TEST_SEED_START:
@@ -86,19 +109,13 @@ def evaluate(
             f"evaluation seeds must be ≥ {TEST_SEED_START} (training and validation use the "
             f"seeds below); got {min(seeds)}"
         )
-    per: dict[str, dict[str, np.ndarray]] = {}
-    for name in policies:
-        # same flights for every policy; the env settings a policy was trained with (PPO's
-        # observation layout and action mode) do not change the flight, only the interface
-        kwargs = {**(env_kwargs or {}), **policy_env_kwargs(name)}
-        env = gym.make("AeroMagCompensation-v0", scenario=scenario, **kwargs)
-        policy = make_policy(name, env)
-        rows = []
-        for seed in seeds:
-            rows.append(run_episode(env, policy, seed))
-            if progress is not None:
-                progress(1)
-        per[name] = {k: np.array([r[k] for r in rows], dtype=float) for k in rows[0]}
+    per = _run_policies(scenarios, policies, seeds, env_kwargs or {}, progress, runner)
+    return {scenario: _results(scenario, seeds, per[scenario]) for scenario in scenarios}
+
+
+def _results(
+    scenario: str, seeds: Sequence[int], per: dict[str, dict[str, np.ndarray]]
+) -> dict[str, Any]:
     summaries = _summaries(per)
     results: dict[str, Any] = {"scenario": scenario, "seeds": list(seeds), "policies": summaries}
     score = normalized_scores(per)
@@ -107,6 +124,45 @@ def evaluate(
         for name, row in score.items():
             summaries[name].update(row)
     return results
+
+
+def policy_rows(
+    scenario: str, name: str, seeds: Sequence[int], env_kwargs: dict[str, Any]
+) -> dict[str, list[float]]:
+    """Policy ``name`` on ``seeds`` of ``scenario`` (one task): :func:`run_episode`'s figures,
+    a list per figure in seed order. The same flights for every policy: the env settings a
+    policy was trained with (PPO's observation layout and action mode) change only the
+    interface, not the flight."""
+    env = gym.make("AeroMagCompensation-v0", scenario=scenario,
+                   **{**env_kwargs, **policy_env_kwargs(name)})  # fmt: skip
+    policy = make_policy(name, env)
+    rows = [run_episode(env, policy, seed) for seed in seeds]
+    env.close()
+    return {k: [r[k] for r in rows] for k in rows[0]}
+
+
+def _run_policies(
+    scenarios: Sequence[str], policies: Sequence[str], seeds: Sequence[int],
+    env_kwargs: dict[str, Any], progress: Any, runner: Runner | None,
+) -> dict[str, dict[str, dict[str, np.ndarray]]]:  # fmt: skip
+    """Every (scenario, policy, chunk of seeds) as a task of ``runner``; the figures per
+    scenario and policy, in seed order."""
+    runner = runner or SerialRunner()
+    size = len(seeds) if isinstance(runner, SerialRunner) else CHUNK
+    chunks = [list(seeds[i : i + size]) for i in range(0, len(seeds), size)]
+    keys = [(s, name) for s in scenarios for name in policies]
+    tasks = [Task(f"{s}/{name} seeds {c[0]}–{c[-1]}", policy_rows, (s, name, c, env_kwargs))
+             for s, name in keys for c in chunks]  # fmt: skip
+    outcomes = runner.run(tasks, None if progress is None else lambda o: progress(
+        len(o.value["rmse_nt"]) if o.ok else 0))  # fmt: skip
+    for o in failures(outcomes):  # the first task's own exception: a one-line input error
+        raise o.exception or AeromagError(f"{o.label}: {o.error}")  # or a bug (exit 1)
+    per: dict[str, dict[str, dict[str, np.ndarray]]] = {s: {} for s in scenarios}
+    for i, (s, name) in enumerate(keys):
+        parts = [o.value for o in outcomes[i * len(chunks) : (i + 1) * len(chunks)]]
+        per[s][name] = {k: np.array([v for p in parts for v in p[k]], dtype=float)
+                        for k in parts[0]}  # fmt: skip
+    return per
 
 
 def normalized_scores(per: dict[str, dict[str, np.ndarray]]) -> dict[str, Any] | None:

@@ -139,20 +139,23 @@ def train_ppo(
     quick: bool = False,
     progress: bool = True,
     hyperparams: Path = HYPERPARAMS,
+    total: bool = False,
 ) -> dict[str, Any]:
     """Train (or resume) PPO; keep the best validated policy as ``out/policy.npz``.
 
+    A resumed run trains ``timesteps`` more steps, or with ``total`` up to ``timesteps`` in all
+    (what a retried task wants: a run killed and restarted ends where an unbroken one would).
     The checkpoint (:data:`CHECKPOINT`) is written as a set, so a kill leaves the previous
     checkpoint or the new one; the run is refused before training if a file it writes is an
     input."""
     check_output_set(out, (*CHECKPOINT, *OUTPUTS), [hyperparams])
     with training_torch():
-        return _train_ppo(scenario, timesteps, seed, out, quick, progress, hyperparams)
+        return _train_ppo(scenario, timesteps, seed, out, quick, progress, hyperparams, total)
 
 
 def _train_ppo(
     scenario: str, timesteps: int, seed: int, out: Path, quick: bool, progress: bool,
-    hyperparams: Path,
+    hyperparams: Path, total: bool,
 ) -> dict[str, Any]:  # fmt: skip
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
@@ -182,7 +185,8 @@ def _train_ppo(
         behaviour_clone(model, venv, hp, scenario, seed)
         callback.init_callback(model)
         callback._validate()
-    model.learn(timesteps, callback=callback, reset_num_timesteps=not ckpt.exists())
+    steps = max(0, timesteps - model.num_timesteps) if total else timesteps
+    model.learn(steps, callback=callback, reset_num_timesteps=not ckpt.exists())
     callback.checkpoint(model)
     venv.close()  # stops a prefetching worker
     summary = {

@@ -251,9 +251,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from aeromag_env.cli.evaluate import run_evaluate
 
     policies = [p.strip() for p in args.policies.split(",") if p.strip()]
-    run_evaluate(
-        args.scenario, policies, args.episodes, args.seed_start, Path(args.out), args.quiet
-    )
+    run_evaluate(args.scenario, policies, args.episodes, args.seed_start, Path(args.out),
+                 args.quiet, ray=args.ray)  # fmt: skip
     return 0
 
 
@@ -277,6 +276,16 @@ def cmd_train(args: argparse.Namespace) -> int:
         raise AeromagError(
             f"training needs the rl extra (pip install 'aeromag-env[rl]'): {e}"
         ) from None
+    if args.seeds is not None:  # one run per seed, side by side (--ray) or one after another
+        from aeromag_env.cli.train import parse_seeds, train_seeds
+
+        hp = Path(args.hyperparams) if args.hyperparams else None
+        train_seeds(args.scenario, args.timesteps, parse_seeds(args.seeds), Path(args.out),
+                    args.quick, hp, args.ray, args.quiet)  # fmt: skip
+        print(f"policies: {args.out}/seed_<k>/policy.npz; summary: {args.out}/seeds.json")
+        return 0
+    if args.ray is not None:
+        raise AeromagError("--ray runs several training seeds side by side: give --seeds")
     extra = {"hyperparams": Path(args.hyperparams)} if args.hyperparams else {}
     summary = train_ppo(args.scenario, args.timesteps, args.seed, Path(args.out), args.quick,
                         progress=not args.quiet, **extra)  # fmt: skip

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -15,20 +16,30 @@ from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.cli.compensate import _jsonable
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError
+from aeromag_env.parallel import runner
 
 #: The output set of ``aeromag evaluate``, in the folder ``--out``.
 OUTPUTS = ("results.json", "evaluation.png")
 
 
 def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: int, out: Path,
-                 quiet: bool = False) -> dict[str, Any]:  # fmt: skip
-    """Evaluate, write ``results.json`` and ``evaluation.png``, print a table; return results."""
+                 quiet: bool = False, ray: str | None = None) -> dict[str, Any]:  # fmt: skip
+    """Evaluate, write ``results.json`` and ``evaluation.png``, print a table; return results.
+
+    ``scenario`` may name several, comma-separated: each gets its output set in
+    ``out/<scenario>/`` and the returned dict maps scenario → results. ``ray`` is ``--ray``
+    (None: this process; :func:`aeromag_env.parallel.runner`).
+    """
     from tqdm import tqdm
 
     from agents import POLICIES
-    from agents.evaluate import evaluate
+    from agents.evaluate import evaluate_scenarios
 
-    check_scenario(scenario)
+    scenarios = [s.strip() for s in scenario.split(",") if s.strip()]
+    if not scenarios or len(set(scenarios)) < len(scenarios):
+        raise AeromagError(f"--scenario takes one or more distinct scenarios, got {scenario!r}")
+    for s in scenarios:
+        check_scenario(s)
     unknown = [p for p in policies if p not in POLICIES and not p.startswith("ppo:")]
     if unknown or not policies:
         raise AeromagError(f"unknown policy {unknown[0] if unknown else ''!r}; valid policies: "
@@ -36,19 +47,26 @@ def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: 
     if episodes < 1:
         raise AeromagError(f"--episodes must be ≥ 1, got {episodes}")
     policy_files = [Path(p[4:]) for p in policies if p.startswith("ppo:")]
-    check_output_set(out, OUTPUTS, policy_files)
+    outs = {s: out if len(scenarios) == 1 else out / s for s in scenarios}
+    for folder in outs.values():
+        check_output_set(folder, OUTPUTS, policy_files)
     seeds = list(range(seed_start, seed_start + episodes))
-    with tqdm(total=episodes * len(policies), desc=scenario, unit="episode",
-              disable=quiet or None, leave=False) as bar:  # fmt: skip
-        results = evaluate(scenario, policies, seeds, progress=bar.update)
+    with runner(ray) as tasks, tqdm(total=episodes * len(policies) * len(scenarios),
+                                    desc=scenario, unit="episode", disable=quiet or None,
+                                    leave=False) as bar:  # fmt: skip
+        results = evaluate_scenarios(scenarios, policies, seeds, progress=bar.update, runner=tasks)
+    if tasks.retried:
+        print(f"aeromag evaluate: {len(tasks.retried)} task(s) ran again after their Ray worker "
+              f"died (same results): {'; '.join(tasks.retried)}", file=sys.stderr)  # fmt: skip
     from aeromag_env.cli.plots import plot_evaluation
 
-    with output_set(out, OUTPUTS, policy_files) as stage:
-        write_text(stage / "results.json", json.dumps(_jsonable(results), indent=2))
-        plot_evaluation(results, stage / "evaluation.png")
-    print(evaluation_table(results))
-    print(f"wrote {out}/results.json, evaluation.png")
-    return results
+    for s, folder in outs.items():
+        with output_set(folder, OUTPUTS, policy_files) as stage:
+            write_text(stage / "results.json", json.dumps(_jsonable(results[s]), indent=2))
+            plot_evaluation(results[s], stage / "evaluation.png")
+        print(evaluation_table(results[s]))
+        print(f"wrote {folder}/results.json, evaluation.png")
+    return results[scenarios[0]] if len(scenarios) == 1 else results
 
 
 def evaluation_table(results: dict[str, Any]) -> str:

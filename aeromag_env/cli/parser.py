@@ -243,7 +243,12 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
         description="Run every policy on the same seeds of a scenario; write "
         "results.json (paired differences vs fis with 95 %% intervals) and a figure.",
     )
-    p.add_argument("--scenario", default="nominal", help="scenario (default nominal)")
+    p.add_argument(
+        "--scenario",
+        default="nominal",
+        help="scenario, or several comma-separated: one output set each in --out/<scenario>/ "
+        "(default nominal)",
+    )
     p.add_argument(
         "--policies",
         default="constant,fis,sage_husa,ding,tuned_constant,oracle",
@@ -258,6 +263,7 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--out", default="results/evaluate", help="output folder")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_ray_option(p)
     p.set_defaults(func=cmd_evaluate)
 
 
@@ -271,13 +277,22 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--scenario", default="nonstationary", help="scenario (default nonstationary)")
     p.add_argument("--timesteps", type=int, default=3_000_000, help="environment steps (3e6)")
-    p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    seeds = p.add_mutually_exclusive_group()
+    seeds.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    seeds.add_argument(
+        "--seeds",
+        metavar="0-4",
+        help="one training run per seed (e.g. 0-4 or 0,2,5), each in --out/seed_<k>/ with its "
+        "own checkpoint (a rerun resumes them); side by side with --ray; writes "
+        "--out/seeds.json",
+    )
     p.add_argument("--out", default="results/ppo", help="output folder (default results/ppo)")
     p.add_argument("--quick", action="store_true", help="tiny settings (tests)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument(
         "--hyperparams", help="hyperparameter file (default agents/hyperparams/ppo.json)"
     )
+    _add_ray_option(p)
     p.set_defaults(func=cmd_train)
 
 

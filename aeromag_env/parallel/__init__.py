@@ -8,6 +8,20 @@ one-line error it raised with the task's label (its input), and how many attempt
 task that raises does not stop the others. Ray is imported only by the Ray runner.
 """
 
-from aeromag_env.parallel.tasks import Outcome, Runner, SerialRunner, Task, failures, runner
+from typing import Any
 
-__all__ = ["Outcome", "Runner", "SerialRunner", "Task", "failures", "runner"]
+from aeromag_env.parallel.tasks import LOCAL, Outcome, Runner, SerialRunner, Task, failures
+
+
+def runner(ray: str | None) -> Any:
+    """The runner for ``--ray``: None → :class:`SerialRunner`; ``"local"`` → Ray started here
+    with this machine's cores; an address (``host:port`` or ``ray://…``) → join that cluster.
+    Use as a context manager (Ray is shut down on exit if this call started it)."""
+    if ray is None:
+        return SerialRunner()
+    from aeromag_env.parallel.ray_runner import RayRunner
+
+    return RayRunner(None if ray == LOCAL else ray)
+
+
+__all__ = ["LOCAL", "Outcome", "Runner", "SerialRunner", "Task", "failures", "runner"]

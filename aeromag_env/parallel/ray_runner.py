@@ -10,6 +10,8 @@ by name: on a cluster it must be installed on every node (README, "Running on a 
 from __future__ import annotations
 
 import logging
+import pickle
+import socket
 import traceback
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -20,6 +22,8 @@ from aeromag_env.threads import cores
 
 #: Ray restarts a task whose worker died at most this many times.
 MAX_RETRIES = 3
+#: How long to wait for a cluster's address to answer before giving up [s].
+CONNECT_TIMEOUT_S = 10.0
 
 
 def _import_ray() -> Any:
@@ -40,16 +44,19 @@ class RayRunner:
         self._started = False
         self._ray: Any = None
         self._log: Any = None
+        self.retried: list[str] = []
 
     def __enter__(self) -> RayRunner:
         ray = self._ray = _import_ray()
         if not ray.is_initialized():
             kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
                                       "logging_level": logging.ERROR}  # fmt: skip
-            if self.address is None:
+            if self.address is None:  # a new local Ray, never another process's
                 kwargs["num_cpus"] = cores()
+            else:
+                _check_reachable(self.address)
             try:
-                ray.init(address=self.address, **kwargs)
+                ray.init(address=self.address or "local", **kwargs)
             except (ConnectionError, RuntimeError, ValueError) as e:
                 where = self.address or "this machine"
                 raise AeromagError(f"cannot start or join Ray at {where}: {one_line(e)}") from None
@@ -72,7 +79,7 @@ class RayRunner:
         ray = self._ray
         remote = ray.remote(aeromag_task)
         refs = [remote.options(num_cpus=t.num_cpus, max_retries=MAX_RETRIES,
-                               retry_exceptions=False).remote(self._log, i, t.fn, *t.args)
+                               retry_exceptions=False).remote(self._log, i, _payload(t))
                 for i, t in enumerate(tasks)]  # fmt: skip
         index = {ref: i for i, ref in enumerate(refs)}
         outcomes: list[Outcome | None] = [None] * len(tasks)
@@ -86,6 +93,7 @@ class RayRunner:
         attempts = ray.get(self._log.counts.remote())
         for i, o in enumerate(outcomes):
             o.attempts = attempts.get(i, 0)  # type: ignore[union-attr]
+        self.retried += [o.label for o in outcomes if o.attempts > 1]  # type: ignore[union-attr]
         return outcomes  # type: ignore[return-value]
 
     def _outcome(self, task: Task, ref: Any) -> Outcome:
@@ -94,9 +102,11 @@ class RayRunner:
             return Outcome(task.label, value=ray.get(ref))
         except ray.exceptions.RayTaskError as e:  # the task raised: report its own exception
             cause = e.cause if getattr(e, "cause", None) is not None else e
-            return Outcome(task.label, error=one_line(cause), details=str(e))
+            return Outcome(task.label, error=one_line(cause), details=str(e), exception=cause)
         except ray.exceptions.RayError as e:  # its worker died more often than retried
-            return Outcome(task.label, error=one_line(e), details=traceback.format_exc())
+            return Outcome(
+                task.label, error=one_line(e), details=traceback.format_exc(), exception=e
+            )
 
 
 class AttemptLog:
@@ -112,10 +122,36 @@ class AttemptLog:
         return dict(self._counts)
 
 
-def aeromag_task(log: Any, index: int, fn: Callable[..., Any], *args: Any) -> Any:
+def _check_reachable(address: str) -> None:
+    """A one-line error at once for an address nothing listens on (Ray itself retries for
+    minutes); ``auto`` (the cluster this node belongs to) is left to Ray."""
+    if address == "auto":
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    try:
+        socket.create_connection(
+            (host or "127.0.0.1", int(port)), timeout=CONNECT_TIMEOUT_S
+        ).close()
+    except ValueError:
+        raise AeromagError(
+            f"--ray takes host:port, ray://host:port or nothing, got {address!r}"
+        ) from None
+    except OSError as e:
+        raise AeromagError(f"cannot join Ray at {address}: {e.strerror or one_line(e)}") from None
+
+
+def _payload(task: Task) -> bytes:
+    """The task's function and arguments, pickled here and unpickled by the task after it has
+    recorded its attempt: unpickling imports the function's modules (seconds of work on a fresh
+    worker), and a worker killed then must count as an attempt too."""
+    return pickle.dumps((task.fn, task.args), protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def aeromag_task(log: Any, index: int, payload: bytes) -> Any:
     """The Ray task: record the attempt, then ``fn(*args)`` (the worker's process title reads
     ``ray::aeromag_task`` while it runs)."""
     import ray
 
     ray.get(log.start.remote(index))
+    fn, args = pickle.loads(payload)  # this package's own pickle (:func:`_payload`)
     return fn(*args)

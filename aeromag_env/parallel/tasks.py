@@ -35,6 +35,8 @@ class Outcome:
     #: times the task was started (more than 1: its worker died and Ray retried it)
     attempts: int = 1
     details: str = field(default="", repr=False)  # the traceback, for AEROMAG_DEBUG
+    #: the exception itself (the task's own, also from a Ray worker), to re-raise unchanged
+    exception: BaseException | None = field(default=None, repr=False)
 
     @property
     def ok(self) -> bool:
@@ -45,6 +47,8 @@ class Runner(Protocol):
     """Runs tasks; ``progress(outcome)`` is called as each one ends (any order)."""
 
     name: str
+    #: labels of the tasks that were started more than once (their worker died), so far
+    retried: list[str]
 
     def run(
         self, tasks: Sequence[Task], progress: Callable[[Outcome], None] | None = None
@@ -61,6 +65,8 @@ class SerialRunner:
     """This process, one task after another (the default; nothing imports Ray)."""
 
     name = "serial"
+    #: labels of the tasks run again after their worker died (never, here)
+    retried: list[str] = []  # noqa: RUF012  (always empty)
 
     def __enter__(self) -> SerialRunner:
         return self
@@ -76,22 +82,13 @@ class SerialRunner:
             try:
                 outcome = Outcome(task.label, value=task.fn(*task.args))
             except Exception as e:  # reported with its input; the other tasks go on
-                outcome = Outcome(task.label, error=one_line(e), details=traceback.format_exc())
+                outcome = Outcome(
+                    task.label, error=one_line(e), details=traceback.format_exc(), exception=e
+                )
             outcomes.append(outcome)
             if progress is not None:
                 progress(outcome)
         return outcomes
-
-
-def runner(ray: str | None) -> Any:
-    """The runner for ``--ray``: None → :class:`SerialRunner`; ``"local"`` → Ray started here
-    with this machine's cores; an address (``host:port`` or ``ray://…``) → join that cluster.
-    Use as a context manager (Ray is shut down on exit if this call started it)."""
-    if ray is None:
-        return SerialRunner()
-    from aeromag_env.parallel.ray_runner import RayRunner
-
-    return RayRunner(None if ray == LOCAL else ray)
 
 
 def failures(outcomes: Sequence[Outcome]) -> list[Outcome]:

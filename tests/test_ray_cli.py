@@ -1,0 +1,180 @@
+"""``--ray`` on evaluate and train: the same results as the serial run, bit for bit; a worker
+killed mid-run is retried and every episode still arrives; a second Ray node joins by address.
+
+All marked ``ray`` (``pytest -m ray``, its own step in ``.ci/run``)."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aeromag_env.cli.main import main
+
+pytestmark = pytest.mark.ray
+
+EVALUATE = ["evaluate", "--policies", "constant,fis,tuned_constant,privileged", "--quiet"]
+#: the aeromag command of this interpreter's environment
+AEROMAG = [sys.executable, "-c", "import sys; from aeromag_env.cli.main import main; "
+           "sys.exit(main(sys.argv[1:]))"]  # fmt: skip
+
+
+def test_evaluate_on_ray_equals_serial_bit_for_bit(local_ray: None, tmp_path: Path) -> None:
+    args = [*EVALUATE, "--scenario", "nominal,nonstationary", "--episodes", "10"]
+    assert main([*args, "--out", str(tmp_path / "serial")]) == 0
+    assert main([*args, "--out", str(tmp_path / "ray"), "--ray"]) == 0
+    for scenario in ("nominal", "nonstationary"):
+        serial = (tmp_path / "serial" / scenario / "results.json").read_bytes()
+        assert (tmp_path / "ray" / scenario / "results.json").read_bytes() == serial
+        assert len(json.loads(serial)["policies"]["fis"]["rmse_nt"]) == 10
+
+
+def test_train_seeds_on_ray_equal_serial(local_ray: None, tmp_path: Path, capsys) -> None:
+    base = ["train", "--seeds", "0-1", "--quick", "--quiet"]
+    args = [*base, "--timesteps", "512"]
+    assert main([*args, "--out", str(tmp_path / "serial")]) == 0
+    assert main([*args, "--out", str(tmp_path / "ray"), "--ray"]) == 0
+    for seed in (0, 1):
+        policy = f"seed_{seed}/policy.npz"
+        assert (tmp_path / "ray" / policy).read_bytes() == (
+            tmp_path / "serial" / policy
+        ).read_bytes()
+        assert (tmp_path / "ray" / f"seed_{seed}" / "checkpoint.zip").exists()
+    on_ray = json.loads((tmp_path / "ray" / "seeds.json").read_text())
+    assert on_ray["runner"] == "ray" and [r["seed"] for r in on_ray["seeds"]] == [0, 1]
+    serial = json.loads((tmp_path / "serial" / "seeds.json").read_text())
+    assert [r["best_validation_rmse_nt"] for r in on_ray["seeds"]] == [
+        r["best_validation_rmse_nt"] for r in serial["seeds"]
+    ]
+    # resumable: a rerun continues each seed from its checkpoint
+    assert main([*base, "--timesteps", "1024", "--out", str(tmp_path / "ray"), "--ray"]) == 0
+    again = json.loads((tmp_path / "ray" / "seeds.json").read_text())
+    assert [r["timesteps"] for r in again["seeds"]] == [1024, 1024]
+
+
+def _descendants(pid: int) -> dict[int, str]:
+    """pid → command line of every process below ``pid`` (from /proc)."""
+    children: dict[int, list[int]] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            children.setdefault(ppid, []).append(int(entry.name))
+    out, todo = {}, [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            try:
+                out[child] = (
+                    (Path("/proc") / str(child) / "cmdline").read_bytes().decode(errors="replace")
+                )
+            except OSError:
+                continue
+            todo.append(child)
+    return out
+
+
+def _cpu_ticks(pid: int) -> int:
+    """CPU time [clock ticks] of ``pid`` so far (utime + stime), -1 if it is gone."""
+    try:
+        fields = (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return -1
+    return int(fields[11]) + int(fields[12])
+
+
+def test_a_killed_worker_is_retried_and_every_episode_arrives(tmp_path: Path) -> None:
+    """``aeromag evaluate --ray`` in its own process with its own local Ray; one of its task
+    workers is killed (SIGKILL) while it runs; the run completes, says so, and its results equal
+    the serial run's."""
+    args = [*EVALUATE, "--scenario", "nonstationary", "--episodes", "48"]
+    env = {**os.environ, "RAY_DEDUP_LOGS": "0"}
+    cmd = [*AEROMAG, *args, "--out", str(tmp_path / "ray"), "--ray"]
+    run = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    killed, before, deadline = None, {}, time.monotonic() + 120
+    while killed is None and run.poll() is None and time.monotonic() < deadline:
+        busy = {p: _cpu_ticks(p) for p, cmd in _descendants(run.pid).items()
+                if cmd.startswith("ray::aeromag_task")}  # fmt: skip
+        for pid, ticks in busy.items():  # computing (not idle between tasks): kill it now
+            if pid in before and ticks > before[pid]:
+                os.kill(pid, signal.SIGKILL)
+                killed = pid
+                break
+        before = busy
+        time.sleep(0.1)
+    _, err = run.communicate(timeout=300)
+    assert killed is not None, "no task worker seen running"
+    assert run.returncode == 0, err
+    assert "ran again after their Ray worker died" in err
+    assert main([*args, "--out", str(tmp_path / "serial")]) == 0
+    ray_results = json.loads((tmp_path / "ray" / "results.json").read_text())
+    serial = json.loads((tmp_path / "serial" / "results.json").read_text())
+    assert ray_results == serial
+    assert all(len(p["rmse_nt"]) == 48 for p in ray_results["policies"].values())
+
+
+@pytest.fixture
+def two_node_cluster():
+    """A Ray head with 1 CPU and a second node with 1 CPU on this machine (``ray start``), each
+    in a process group of its own, which the teardown kills: ``ray stop`` would stop every Ray
+    on the machine, the ``local_ray`` of this test session's process included."""
+    ray = str(Path(sys.executable).with_name("ray"))
+    port = "6390"
+    env = {**os.environ, "RAY_AUTH_MODE": "token"}  # the head's default; a node must match it
+    common = ["--node-ip-address=127.0.0.1", "--num-cpus=1", "--disable-usage-stats"]
+    groups = []
+
+    def start(*args: str) -> None:
+        cmd = [ray, "start", *args, *common]
+        run = subprocess.Popen(cmd, env=env, start_new_session=True, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)  # fmt: skip
+        groups.append(run.pid)  # the daemons it leaves behind keep its process group
+        assert run.wait(timeout=120) == 0, run.stderr.read() if run.stderr else ""
+
+    try:
+        start("--head", f"--port={port}", "--include-dashboard=false")
+        start(f"--address=127.0.0.1:{port}")
+        yield f"127.0.0.1:{port}", env
+    finally:
+        for group in groups:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(group, signal.SIGKILL)
+
+
+def test_evaluate_joins_a_two_node_cluster(two_node_cluster, tmp_path: Path) -> None:
+    address, env = two_node_cluster
+    nodes = subprocess.run(
+        [sys.executable, "-c", "import ray; ray.init(address='" + address + "', "
+         "logging_level='ERROR'); print(sum(n['Alive'] for n in ray.nodes()), "
+         "int(ray.cluster_resources()['CPU']))"],
+        capture_output=True, text=True, env=env, check=True,
+    )  # fmt: skip
+    assert nodes.stdout.split() == ["2", "2"]
+    args = [*EVALUATE, "--scenario", "nonstationary", "--episodes", "16"]
+    run = subprocess.run([*AEROMAG, *args, "--out", str(tmp_path / "ray"), "--ray", address],
+                         capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert main([*args, "--out", str(tmp_path / "serial")]) == 0
+    got = json.loads((tmp_path / "ray" / "results.json").read_text())
+    want = json.loads((tmp_path / "serial" / "results.json").read_text())
+    assert got == want
+    assert np.isfinite(got["policies"]["fis"]["rmse_nt_mean"])
+
+
+def test_bad_ray_address_is_one_line(tmp_path: Path) -> None:
+    cmd = [*AEROMAG, *EVALUATE, "--episodes", "2", "--out", str(tmp_path), "--ray", "127.0.0.1:1"]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2
+    assert (
+        run.stderr.count("\n") == 1
+        and "cannot join Ray at 127.0.0.1:1: Connection refused" in run.stderr
+    )

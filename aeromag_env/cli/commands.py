@@ -271,7 +271,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     """
     limits.check_train(args)
     try:
-        from agents.ppo import train_ppo
+        from agents.ppo import HYPERPARAMS, train_ppo
     except ImportError as e:
         raise AeromagError(
             f"training needs the rl extra (pip install 'aeromag-env[rl]'): {e}"
@@ -286,9 +286,9 @@ def cmd_train(args: argparse.Namespace) -> int:
         return 0
     if args.ray is not None:
         raise AeromagError("--ray runs several training seeds side by side: give --seeds")
-    extra = {"hyperparams": Path(args.hyperparams)} if args.hyperparams else {}
     summary = train_ppo(args.scenario, args.timesteps, args.seed, Path(args.out), args.quick,
-                        progress=not args.quiet, **extra)  # fmt: skip
+                        progress=not args.quiet, hyperparams=Path(args.hyperparams) if
+                        args.hyperparams else HYPERPARAMS)  # fmt: skip
     print(
         f"trained {summary['timesteps']} steps in {summary['train_seconds_this_run']:.0f} s; "
         f"best validation RMSE {summary['best_validation_rmse_nt']:.3g} nT; "

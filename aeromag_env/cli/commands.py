@@ -38,7 +38,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_discover(args: argparse.Namespace) -> int:
-    """``aeromag discover``: find what the model is missing in a flight file.
+    """``aeromag discover``: find what the model is missing in a flight file (or in each of a
+    folder or glob of them: :mod:`aeromag_env.cli.fleet`).
 
     Parameters
     ----------
@@ -48,9 +49,11 @@ def cmd_discover(args: argparse.Namespace) -> int:
     Returns
     -------
     int
-        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+        Exit status (0; a fleet with a failed flight 2); bad input raises
+        :class:`~aeromag_env.errors.AeromagError`.
     """
     limits.check_window("--calibration-window", args.calibration_window)
+    from aeromag_env.cli import fleet
     from aeromag_env.cli.discover import run_discover
 
     out = Path(args.out)
@@ -60,6 +63,11 @@ def cmd_discover(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"discover: {msg}", file=sys.stderr, flush=True)
 
+    if fleet.is_fleet(args.file):
+        job = fleet.DiscoverJob(path=Path(args.file), out=out, flux=args.flux,
+                                calibration_window=window, mount=args.mount,
+                                selection=selection_options(args))  # fmt: skip
+        return fleet.discover_fleet(job, args.file, args.ray, args.quiet)
     report = run_discover(Path(args.file), out, args.flux, window, say, mount=args.mount,
                           selection=selection_options(args))  # fmt: skip
     gap, problems = report["gap"], report["input_problems"]
@@ -187,7 +195,8 @@ def tl_bandpass(values: list[str]) -> tuple[float, float] | None:
 
 
 def cmd_compensate(args: argparse.Namespace) -> int:
-    """``aeromag compensate``: compensate a flight file with one method.
+    """``aeromag compensate``: compensate a flight file with one method (or each of a folder or
+    glob of them: :mod:`aeromag_env.cli.fleet`).
 
     Parameters
     ----------
@@ -197,9 +206,11 @@ def cmd_compensate(args: argparse.Namespace) -> int:
     Returns
     -------
     int
-        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+        Exit status (0; a fleet with a failed flight 2); bad input raises
+        :class:`~aeromag_env.errors.AeromagError`.
     """
     limits.check_compensate(args)
+    from aeromag_env.cli import fleet
     from aeromag_env.cli.compensate import CompensateRequest, run_compensate, summary_line
 
     req = CompensateRequest(
@@ -209,6 +220,8 @@ def cmd_compensate(args: argparse.Namespace) -> int:
         args.calibration_window else None, filter_preset=args.filter_preset, r_std_nt=args.r_std_nt,
         mount=args.mount, **selection_options(args),
     )  # fmt: skip
+    if fleet.is_fleet(args.file):
+        return fleet.compensate_fleet(req, args.file, args.ray)
     report = run_compensate(req)
     print(summary_line(report, req.out))
     return 0

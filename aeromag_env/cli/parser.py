@@ -27,6 +27,13 @@ EXIT_STATUS = (
     "error (a bug: one line on stderr, AEROMAG_DEBUG=1 shows the traceback); 130 interrupted"
 )
 
+#: ``file`` of compensate and discover: also a fleet (:mod:`aeromag_env.cli.fleet`).
+FLEET_HELP = (
+    "or a folder or quoted glob of them (a fleet, e.g. 'flights/**/*.h5'): one output folder per "
+    "flight, OUT/<file stem>/, and a summary OUT/fleet.csv and fleet.png; exit status 2 if a "
+    "flight failed, the others complete"
+)
+
 
 class _Parser(argparse.ArgumentParser):
     """argparse with a one-line error message (no usage dump)."""
@@ -78,10 +85,10 @@ def _add_discover(sub: argparse._SubParsersAction) -> None:
         "effects library (GLS F-tests, Holm-corrected), add them and show the gap on held-out "
         "data. Writes report.json, report.md, model_config.json, residual.png, diagnostics.png.",
     )
-    p.add_argument(
-        "file", help="flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat), real or simulated"
-    )
+    p.add_argument("file", help=f"flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat), real or "
+                   f"simulated; {FLEET_HELP}")  # fmt: skip
     p.add_argument("--out", required=True, help="output folder")
+    _add_ray_option(p)
     p.add_argument(
         "--flux",
         default="auto",
@@ -181,9 +188,12 @@ def _add_compensate(sub: argparse._SubParsersAction) -> None:
         description="Estimate and remove the aircraft's interference; write "
         "compensated.h5, report.json and compensation.png to --out.",
     )
-    p.add_argument("file", help="flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat)")
+    p.add_argument(
+        "file", help=f"flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat); {FLEET_HELP}"
+    )
     p.add_argument("--method", required=True, choices=METHODS, help="compensation method")
     p.add_argument("--out", required=True, help="output folder")
+    _add_ray_option(p)
     p.add_argument(
         "--flux",
         default="auto",

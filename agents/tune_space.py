@@ -72,7 +72,8 @@ def _dimension_problem(key: str, dim: dict[str, Any], kind: str) -> str | None:
     name = dim["distribution"]
     given = set(dim) - {"distribution"}
     if given != set(FIELDS[name]):
-        return f"{name} takes {' and '.join(FIELDS[name])}, got {', '.join(sorted(given)) or 'none'}"
+        got = ", ".join(sorted(given)) or "none"
+        return f"{name} takes {' and '.join(FIELDS[name])}, got {got}"
     if name == "choice":
         values = dim["values"]
     else:

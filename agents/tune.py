@@ -182,7 +182,7 @@ def _search(job: TuneJob, space: dict[str, Any], samples: int) -> list[dict[str,
                            run_config=run)  # fmt: skip
         with contextlib.redirect_stdout(io.StringIO()):  # Tune's banner prints even at verbose 0
             grid = tuner.fit()
-        return [_record(result, list(space), job) for result in grid]
+        return [_record(grid[i], list(space), job) for i in range(len(grid))]
 
 
 def _record(result: Any, keys: list[str], job: TuneJob) -> dict[str, Any]:

@@ -47,19 +47,46 @@ def read_hyperparams(path: str | Path) -> dict[str, Any]:
         One line: ``bad hyperparameters in PATH: field: problem``.
     """
     path = Path(path)
+    doc = read_checked(path, SCHEMA, "hyperparameters")
+    for name, hp in doc["scenarios"].items():
+        try:
+            from_dict(EnvConfig, hp["env_kwargs"])
+        except ConfigError as e:
+            raise HyperparameterError(
+                f"bad hyperparameters in {path}: scenarios.{name}.env_kwargs: {e}"
+            ) from None
+    return doc
+
+
+def read_checked(path: str | Path, schema: Path, what: str) -> Any:
+    """The JSON document of ``path``, checked against the JSON Schema file ``schema``: finite
+    numbers, each key once per object, the schema's types and ranges.
+
+    Raises
+    ------
+    HyperparameterError
+        One line: ``bad WHAT in PATH: field: problem``.
+    """
+    path = Path(path)
     try:
         doc = _parse(_text(path))
-        _check_schema(doc)
-        for name, hp in doc["scenarios"].items():
-            try:
-                from_dict(EnvConfig, hp["env_kwargs"])
-            except ConfigError as e:
-                raise _Problem(f"scenarios.{name}.env_kwargs: {e}") from None
+        _check_schema(doc, _validator(json.loads(schema.read_text(encoding="utf-8"))))
     except RecursionError:  # from the parser, the finiteness walk or the schema's
-        raise HyperparameterError(f"bad hyperparameters in {path}: nested too deeply") from None
+        raise HyperparameterError(f"bad {what} in {path}: nested too deeply") from None
     except _Problem as e:
-        raise HyperparameterError(f"bad hyperparameters in {path}: {e}") from None
+        raise HyperparameterError(f"bad {what} in {path}: {e}") from None
     return doc
+
+
+def value_problem(key: str, value: Any) -> str | None:
+    """What is wrong with ``value`` as the hyperparameter ``key`` of a scenario entry (its
+    range in :data:`SCHEMA`, e.g. ``must be a number in (0, 1], got 1.5``), or None."""
+    scenario = json.loads(SCHEMA.read_text(encoding="utf-8"))["$defs"]["scenario"]
+    try:
+        _check_schema(value, _validator(scenario["properties"][key]))
+    except _Problem as e:
+        return str(e).removeprefix("the document: ")
+    return None
 
 
 def _text(path: Path) -> str:
@@ -121,8 +148,8 @@ def _dotted(where: Any) -> str:
     return ".".join(str(p) for p in where) or "the document"
 
 
-def _validator() -> Any:
-    """A Draft 2020-12 validator of :data:`SCHEMA` whose ``integer`` is a JSON integer only
+def _validator(schema: dict[str, Any]) -> Any:
+    """A Draft 2020-12 validator of ``schema`` whose ``integer`` is a JSON integer only
     (the draft's own accepts 8.0, which stable-baselines3 cannot size a buffer with)."""
     try:
         import jsonschema
@@ -135,11 +162,10 @@ def _validator() -> Any:
         "integer", lambda _, v: isinstance(v, int) and not isinstance(v, bool)
     )
     validator = jsonschema.validators.extend(base, type_checker=checker)
-    return validator(json.loads(SCHEMA.read_text(encoding="utf-8")))
+    return validator(schema)
 
 
-def _check_schema(doc: Any) -> None:
-    validator = _validator()
+def _check_schema(doc: Any, validator: Any) -> None:
     import jsonschema
 
     error = jsonschema.exceptions.best_match(validator.iter_errors(doc))

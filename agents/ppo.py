@@ -127,8 +127,15 @@ def validation_rmse(policy: Any, scenario: str, episodes: int,
     env = gym.make("AeroMagCompensation-v0", scenario=scenario, **kwargs)
     if isinstance(policy, str):
         policy = make_policy(policy, env)
-    seeds = range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + episodes)
-    return np.array([run_episode(env, policy, s)["rmse_nt"] for s in seeds])
+    return np.array([run_episode(env, policy, s)["rmse_nt"] for s in validation_seeds(episodes)])
+
+
+def validation_seeds(episodes: int) -> range:
+    """The first ``episodes`` seeds of the validation range (never a test seed)."""
+    if not 1 <= episodes <= len(VALIDATION_SEEDS):
+        n = len(VALIDATION_SEEDS)
+        raise AeromagError(f"validation takes 1 to {n} episodes, got {episodes}")
+    return range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + episodes)
 
 
 def train_ppo(

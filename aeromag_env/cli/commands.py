@@ -310,6 +310,25 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_tune(args: argparse.Namespace) -> int:
+    """``aeromag tune``: search PPO hyperparameters with Ray Tune (:mod:`aeromag_env.cli.tune`).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of the subcommand.
+
+    Returns
+    -------
+    int
+        Exit status (0); bad input raises :class:`~aeromag_env.errors.AeromagError`.
+    """
+    from aeromag_env.cli.tune import run_tune, tune_summary
+
+    print(tune_summary(run_tune(args), args.out))
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     """``aeromag bench``: run the speed benchmarks.
 

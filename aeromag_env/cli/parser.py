@@ -18,6 +18,7 @@ from aeromag_env.cli.commands import (
     cmd_reproduce,
     cmd_simulate,
     cmd_train,
+    cmd_tune,
 )
 from aeromag_env.simulation.config import PATTERNS, PRESETS
 
@@ -306,6 +307,33 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_train)
 
 
+def _add_tune(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "tune",
+        help="search PPO hyperparameters with Ray Tune (needs the rl and ray extras)",
+        description="Random search over PPO hyperparameters (the --space file) with Ray Tune "
+        "and ASHA early stopping: each trial trains PPO on the scenario, validates on the "
+        "validation seeds [50000, 100000) only, and ASHA stops the trials that validate badly. "
+        "Writes --out/ppo.json (the hyperparameter file with the best trial's values, for "
+        "aeromag train --hyperparams) and --out/tune.json (every trial). Always runs on Ray: "
+        "on this machine's cores, or on a cluster with --ray ADDRESS.",
+    )
+    p.add_argument("--scenario", default="nonstationary", help="scenario (default nonstationary)")
+    p.add_argument("--space", help="search space file (default agents/hyperparams/tune_space.json)")
+    p.add_argument("--samples", type=int, default=16, help="trials (configurations, default 16)")
+    p.add_argument(
+        "--timesteps", type=int, default=500_000, help="environment steps per trial (5e5)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="sampling and training seed (default 0)")
+    p.add_argument("--out", default="results/tune", help="output folder (default results/tune)")
+    p.add_argument("--quick", action="store_true", help="tiny settings (tests)")
+    p.add_argument(
+        "--hyperparams", help="base hyperparameter file (default agents/hyperparams/ppo.json)"
+    )
+    _add_ray_option(p)
+    p.set_defaults(func=cmd_tune)
+
+
 def _add_bench(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench",
@@ -352,7 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
         dest="command", required=True, metavar="COMMAND", parser_class=_Parser
     )
     adders = (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_evaluate, _add_train,
-              _add_discover, _add_demo, _add_convert,
+              _add_tune, _add_discover, _add_demo, _add_convert,
               _add_bench)  # fmt: skip
     for add in adders:
         add(sub)

@@ -33,7 +33,14 @@ def sb3_logs_in_pytest_tmp(tmp_path_factory: pytest.TempPathFactory) -> Iterator
 def local_ray() -> Iterator[None]:
     """One local Ray session with 2 CPUs (the machines' cores) for the ``ray`` tests; the
     commands' ``--ray`` joins it instead of starting their own."""
-    ray = pytest.importorskip("ray")  # the ray extra is installed by scripts/bootstrap
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="ERROR")
+    import ray  # the ray extra, installed by scripts/bootstrap: missing is a failure, not a skip
+
+    ray.init(
+        address="local",
+        num_cpus=2,
+        include_dashboard=False,
+        log_to_driver=False,
+        logging_level="ERROR",
+    )  # a new Ray, never one another process started
     yield
     ray.shutdown()

@@ -178,3 +178,16 @@ def test_bad_ray_address_is_one_line(tmp_path: Path) -> None:
         run.stderr.count("\n") == 1
         and "cannot join Ray at 127.0.0.1:1: Connection refused" in run.stderr
     )
+
+
+def test_bench_measures_evaluate_on_ray(local_ray: None, tmp_path: Path, capsys) -> None:
+    assert main(["bench", "--only", "ray", "--ray", "--quick", "--out", str(tmp_path)]) == 0
+    f = json.loads((tmp_path / "bench.json").read_text())["figures"]
+    assert f["ray_results_identical"] is True and f["ray_cpus"] == 2
+    assert f["ray_evaluate_speedup"] > 0 and f["ray_task_overhead_ms"] > 0
+    assert "evaluate 16 flights × 6 policies, Ray, 2 CPUs" in capsys.readouterr().out
+
+
+def test_bench_only_ray_needs_ray(tmp_path: Path, capsys) -> None:
+    assert main(["bench", "--only", "ray", "--out", str(tmp_path)]) == 2
+    assert "give --ray" in capsys.readouterr().err

@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from aeromag_env.atomic import check_output_set, write_text
+from aeromag_env.cli.bench_ray import Row, bench_ray, ray_rows
 from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.threads import cores
@@ -160,14 +161,21 @@ def bench_memory(hours: float = 10.0) -> dict[str, float]:
     return {"compensate_10h_peak_mb": float(peak), "compensate_baseline_mb": float(base)}
 
 
-def run_benchmarks(out: Path, quick: bool = False) -> dict[str, Any]:
-    """Run every benchmark, print a table with ratios, write ``out/bench.json``."""
+def run_benchmarks(
+    out: Path, quick: bool = False, ray: str | None = None, only_ray: bool = False
+) -> dict[str, Any]:
+    """Run every benchmark, print a table with ratios, write ``out/bench.json``. ``ray`` is
+    ``--ray`` (None: the Ray figures are not measured and Ray is not imported); ``only_ray``
+    measures those alone."""
     check_output_set(out, ("bench.json",))  # before minutes of work
     from aeromag_env.cli.bench_envs import bench_env, bench_ppo
 
     repeats = 3 if quick else 7
     load_before = _load()
-    figures: dict[str, Any] = bench_simulate(repeats)
+    figures: dict[str, Any] = {} if ray is None else bench_ray(ray, quick)
+    if only_ray:
+        return _report(out, figures, ray_rows(figures), quick, repeats, load_before)
+    figures |= bench_simulate(repeats)
     hour = hour_flight()
     figures |= bench_filter_figures(hour, 1000 if quick else FILTER_SAMPLES, repeats)
     figures |= bench_env(repeats)
@@ -176,7 +184,12 @@ def run_benchmarks(out: Path, quick: bool = False) -> dict[str, Any]:
                          prefix="ppo64")  # fmt: skip
     figures |= bench_discover(hour, 1 if quick else 3)
     figures |= bench_memory()
-    rows = _rows(figures)
+    return _report(out, figures, _rows(figures) + ray_rows(figures), quick, repeats, load_before)
+
+
+def _report(out: Path, figures: dict[str, Any], rows: list[Row], quick: bool, repeats: int,
+            load_before: float | None) -> dict[str, Any]:  # fmt: skip
+    """Print the table, write ``bench.json``; return its content."""
     _print_table(rows)
     result = {
         "figures": figures,
@@ -195,9 +208,6 @@ def run_benchmarks(out: Path, quick: bool = False) -> dict[str, Any]:
     path = write_text(out / "bench.json", json.dumps(result, indent=2))
     print(f"wrote {path}")
     return result
-
-
-Row = tuple[str, str, str, str, bool | None]
 
 
 def _rows(f: dict[str, Any]) -> list[Row]:

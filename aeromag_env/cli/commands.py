@@ -344,5 +344,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     """
     from aeromag_env.cli.bench import run_benchmarks
 
-    run_benchmarks(Path(args.out), quick=args.quick)
+    if args.only == "ray" and args.ray is None:
+        raise AeromagError("--only ray measures evaluate on Ray: give --ray [ADDRESS] too")
+    run_benchmarks(Path(args.out), quick=args.quick, ray=args.ray, only_ray=args.only == "ray")
     return 0

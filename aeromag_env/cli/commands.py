@@ -68,6 +68,7 @@ def cmd_discover(args: argparse.Namespace) -> int:
                                 calibration_window=window, mount=args.mount,
                                 selection=selection_options(args))  # fmt: skip
         return fleet.discover_fleet(job, args.file, args.ray, args.quiet)
+    fleet.note_single_file("discover", args.ray)
     report = run_discover(Path(args.file), out, args.flux, window, say, mount=args.mount,
                           selection=selection_options(args))  # fmt: skip
     gap, problems = report["gap"], report["input_problems"]
@@ -222,6 +223,7 @@ def cmd_compensate(args: argparse.Namespace) -> int:
     )  # fmt: skip
     if fleet.is_fleet(args.file):
         return fleet.compensate_fleet(req, args.file, args.ray)
+    fleet.note_single_file("compensate", args.ray)
     report = run_compensate(req)
     print(summary_line(report, req.out))
     return 0

@@ -58,6 +58,13 @@ def is_fleet(arg: str) -> bool:
     return path.is_dir() or (not path.exists() and _GLOB.search(arg) is not None)
 
 
+def note_single_file(command: str, ray: str | None) -> None:
+    """One line on stderr when ``--ray`` came with a single file (it runs here, not on Ray)."""
+    if ray is not None:
+        print(f"aeromag {command}: --ray: one file runs in this process; Ray takes a folder or "
+              "a glob of flight files", file=sys.stderr)  # fmt: skip
+
+
 def fleet_files(arg: str, out: Path) -> list[Path]:
     """The flight files of a folder or glob, sorted, without what a fleet run wrote to ``out``.
 

@@ -1,10 +1,11 @@
 """A learned tuner over several training seeds: the README's per-seed table and the IQM.
 
 ``python experiments/seed_table.py POLICY.npz [POLICY.npz …] [--scenarios nonstationary]
-[--episodes 30] [--out results/seed_table]`` evaluates each exported policy (one per training
-seed) beside ``tuned_constant``, ``privileged`` and ``fis`` on the same test flights of each
-scenario (``aeromag evaluate``'s path: :func:`agents.evaluate.evaluate`), and prints per seed its
-mean RMSE and normalized score with their intervals, then the interquartile mean of the
+[--episodes 30] [--out results/seed_table] [--ray [ADDRESS]]`` (the policies of ``aeromag train
+--seeds 0-4 --out DIR`` are ``DIR/seed_*/policy.npz``) evaluates each exported policy (one per
+training seed) beside ``tuned_constant``, ``privileged`` and ``fis`` on the same test flights of
+each scenario (``aeromag evaluate``'s path: :func:`agents.evaluate.evaluate`), and prints per seed
+its mean RMSE and normalized score with their intervals, then the interquartile mean of the
 normalized scores over seeds × scenarios with a stratified-bootstrap interval
 (:func:`agents.evaluate.iqm_interval`); scenarios without headroom are left out of the IQM and
 named. Writes ``table.md`` and ``results.json`` to ``--out``.
@@ -24,7 +25,8 @@ if __package__ in (None, ""):  # run as a script: the checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.atomic import write_text
-from agents.evaluate import TEST_SEED_START, ci95, evaluate, iqm_interval
+from aeromag_env.parallel import runner
+from agents.evaluate import TEST_SEED_START, ci95, evaluate_scenarios, iqm_interval
 
 BASELINES = ("tuned_constant", "privileged", "fis")
 
@@ -97,13 +99,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--scenarios", default="nonstationary")
     parser.add_argument("--episodes", type=int, default=30)
     parser.add_argument("--out", default="results/seed_table")
+    parser.add_argument("--ray", nargs="?", const="local", metavar="ADDRESS",
+                        help="evaluate on Ray (as aeromag evaluate --ray)")  # fmt: skip
     args = parser.parse_args(argv)
     names = [f"ppo:{p}" for p in args.policies]
     seeds = list(range(TEST_SEED_START, TEST_SEED_START + args.episodes))
-    lines, scores, skipped, everything = [], [], [], {}
-    for scenario in args.scenarios.split(","):
-        results = evaluate(scenario, [*BASELINES, *names], seeds)
-        everything[scenario] = results
+    lines, scores, skipped = [], [], []
+    with runner(args.ray) as tasks:  # every scenario × policy × flights at once
+        everything = evaluate_scenarios(args.scenarios.split(","), [*BASELINES, *names], seeds,
+                                        runner=tasks)  # fmt: skip
+    for scenario, results in everything.items():
         lines += scenario_lines(scenario, results, names)
         anchors = results.get("normalized_score")
         if anchors is not None and anchors["note"] is None:

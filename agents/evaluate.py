@@ -155,8 +155,10 @@ def _run_policies(
              for s, name in keys for c in chunks]  # fmt: skip
     outcomes = runner.run(tasks, None if progress is None else lambda o: progress(
         len(o.value["rmse_nt"]) if o.ok else 0))  # fmt: skip
-    for o in failures(outcomes):  # the first task's own exception: a one-line input error
-        raise o.exception or AeromagError(f"{o.label}: {o.error}")  # or a bug (exit 1)
+    for o in failures(outcomes):  # the first failed task, after the others completed
+        if isinstance(o.exception, AeromagError):  # an input error: one line, with its input
+            raise type(o.exception)(f"{o.label}: {o.exception}") from None
+        raise o.exception or AeromagError(f"{o.label}: {o.error}")  # a bug (exit 1), or lost
     per: dict[str, dict[str, dict[str, np.ndarray]]] = {s: {} for s in scenarios}
     for i, (s, name) in enumerate(keys):
         parts = [o.value for o in outcomes[i * len(chunks) : (i + 1) * len(chunks)]]

@@ -191,3 +191,18 @@ def test_bench_measures_evaluate_on_ray(local_ray: None, tmp_path: Path, capsys)
 def test_bench_only_ray_needs_ray(tmp_path: Path, capsys) -> None:
     assert main(["bench", "--only", "ray", "--out", str(tmp_path)]) == 2
     assert "give --ray" in capsys.readouterr().err
+
+
+def test_a_task_that_raises_is_reported_with_its_input(local_ray: None, tmp_path: Path,
+                                                       capsys) -> None:  # fmt: skip
+    bad = tmp_path / "bad.npz"
+    bad.write_text("not a policy")
+    args = ["evaluate", "--policies", f"fis,ppo:{bad}", "--episodes", "2", "--quiet"]
+    errors = []
+    for extra in ([], ["--ray"]):
+        assert main([*args, "--out", str(tmp_path / "out"), *extra]) == 2
+        errors.append(capsys.readouterr().err)
+    assert errors[0] == errors[1]  # the same one line, here or on Ray
+    assert errors[0].count("\n") == 1
+    assert f"nominal/ppo:{bad} seeds 100000–100001: cannot load PPO policy" in errors[0]
+    assert not (tmp_path / "out" / "results.json").exists()

@@ -61,11 +61,17 @@ def _innovations(
     f = np.zeros(c)
     p = fogm_var
     ll = 0.0
+    last_gap, a, last_s, log_s = math.nan, 1.0, math.nan, 0.0
     for k in range(m):
-        a = math.exp(-gap[k] / tau)
+        if gap[k] != last_gap:  # the sampling interval rarely changes: exp once per change
+            last_gap = gap[k]
+            a = math.exp(-last_gap / tau)
         f *= a
         p = a * a * p + fogm_var * (1.0 - a * a)
         s = p + white_var
+        if s != last_s:  # the gain settles within a few correlation times: log once per change
+            last_s = s
+            log_s = math.log(2.0 * math.pi * s)
         g = p / s
         rs = 1.0 / math.sqrt(s)
         for j in range(c):
@@ -73,7 +79,7 @@ def _innovations(
             out[k, j] = v * rs
             f[j] += g * v
         v0 = out[k, 0]
-        ll -= 0.5 * (math.log(2.0 * math.pi * s) + v0 * v0)
+        ll -= 0.5 * (log_s + v0 * v0)
         p = (1.0 - g) * p
     return ll
 
@@ -103,11 +109,12 @@ def fogm_quadratic(q: np.ndarray, gap: np.ndarray, tau: float) -> np.ndarray:
     ``a_k = exp(−gap[k] / τ)`` (``F_k = Σ_{l≤k} K_kl q_l``).
     """
     m, c = q.shape
+    a = np.exp(-gap / tau)  # once, not once per column
     out = np.zeros(c)
     for j in range(c):
         f = 0.0
         for k in range(m):
-            f = q[k, j] + math.exp(-gap[k] / tau) * f
+            f = q[k, j] + a[k] * f
             out[j] += (2.0 * f - q[k, j]) * q[k, j]
     return out
 

@@ -1,13 +1,16 @@
 """Hidden-effect suite for ``aeromag discover``: identification, false alarms, gap shrink.
 
 Simulates every case of :func:`aeromag_env.discovery.suite.suite_cases` (null flights, coloured-
-noise nulls, each identifiable effect at SNR 0.5/1/2/4, absorbed effects, pairs; decoy channels in
-every flight), runs the discrepancy workflow on each and writes to ``--out``
-(default ``docs/discovery``): ``results.json`` (every case), ``summary.json`` and ``summary.md``
-(the README tables), ``confusion.png`` and ``power.png``.
+noise nulls, each identifiable effect at SNR 0.5/1/2/4, absorbed effects, pairs, and each effect
+at SNR 0.1/0.25/0.5 on 20- to 60-min flights; decoy channels in every flight), runs the discrepancy
+workflow on each and writes to ``--out`` (default ``docs/discovery``): ``results.json`` (every
+case), ``summary.json`` and ``summary.md`` (the README tables), ``confusion.png``, ``power.png``
+and ``power_duration.png``.
 
 Run: ``.venv/bin/python experiments/hidden_effects.py [--single N] [--null N] [--jobs 2]``
-(the README's numbers: the defaults; about 15 minutes on these 2-core machines). A subset:
+(the defaults: 720 flights, about 20 minutes on these 2-core machines, plus the 420 ``duration``
+cases of ``--durations 5``, about as long again). Run it as a module from the checkout
+(``python -m experiments.hidden_effects``) to test that checkout's package. A subset:
 ``--only KIND... [--effects NAME...]`` re-runs the cases of those kinds (injecting one of those
 effects; null flights always match) and replaces them in ``OUT/results.json``; ``--jobs 1`` runs
 in this process.
@@ -28,7 +31,15 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.atomic import write_text
-from aeromag_env.discovery.suite import SINGLE, SNRS, Case, run_case, suite_cases
+from aeromag_env.discovery.suite import (
+    DURATION_SNRS,
+    DURATIONS_S,
+    SINGLE,
+    SNRS,
+    Case,
+    run_case,
+    suite_cases,
+)
 
 #: Case kinds without an injected effect: an ``--effects`` subset keeps them.
 NULL_KINDS = ("null", "coloured_null")
@@ -51,7 +62,32 @@ def _rate(flags: list[bool]) -> dict[str, Any]:
     return {"k": k, "n": n, "rate": k / n if n else float("nan"), "ci95": [lo, hi]}
 
 
+def detected(r: dict[str, Any]) -> bool:
+    """The injected single effect is among the named ones, with its channel (extras allowed)."""
+    return [r["effects"][0], r["truth"][0][1]] in r["named"]
+
+
+def duration_power(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Detection rate of the ``duration`` cases per SNR, effect and duration [s], and the decoy
+    channels named on those flights."""
+    dur = [r for r in rows if r["kind"] == "duration"]
+    power = {str(snr): {nm: {str(int(d)): _rate([detected(r) for r in dur
+                                                 if r["effects"] == [nm] and r["snr"] == snr
+                                                 and r["duration_s"] == d])
+                             for d in DURATIONS_S} for nm in SINGLE}
+             for snr in DURATION_SNRS}  # fmt: skip
+    return {
+        "detection": "the effect with its channel among the named ones (as `power`)",
+        "power": power,
+        "decoy_named": sum(len(r["decoy_named"]) for r in dur),
+        "flights": len(dur),
+    }
+
+
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The README's claims on the SNR kinds; the ``duration`` kind has its own section."""
+    duration, cases = duration_power(rows), Counter(r["kind"] for r in rows)
+    rows = [r for r in rows if r["kind"] != "duration"]
     singles = [r for r in rows if r["kind"] == "single"]
     strong = [r for r in singles if r["snr"] >= 2]
     nulls = [r for r in rows if r["kind"] in ("null", "coloured_null")]
@@ -64,7 +100,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "median_shrink": float(np.median([r["shrink"] for r in sub])),
             "shrink_at_least_2": _rate([r["shrink"] >= 2 for r in sub]),
         }
-    power = {nm: {str(s): _rate([[nm, r["truth"][0][1]] in r["named"] for r in singles
+    power = {nm: {str(s): _rate([detected(r) for r in singles
                                  if r["effects"] == [nm] and r["snr"] == s])
                   for s in SNRS} for nm in SINGLE}  # fmt: skip
     labels = [*SINGLE, "nothing"]
@@ -100,18 +136,39 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "cases_with_decoys": len(rows),
         "pairs_exact_set": _rate([r["exact"] for r in rows if r["kind"] == "pair"]),
         "power": power,
+        "power_duration": duration,
         "confusion": {t: {c: confusion[t].get(c, 0) for c in labels} for t in confusion},
-        "cases": Counter(r["kind"] for r in rows),
+        "cases": cases,
     }
 
 
-def markdown(s: dict[str, Any], seconds: float, jobs: int) -> str:
+def _pct(r: dict[str, Any]) -> str:
+    lo, hi = (max(100 * v, 0.0) for v in r["ci95"])  # no "-0" from round-off
+    return f"{100 * r['rate']:.0f} % ({r['k']}/{r['n']}; 95 % CI {lo:.0f}–{hi:.0f} %)"
+
+
+def duration_markdown(d: dict[str, Any]) -> list[str]:
+    """The power-against-duration tables, one per SNR (rate, k/n and the 95 % interval)."""
+    heads = " | ".join(f"{d_s / 60:.0f} min" for d_s in DURATIONS_S)
+    lines = [
+        "",
+        f"Power against flight duration ({d['flights']} flights; detected = the effect with its "
+        "channel among the named ones, as in the power column above; decoy channels named on "
+        f"these flights: {d['decoy_named']}):",
+    ]
+    for snr, table in d["power"].items():
+        lines += ["", f"| effect (SNR {snr}) | {heads} |", "|---|" + "---|" * len(DURATIONS_S)]
+        for nm, cells in table.items():
+            row = [_pct(c) if c["n"] else "–" for c in cells.values()]
+            lines.append(f"| `{nm}` | " + " | ".join(row) + " |")
+    return lines
+
+
+def markdown(s: dict[str, Any], seconds: float, jobs: int, ran: int | None = None) -> str:
+    """``summary.md``; ``ran`` is the number of cases this run simulated when that was a subset."""
     one = s["single_snr_ge_2"]
     fa = s["false_alarm"]
-
-    def pct(r: dict[str, Any]) -> str:
-        lo, hi = (max(100 * v, 0.0) for v in r["ci95"])  # no "-0" from round-off
-        return f"{100 * r['rate']:.0f} % ({r['k']}/{r['n']}; 95 % CI {lo:.0f}–{hi:.0f} %)"
+    pct = _pct
 
     lines = [
         "| claim | target | result |",
@@ -135,8 +192,14 @@ def markdown(s: dict[str, Any], seconds: float, jobs: int) -> str:
         lines.append(
             f"| `{nm}` | {100 * e['exact']['rate']:.0f} % | {e['median_shrink']:.1f}× | {pw} |"
         )
+    if s["power_duration"]["flights"]:
+        lines += duration_markdown(s["power_duration"])
     cases = ", ".join(f"{k} {v}" for k, v in s["cases"].items())
-    lines += ["", f"Cases: {cases}. {seconds / 60:.1f} min with {jobs} processes on this machine."]
+    these = f" for the {ran} cases of this run" if ran is not None else ""
+    lines += [
+        "",
+        f"Cases: {cases}. {seconds / 60:.1f} min with {jobs} processes on this machine{these}.",
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -184,6 +247,33 @@ def figures(s: dict[str, Any], out: Path) -> None:
     plt.close(fig)
 
 
+def duration_figure(d: dict[str, Any], out: Path) -> None:
+    """``power_duration.png``: detection rate against flight duration, one panel per SNR."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from aeromag_env.atomic import atomic_path
+
+    minutes = [d_s / 60 for d_s in DURATIONS_S]
+    fig, axes = plt.subplots(1, len(d["power"]), figsize=(11, 4.2), sharey=True, squeeze=False)
+    for ax, (snr, table) in zip(axes[0], d["power"].items(), strict=True):
+        for nm, cells in table.items():
+            ax.plot(minutes, [c["rate"] for c in cells.values()], "o-", label=nm)
+        ax.axhline(0.9, color="k", lw=0.6, ls=":")
+        ax.set_xticks(minutes, [f"{m:.0f}" for m in minutes])
+        ax.set_xlabel("flight duration [min]")
+        ax.set_title(f"identifiable SNR {snr}")
+    axes[0, 0].set_ylabel("detection rate (named among the effects)")
+    axes[0, -1].legend(fontsize=7)
+    fig.suptitle("Detection power against flight duration (box + descent: first 15 min)")
+    fig.tight_layout()
+    with atomic_path(out / "power_duration.png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+
+
 def _run(cases: list[Case], jobs: int) -> Iterator[dict[str, Any]]:
     """Each case's row, in order: in this process with one job, else in a pool."""
     if jobs == 1:
@@ -193,7 +283,7 @@ def _run(cases: list[Case], jobs: int) -> Iterator[dict[str, Any]]:
         yield from pool.imap(run_case, cases, chunksize=4)
 
 
-def main() -> None:
+def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -202,6 +292,12 @@ def main() -> None:
     ap.add_argument("--coloured", type=int, default=20, help="coloured-noise null flights")
     ap.add_argument("--absorbed", type=int, default=10, help="flights per absorbed effect")
     ap.add_argument("--pairs", type=int, default=10, help="flights per pair")
+    ap.add_argument(
+        "--durations",
+        type=int,
+        default=5,
+        help="flights per effect, duration and SNR (kind duration)",
+    )
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("docs/discovery"))
     ap.add_argument(
@@ -216,10 +312,17 @@ def main() -> None:
         metavar="NAME",
         help="with --only: only the cases injecting one of these effects (and the nulls)",
     )
+    return ap
+
+
+def main() -> None:
+    ap = _parser()
     args = ap.parse_args()
     if args.effects and not args.only:
         ap.error("--effects needs --only (the subset replaces its cases in OUT/results.json)")
-    cases = suite_cases(args.null, args.coloured, args.single, args.absorbed, args.pairs)
+    cases = suite_cases(
+        args.null, args.coloured, args.single, args.absorbed, args.pairs, args.durations
+    )
     kept: list[dict[str, Any]] = []
     if args.only:
 
@@ -242,9 +345,12 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     write_text(args.out / "results.json", json.dumps(rows, indent=1))
     write_text(args.out / "summary.json", json.dumps(s, indent=2))
-    write_text(args.out / "summary.md", markdown(s, seconds, args.jobs))
+    ran = len(cases) if args.only else None
+    write_text(args.out / "summary.md", markdown(s, seconds, args.jobs, ran))
     figures(s, args.out)
-    print(markdown(s, seconds, args.jobs))
+    if s["power_duration"]["flights"]:
+        duration_figure(s["power_duration"], args.out)
+    print(markdown(s, seconds, args.jobs, ran))
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ from aeromag_env.discovery.noise_model import (
     whiten,
 )
 from aeromag_env.discovery.preparation import prepare
-from aeromag_env.discovery.suite import Case, base_config, build_case, run_case
+from aeromag_env.discovery.suite import Case, base_config, build_case, run_case, suite_cases
 from aeromag_env.discovery.whitened_problem import WhitenedProblem
 from aeromag_env.discovery.workflow import discover
 from aeromag_env.errors import AeromagError, ConfigError
@@ -45,6 +45,26 @@ def test_config_with_effects_and_aux_round_trips_through_json() -> None:
     back = from_json(SimulationConfig, to_json(cfg))
     assert back == cfg
     assert {e.name for e in back.effects} == {"onboard_current", "altitude_gradient"}
+
+
+def test_duration_cases_fly_their_duration_with_a_survey_after_the_box() -> None:
+    """A ``duration`` case of 20 min simulates 20 min (box and descent, then survey lines), and
+    the kind's seeds (70000+) are disjoint from every other kind's."""
+    cfg, truth = build_case(
+        Case("duration", 70_000, ("altitude_gradient",), 0.25, duration_s=1200.0)
+    )
+    assert (
+        cfg.trajectory.duration_s == 1200.0 and truth["effects"][0]["name"] == "altitude_gradient"
+    )
+    flight = simulate_flight(cfg, 70_000)
+    assert flight.n == 1200 * cfg.trajectory.sample_rate_hz
+    assert np.ptp(flight["alt"]) > 2000.0  # the survey lines at 400 m follow the box at 3000 m
+    cases = suite_cases(n_duration=1)
+    durations = [c for c in cases if c.kind == "duration"]
+    assert len(durations) == 7 * 3 * 4 and {c.duration_s for c in durations} == {
+        1200.0, 1800.0, 2700.0, 3600.0}  # fmt: skip
+    assert min(c.seed for c in durations) == 70_000
+    assert len({c.seed for c in cases}) == len(cases)
 
 
 def test_effect_configs_are_validated_with_one_line_errors() -> None:

@@ -126,3 +126,52 @@ def test_seed_table_checks_a_policy_across_scenarios(tmp_path):
     row = next(line for line in table.splitlines() if line.startswith("| 0 | ") and "%" in line)
     assert "paper (+" in row  # ppo keeps paper's tiny R: 20 nT against the tuned 1.1
     assert "fis's mean over the 2 scenarios" in table
+
+
+def _suite_row(kind, effect=None, snr=None, named=(), duration_s=1800.0, decoys=()):
+    """A hand-made row of ``experiments.hidden_effects`` (the fields ``summarise`` reads)."""
+    truth = [[effect, None]] if effect else []
+    named = [list(t) for t in named]
+    return {"kind": kind, "effects": [effect] if effect else [], "snr": snr,
+            "duration_s": duration_s, "named": named, "truth": truth,
+            "exact": named == truth, "absorbed_named": [], "decoy_named": list(decoys),
+            "shrink": 3.0}  # fmt: skip
+
+
+def test_hidden_effects_counts_power_against_duration_apart_from_the_snr_claims():
+    """``summarise`` on hand-made rows: the duration table counts a detection when the effect is
+    among the named ones (2 of 3 at 20 min, 0 of 1 at 60 min), and the duration flights (one
+    with a decoy) change none of the SNR claims."""
+    import json
+
+    from experiments.hidden_effects import SINGLE, markdown, summarise
+
+    nm = "external_field_variation"
+    base = [_suite_row("single", e, 2.0, [(e, None)]) for e in SINGLE]
+    base += [_suite_row("null"), _suite_row("coloured_null")]
+    duration = [
+        _suite_row("duration", nm, 0.25, [(nm, None)], 1200.0),
+        _suite_row("duration", nm, 0.25, [("altitude_gradient", None), (nm, None)], 1200.0),
+        _suite_row("duration", nm, 0.25, [], 1200.0),
+        _suite_row("duration", nm, 0.25, [("sensor_lag", None)], 3600.0, decoys=["vol_bus"]),
+        _suite_row("duration", nm, 0.5, [(nm, None)], 3600.0),
+    ]
+    alone, both = summarise(base), summarise(base + duration)
+    d = both.pop("power_duration")
+    assert alone.pop("power_duration")["flights"] == 0
+    assert both.pop("cases")["duration"] == 5
+    alone.pop("cases")
+    assert json.dumps(both) == json.dumps(alone)  # NaN for the empty cells: compare as text
+    cell = d["power"]["0.25"][nm]
+    assert (cell["1200"]["k"], cell["1200"]["n"], cell["3600"]["k"], cell["3600"]["n"]) == (
+        2,
+        3,
+        0,
+        1,
+    )
+    assert cell["1800"]["n"] == 0 and d["power"]["0.5"][nm]["3600"]["k"] == 1
+    assert (d["flights"], d["decoy_named"]) == (5, 1)
+    text = markdown(summarise(base + duration), 60.0, 2, ran=5)
+    row = next(line for line in text.splitlines() if line.startswith(f"| `{nm}` | 67 %"))
+    assert "(2/3;" in row and "0 % (0/1;" in row and "| – |" in row
+    assert "for the 5 cases of this run" in text

@@ -11,7 +11,9 @@ after projecting out the 21 base regressors (on the whole flight, with the true 
 divided by the fluxgate noise std ``sqrt(white² + fogm²)``. The raw injected RMS is recorded too.
 
 Case kinds: ``null`` (nominal noise), ``coloured_null`` (other noise colours), ``single``,
-``absorbed`` (effects the base model absorbs), ``pair``. Seeds of each kind are disjoint.
+``absorbed`` (effects the base model absorbs), ``pair``, and ``duration`` (each single effect at
+a low SNR on flights of ``DURATIONS_S``: the box and the descent take 879 s, so the shortest,
+1200 s, still has 5 min of survey lines). Seeds of each kind are disjoint.
 """
 
 from __future__ import annotations
@@ -48,6 +50,9 @@ AUX = (
 #: Channels an injected onboard_current may follow (the rest stay decoys).
 CURRENT_CHANNELS = ("cur_strb", "cur_ac_hi", "cur_com_1")
 SNRS = (0.5, 1.0, 2.0, 4.0)
+#: Flight durations [s] and SNRs of the ``duration`` cases (SNRs where power is not saturated).
+DURATIONS_S = (1200.0, 1800.0, 2700.0, 3600.0)
+DURATION_SNRS = (0.1, 0.25, 0.5)
 SINGLE = (
     "onboard_current", "external_field_variation", "permanent_field_drift",
     "induced_second_order", "altitude_gradient", "eddy_time_constant", "sensor_lag",
@@ -72,6 +77,8 @@ SEED_BASE = {
     "single": 20_000,
     "absorbed": 30_000,
     "pair": 40_000,
+    # 50000+ and 60000+ were development and plain-flight seeds (experiments.discovery_*)
+    "duration": 70_000,
 }
 
 
@@ -154,11 +161,12 @@ class Case:
     noise: SensorNoiseConfig | None = None
     label: str = ""
     detail: dict[str, Any] = field(default_factory=dict)
+    duration_s: float = 1800.0
 
 
 def build_case(case: Case) -> tuple[SimulationConfig, dict[str, Any]]:
     """The configuration of a case with its effects scaled to the case's SNR, and the truth."""
-    cfg = base_config()
+    cfg = base_config(case.duration_s)
     if case.noise is not None:
         cfg = dataclasses.replace(cfg, fluxgate_noise=case.noise)
     rng = np.random.default_rng([case.seed, 7])
@@ -198,8 +206,9 @@ def suite_cases(
     n_single: int = 20,
     n_absorbed: int = 10,
     n_pair: int = 10,
+    n_duration: int = 0,
 ) -> list[Case]:
-    """The suite's cases (sizes per cell)."""
+    """The suite's cases (sizes per cell; ``n_duration`` per effect, duration and SNR)."""
     cases = [Case("null", SEED_BASE["null"] + s) for s in range(n_null)]
     cases += [Case("coloured_null", SEED_BASE["coloured_null"] + s,
                    noise=COLOURED_NOISE[s % len(COLOURED_NOISE)])
@@ -220,6 +229,13 @@ def suite_cases(
         for _ in range(n_pair):
             cases.append(Case("pair", k, pair, 4.0))
             k += 1
+    k = SEED_BASE["duration"]
+    for nm in SINGLE:
+        for snr in DURATION_SNRS:
+            for dur in DURATIONS_S:
+                for _ in range(n_duration):
+                    cases.append(Case("duration", k, (nm,), snr, duration_s=dur))
+                    k += 1
     return cases
 
 
@@ -237,6 +253,7 @@ def run_case(case: Case) -> dict[str, Any]:
         "seed": case.seed,
         "effects": list(case.effects),
         "snr": case.snr,
+        "duration_s": case.duration_s,
         "noise": dataclasses.asdict(case.noise) if case.noise else None,
         "raw_rms_nt": raw,
         "named": [list(t) for t in named],

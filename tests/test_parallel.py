@@ -45,6 +45,8 @@ def test_ray_runner_equals_serial_and_counts_attempts(local_ray: None) -> None:
         assert r.name == "ray" and r.cpus == 2
         progress: list[str] = []
         out = r.run(TASKS, progress=lambda o: progress.append(o.label))
+        again = r.run(TASKS)  # a second run on the same runner counts its attempts afresh
+        assert [o.attempts for o in again] == [1] * len(TASKS) and r.retried == []
     serial = SerialRunner().run(TASKS)
     assert [(o.label, o.value, o.error) for o in out] == [
         (o.label, o.value, o.error) for o in serial

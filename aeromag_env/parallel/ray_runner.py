@@ -77,6 +77,7 @@ class RayRunner:
         self, tasks: Sequence[Task], progress: Callable[[Outcome], None] | None = None
     ) -> list[Outcome]:
         ray = self._ray
+        ray.get(self._log.reset.remote())  # counts per run: task indices start at 0 again
         remote = ray.remote(aeromag_task)
         refs = [remote.options(num_cpus=t.num_cpus, max_retries=MAX_RETRIES,
                                retry_exceptions=False).remote(self._log, i, _payload(t))
@@ -114,6 +115,9 @@ class AttemptLog:
 
     def __init__(self) -> None:
         self._counts: dict[int, int] = {}
+
+    def reset(self) -> None:
+        self._counts = {}
 
     def start(self, index: int) -> None:
         self._counts[index] = self._counts.get(index, 0) + 1

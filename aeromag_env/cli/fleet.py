@@ -178,12 +178,11 @@ def _failed(e: BaseException, warnings: list[str]) -> dict[str, Any]:
 
 
 def _warning_cells(warnings: Sequence[str]) -> dict[str, Any]:
-    """``warnings`` (the count) and ``warning_text`` (each on one line, cut, ``; ``-joined)."""
-    short = []
-    for w in warnings:
-        line = " ".join(str(w).split())
-        short.append(line if len(line) <= WARNING_CHARS else line[: WARNING_CHARS - 1] + "…")
-    return {"warnings": len(short), "warning_text": "; ".join(short)}
+    """``warnings`` (the count), ``warning_text`` (each on one line, cut, ``; ``-joined) and
+    ``warning_lines`` (each whole, for stderr; not a column of ``fleet.csv``)."""
+    lines = [" ".join(str(w).split()) for w in warnings]
+    short = [w if len(w) <= WARNING_CHARS else w[: WARNING_CHARS - 1] + "…" for w in lines]
+    return {"warnings": len(lines), "warning_text": "; ".join(short), "warning_lines": lines}
 
 
 def compensate_fleet(req: CompensateRequest, arg: str, ray: str | None) -> int:
@@ -247,8 +246,7 @@ def _stderr_lines(command: str, outcome: Outcome) -> list[str]:
         debug = os.environ.get("AEROMAG_DEBUG") == "1" and outcome.details
         return [f"{head} error: {outcome.error}", *([outcome.details] if debug else [])]
     row = outcome.value
-    text = row.get("warning_text") or ""
-    lines = [f"{head} warning: {w}" for w in text.split("; ")] if row.get("warnings") else []
+    lines = [f"{head} warning: {w}" for w in row.get("warning_lines", [])]
     if row["status"] != "ok":  # without the file's name when the message starts with it
         lines.append(f"{head} error: {row['error'].removeprefix(outcome.label + ': ')}")
     return lines

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import statistics
 from pathlib import Path
 from typing import Any
 
@@ -81,14 +82,12 @@ def train_seeds(
 
 
 def _spread(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    values = [r["best_validation_rmse_nt"] for r in rows]
-    finite = [v for v in values if v is not None and math.isfinite(v)]
-    if len(finite) < 2:
-        return {"validation_rmse_nt_mean": finite[0] if finite else None,
-                "validation_rmse_nt_sd": None}  # fmt: skip
-    mean = sum(finite) / len(finite)
-    sd = math.sqrt(sum((v - mean) ** 2 for v in finite) / (len(finite) - 1))
-    return {"validation_rmse_nt_mean": mean, "validation_rmse_nt_sd": sd}
+    """Mean and SD of the seeds' finite best validation RMSEs (SD from 2 seeds on)."""
+    finite = [v for r in rows if (v := r["best_validation_rmse_nt"]) is not None
+              and math.isfinite(v)]  # fmt: skip
+    sd = statistics.stdev(finite) if len(finite) > 1 else None
+    return {"validation_rmse_nt_mean": statistics.fmean(finite) if finite else None,
+            "validation_rmse_nt_sd": sd}  # fmt: skip
 
 
 def seed_table(summary: dict[str, Any]) -> str:

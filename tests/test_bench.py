@@ -54,7 +54,9 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
     assert rows["PPO learn, zero-cost env, 64 envs"][2] == (
         "2.00× DummyVecEnv (PPO alone: the most any env allows)")  # fmt: skip
     assert "PPO learn, zero-cost env, 8 envs" not in rows  # older bench.json: not measured
-    assert rows["discover 1 flight-hour"][1:3] == ("n/a", "n/a")
+    assert rows["discover 1 flight-hour"][1:] == ("n/a", "n/a", "≤ 5 s", None)
+    assert {r[0]: r for r in _rows(FIGURES)}["discover 1 flight-hour"][1:] == (
+        "5.00 s", "720× real time", "≤ 5 s", True)  # fmt: skip
     assert rows["compensate 10-hour flight, peak RSS"][4] is True
     assert np.isfinite(peak_rss_mb()) and peak_rss_mb() > 0
 
@@ -111,3 +113,15 @@ def test_bench_table_joins_runs_and_counts_met_targets(tmp_path):
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(SystemExit, match=r"not an aeromag bench\.json"):
         load_runs([tmp_path / "bad.json"])
+
+
+def test_bench_only_discover_measures_the_workflow_alone(tmp_path, capsys):
+    from aeromag_env.cli.main import main
+
+    assert main(["bench", "--only", "discover", "--quick", "--out", str(tmp_path)]) == 0
+    result = json.loads((tmp_path / "bench.json").read_text())
+    assert set(result["figures"]) == {"discover_s_per_flight_hour"}
+    assert result["figures"]["discover_s_per_flight_hour"] > 0
+    assert [r["benchmark"] for r in result["rows"]] == ["discover 1 flight-hour"]
+    assert result["rows"][0]["target"] == "≤ 5 s"
+    assert "discover 1 flight-hour" in capsys.readouterr().out

@@ -179,13 +179,12 @@ def test_fast_groups_cannot_absorb_slow_sensor_noise_but_the_external_splines_ca
     share = [prob.absorbable_share([0], j, np.full(3, 600.0))[0] for j in range(1, 6)]
     assert max(s.max() for s in share[:4]) < ABSORBABLE_SHARE / 4
     assert share[4].min() > 4 * ABSORBABLE_SHARE
-    # the Gram-matrix basis (for speed) against a tall SVD of the same projected columns
-    from aeromag_env.discovery.base_model import orthonormal, stack
-
+    # the Gram-matrix bases (for speed) against tall SVDs of the same columns; the problem
+    # keeps them axis-major (3, m, p), so a reshape stacks the axes
     m = prob.idx.size
+    q0 = np.linalg.svd(prob.columns[0].reshape(3 * m, -1), full_matrices=False)[0]
     for j, got in zip(range(1, 6), share, strict=True):
-        x = stack(prob.columns[j])
-        q0 = orthonormal(stack(prob.columns[0]))
+        x = prob.columns[j].reshape(3 * m, -1)
         xp = (x - q0 @ (q0.T @ x)) / np.linalg.norm(x, axis=0)
         u, sv, _ = np.linalg.svd(xp, full_matrices=False)
         u = u[:, sv > 1e-6]

@@ -348,5 +348,5 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     if args.only == "ray" and args.ray is None:
         raise AeromagError("--only ray measures evaluate on Ray: give --ray [ADDRESS] too")
-    run_benchmarks(Path(args.out), quick=args.quick, ray=args.ray, only_ray=args.only == "ray")
+    run_benchmarks(Path(args.out), quick=args.quick, ray=args.ray, only=args.only)
     return 0

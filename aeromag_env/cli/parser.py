@@ -346,8 +346,10 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true", help="fewer repeats and shorter runs")
     p.add_argument(
-        "--only", choices=("ray",), help="ray: only the Ray figures (needs --ray [ADDRESS])"
-    )
+        "--only", choices=("ray", "discover"),
+        help="ray: only the Ray figures (needs --ray [ADDRESS]); discover: only the discrepancy "
+        "workflow's seconds per flight-hour",
+    )  # fmt: skip
     _add_ray_option(p)
     p.set_defaults(func=cmd_bench)
 

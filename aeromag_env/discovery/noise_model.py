@@ -45,6 +45,13 @@ class NoiseModel:
         }
 
 
+#: The FOGM state estimate is set to 0 below this magnitude. Where a column ends (a spline
+#: outside its support) the state decays geometrically into subnormal numbers, and every later
+#: product with them ran at a hundredth of the speed: the Gram matrix of the whitened
+#: external-field splines took 140 ms instead of 25. Every quantity here is far above 1e-150.
+FLUSH = 1e-150
+
+
 @njit(cache=True)
 def _innovations(
     x: np.ndarray, gap: np.ndarray, tau: float, fogm_var: float, white_var: float, out: np.ndarray
@@ -55,32 +62,42 @@ def _innovations(
     ``gap[k]`` is the time since the previous row [s] (``inf``: independent restart), so rows
     left out (held-out blocks) or lost (time gaps) are bridged exactly: the FOGM state is
     propagated across them. The gains do not depend on the data, so one pass whitens every
-    column; returns the Gaussian log-likelihood of column 0.
+    column; returns the Gaussian log-likelihood of column 0. A state estimate below
+    :data:`FLUSH` is 0 (no subnormal numbers).
     """
     m, c = x.shape
     f = np.zeros(c)
     p = fogm_var
     ll = 0.0
     last_gap, a, last_s, log_s = math.nan, 1.0, math.nan, 0.0
+    g, rs, settled = 0.0, 1.0, False
     for k in range(m):
         if gap[k] != last_gap:  # the sampling interval rarely changes: exp once per change
             last_gap = gap[k]
             a = math.exp(-last_gap / tau)
+            settled = False
         f *= a
-        p = a * a * p + fogm_var * (1.0 - a * a)
-        s = p + white_var
-        if s != last_s:  # the gain settles within a few correlation times: log once per change
-            last_s = s
-            log_s = math.log(2.0 * math.pi * s)
-        g = p / s
-        rs = 1.0 / math.sqrt(s)
+        if not settled:
+            # the variance recursion (a serial chain through a division) reaches its exact
+            # floating-point fixed point after enough rows at one sampling interval; from there
+            # on p, s, g and rs are the same every row, so skipping it changes no bit
+            p_in = p
+            p = a * a * p + fogm_var * (1.0 - a * a)
+            s = p + white_var
+            if s != last_s:  # log once per change of s
+                last_s = s
+                log_s = math.log(2.0 * math.pi * s)
+            g = p / s
+            rs = 1.0 / math.sqrt(s)
+            p = (1.0 - g) * p
+            settled = p == p_in
         for j in range(c):
             v = x[k, j] - f[j]
             out[k, j] = v * rs
-            f[j] += g * v
+            fj = f[j] + g * v
+            f[j] = fj if abs(fj) >= FLUSH else 0.0
         v0 = out[k, 0]
         ll -= 0.5 * (log_s + v0 * v0)
-        p = (1.0 - g) * p
     return ll
 
 
@@ -119,24 +136,35 @@ def fogm_quadratic(q: np.ndarray, gap: np.ndarray, tau: float) -> np.ndarray:
     return out
 
 
-def whiten(x: np.ndarray, gap: np.ndarray, white: float, fogm: float, tau: float) -> np.ndarray:
+def whiten(
+    x: np.ndarray,
+    gap: np.ndarray,
+    white: float,
+    fogm: float,
+    tau: float,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
     """Whitened copy of ``x`` (m, c) under the white + FOGM noise model (one axis).
 
     Parameters
     ----------
     x : numpy.ndarray
-        Columns to whiten (m, c), rows in time order.
+        Columns to whiten (m, c), rows in time order (copied unless C-contiguous: the kernel
+        vectorises over a row's columns only then, 3× faster).
     gap : numpy.ndarray
         Time since the previous row (m,) [s]; ``inf`` for an independent restart.
     white, fogm, tau : float
         White-noise std [nT], FOGM std [nT] and FOGM correlation time [s] of the axis.
+    out : numpy.ndarray, optional
+        Where to write the result (m, c), e.g. one axis's rows of an axis-stacked array.
 
     Returns
     -------
     numpy.ndarray
-        The normalised Kalman innovations of every column (m, c).
+        The normalised Kalman innovations of every column (m, c): ``out`` when given.
     """
-    out = np.empty_like(x)
+    if out is None:
+        out = np.empty(x.shape)
     _innovations(np.ascontiguousarray(x), gap, tau, fogm * fogm, white * white, out)
     return out
 

@@ -1,0 +1,192 @@
+"""Discovery's fast linear algebra against the plain, slow forms it replaced.
+
+The workflow solves its least-squares problems through Gram matrices, takes orthonormal bases
+from them, whitens with a kernel that skips the settled variance recursion and flushes tiny
+states to 0, and caches bases across steps. Each is checked here against LAPACK, the SVD or a
+plain Kalman filter, on the cases where the fast form is taken and where it must step aside.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.linalg import lstsq
+
+from aeromag_env.discovery import whitened_problem
+from aeromag_env.discovery.base_model import BaseSpan, base_columns, orthonormal, stack
+from aeromag_env.discovery.noise_model import NoiseModel, whiten
+from aeromag_env.discovery.preparation import prepare
+from aeromag_env.discovery.suite import base_config
+from aeromag_env.discovery.whitened_problem import WhitenedProblem, least_squares
+from aeromag_env.flight.data import Flight
+from aeromag_env.simulation.effects import EFFECTS
+from aeromag_env.simulation.simulate import simulate_flight
+
+
+@pytest.fixture(scope="module")
+def flight() -> Flight:
+    return simulate_flight(base_config(1200.0), 12)
+
+
+def _design(rng: np.random.Generator, rows: int, cond: float, p: int = 30) -> np.ndarray:
+    """Columns (rows, p) with the given condition number, then scaled over six decades."""
+    u, _ = np.linalg.qr(rng.standard_normal((rows, p)))
+    v, _ = np.linalg.qr(rng.standard_normal((p, p)))
+    return (u * np.logspace(0, -np.log10(cond), p)) @ v * 10 ** rng.uniform(-3, 3, p)
+
+
+def _solved_by_qr(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    calls: list[int] = []
+    real = whitened_problem._lstsq
+
+    def counted(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        calls.append(a.shape[1])
+        return real(a, b)
+
+    monkeypatch.setattr(whitened_problem, "_lstsq", counted)
+    return calls
+
+
+@pytest.mark.parametrize("cond", [3.0, 2e4, 5e5])
+def test_least_squares_through_the_gram_matrix_equals_lapack(
+    cond: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    rng = np.random.default_rng(int(cond))
+    x = _design(rng, 4000, cond)
+    y = x @ rng.standard_normal(30) + rng.standard_normal(4000)
+    qr = _solved_by_qr(monkeypatch)
+    beta, rss, cov = least_squares(x, y)
+    assert qr == []  # below NORMAL_EQUATIONS_MAX_COND: the normal equations solved it
+    want, res, *_ = lstsq(x, y, lapack_driver="gelsd")
+    norm = np.linalg.norm(x, axis=0)
+    r_inv = np.linalg.inv(np.linalg.qr(x / norm, mode="r"))
+    want_cov = (r_inv @ r_inv.T) / np.outer(norm, norm)  # (xᵀx)⁻¹ by QR, never squared
+    sd = np.sqrt(np.diag(want_cov))
+    se = sd * np.sqrt(res / (x.shape[0] - x.shape[1]))
+    assert np.max(np.abs(beta - want) / se) < 1e-8  # in standard errors
+    assert rss == pytest.approx(float(res), rel=1e-12)
+    # as correlations: the normal equations' error grows with the squared condition number
+    assert np.max(np.abs(cov - want_cov) / np.outer(sd, sd)) < 1e-15 * cond**2 + 1e-12
+
+
+def test_least_squares_hands_an_ill_conditioned_design_to_pivoted_qr(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    rng = np.random.default_rng(8)
+    x = _design(rng, 4000, 1e9)
+    y = x @ rng.standard_normal(30) + rng.standard_normal(4000)
+    qr = _solved_by_qr(monkeypatch)
+    beta, rss, _ = least_squares(x, y)
+    assert qr == [30]
+    norm = np.linalg.norm(x, axis=0)  # unscaled, its condition number is 1e15: SVD of the scaled
+    want, res, *_ = lstsq(x / norm, y, lapack_driver="gelsd")
+    assert rss == pytest.approx(float(res), rel=1e-10)
+    np.testing.assert_allclose(x @ beta, (x / norm) @ want, atol=1e-9 * np.abs(y).max())
+
+
+def test_a_column_zero_on_every_row_is_not_identified() -> None:
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal((500, 4))
+    x[:, 2] = 0.0
+    y = x @ np.array([1.0, 2.0, 5.0, -1.0]) + rng.standard_normal(500)
+    beta, rss, cov = least_squares(x, y)
+    want = lstsq(x[:, [0, 1, 3]], y)[0]
+    np.testing.assert_allclose(beta[[0, 1, 3]], want, rtol=1e-12)
+    assert beta[2] == 0.0 and cov[2, 2] == np.inf
+    assert not cov[2, [0, 1, 3]].any() and not cov[[0, 1, 3], 2].any()
+    assert np.isfinite(rss)
+
+
+@pytest.mark.parametrize("cond", [5.0, 2e4, 1e5])
+def test_orthonormal_basis_from_the_gram_matrix_spans_what_the_svd_spans(cond: float) -> None:
+    rng = np.random.default_rng(int(cond))
+    x = _design(rng, 6000, cond, 40)
+    q = orthonormal(x)
+    u = np.linalg.svd(x / np.linalg.norm(x, axis=0), full_matrices=False)[0]
+    assert q.shape == u.shape
+    np.testing.assert_allclose(q.T @ q, np.eye(40), atol=1e-13)
+    y = rng.standard_normal((6000, 3))
+    np.testing.assert_allclose(q @ (q.T @ y), u @ (u.T @ y), atol=1e-10)
+
+
+def test_orthonormal_leaves_rank_to_the_svd_when_columns_repeat_or_vanish() -> None:
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal((3000, 6))
+    assert orthonormal(np.column_stack([x, 3.0 * x[:, 0]])).shape == (3000, 6)
+    assert orthonormal(np.column_stack([x, np.zeros(3000)])).shape == (3000, 6)
+    assert orthonormal(x[:, :0]).shape == (3000, 0)
+
+
+def _kalman(x: np.ndarray, gap: np.ndarray, noise: tuple[float, float, float]) -> np.ndarray:
+    """Normalised innovations by the textbook filter, row by row (the reference)."""
+    white, fogm_std, tau = noise
+    f, p = np.zeros(x.shape[1]), fogm_std**2
+    out = np.empty_like(x)
+    for k in range(x.shape[0]):
+        a = np.exp(-gap[k] / tau)
+        f, p = a * f, a * a * p + fogm_std**2 * (1 - a * a)
+        s = p + white**2
+        v = x[k] - f
+        out[k] = v / np.sqrt(s)
+        f, p = f + p / s * v, (1 - p / s) * p
+    return out
+
+
+def test_whitening_equals_the_textbook_filter_and_leaves_no_subnormal_numbers() -> None:
+    """A column that ends (a spline past its support) decays towards 0: the kernel flushes its
+    state below FLUSH, the reference lets it sink into subnormal numbers; both agree."""
+    rng = np.random.default_rng(6)
+    n = 6000
+    tt = np.r_[np.arange(3000) * 0.1, 420.0 + np.arange(3000) * 0.1]  # a held-out block
+    gap = np.r_[np.inf, np.diff(tt)]
+    x = np.column_stack([rng.standard_normal(n), np.r_[np.ones(200), np.zeros(n - 200)]])
+    for noise in [(1.0, 2.0, 600.0), (0.5, 3.0, 20.0), (2.0, 0.1, 5000.0)]:
+        got = whiten(x, gap, *noise)
+        want = _kalman(x, gap, noise)
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-140)
+        tiny = np.abs(got[got != 0])
+        assert tiny.min() >= np.finfo(float).tiny  # no subnormal number left
+    assert (np.abs(want[got == 0]) < 1e-140).all()
+    strided = np.stack([x, x], axis=2)[:, :, 0]  # not C-contiguous: copied, the same result
+    assert np.array_equal(whiten(strided, gap, 1.0, 2.0, 600.0), whiten(x, gap, 1.0, 2.0, 600.0))
+
+
+def test_identifiable_fraction_on_centred_columns_equals_the_raw_projection(
+    flight: Flight,
+) -> None:
+    """A bus voltage at 28 ± 0.5 V: the centred form gives the raw projection's share."""
+    data = prepare(flight, "flux_a", None)
+    span = BaseSpan(base_columns(data.ctx.t_b, data.ctx.tdot_b), data.calibration)
+    rng = np.random.default_rng(9)
+    n = flight.tt.size
+    volts = 28.0 + 0.5 * np.cumsum(rng.standard_normal(n)) / np.sqrt(n)
+    group = volts[:, None, None] * np.eye(3)[None, :, :]
+    for cols in (group, EFFECTS["altitude_gradient"].groups(data.ctx)[0][0].columns):
+        xs = stack(cols[data.calibration])
+        perp = xs - span.q @ (span.q.T @ xs)
+        centred = stack(cols[data.calibration] - cols[data.calibration].mean(axis=0))
+        want = np.mean(np.sum(perp**2, axis=0) / np.sum(centred**2, axis=0))
+        assert span.identifiable_fraction(cols) == pytest.approx(want, rel=1e-9)
+
+
+def test_cached_bases_are_forgotten_when_a_freed_index_is_reused(flight: Flight) -> None:
+    """test_columns adds a candidate and frees its index; a group added there later must not
+    inherit the cached basis of the one tested before."""
+    data = prepare(flight, "flux_a", None)
+    ctx = data.ctx
+    base = base_columns(ctx.t_b, ctx.tdot_b)
+    lags = EFFECTS["sensor_lag"].groups(ctx)[0]
+    splines = EFFECTS["external_field_variation"].groups(ctx)[0][0]
+    prob = WhitenedProblem(data, [base, lags[0].columns])
+    prob.set_noise(NoiseModel(np.ones(3), np.full(3, 2.0), np.full(3, 600.0)))
+    taus = np.full((1, 3), 600.0)
+    prob.add(splines.columns)
+    spline_share = prob.absorbable_share([0], 2, taus)
+    prob.columns.pop(), prob.white.pop(), prob.perp.pop(), prob.scale.pop()
+    j = prob.add(lags[-1].columns)
+    assert j == 2
+    fresh = WhitenedProblem(data, [base, lags[0].columns, lags[-1].columns])
+    fresh.set_noise(prob.noise)  # type: ignore[arg-type]
+    np.testing.assert_allclose(prob.absorbable_share([0], 2, taus),
+                               fresh.absorbable_share([0], 2, taus), rtol=1e-9)  # fmt: skip
+    assert not np.allclose(prob.absorbable_share([0], 2, taus), spline_share)

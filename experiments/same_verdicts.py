@@ -1,0 +1,59 @@
+"""Do two runs of the hidden-effect suite name the same effects? (A check after a speed change.)
+
+Compares two ``results.json`` files of :mod:`experiments.hidden_effects` case by case (kind and
+seed): the named effects with their channels must be equal; the held-out gaps are compared as
+the largest relative change. Cases in only one file are counted, not compared.
+
+Run, after re-running the suite at the committed sizes into a scratch folder::
+
+    python -m experiments.hidden_effects --single 10 --null 40 --coloured 20 --absorbed 5 \\
+        --pairs 5 --durations 4 --out /tmp/rerun
+    python -m experiments.same_verdicts docs/discovery/results.json /tmp/rerun/results.json
+
+Exit status 1 when any named list differs.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+
+def compare(old: list[dict[str, Any]], new: list[dict[str, Any]]) -> dict[str, Any]:
+    """Case-by-case comparison: differing cases, compared and unmatched counts, gap change."""
+    by_key = {(r["kind"], r["seed"]): r for r in old}
+    differ, compared, worst = [], 0, 0.0
+    for row in new:
+        ref = by_key.get((row["kind"], row["seed"]))
+        if ref is None:
+            continue
+        compared += 1
+        if sorted(map(tuple, ref["named"])) != sorted(map(tuple, row["named"])):
+            differ.append({"kind": row["kind"], "seed": row["seed"],
+                           "was": ref["named"], "now": row["named"]})  # fmt: skip
+        for key in ("gap_before_nt", "gap_after_nt"):
+            worst = max(worst, abs(row[key] - ref[key]) / max(abs(ref[key]), 1e-12))
+    return {"compared": compared, "unmatched": len(new) - compared, "differ": differ,
+            "max_relative_gap_change": worst}  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) != 2:
+        print("usage: python -m experiments.same_verdicts OLD/results.json NEW/results.json",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    old, new = (json.loads(Path(a).read_text()) for a in args)
+    out = compare(old, new)
+    for d in out["differ"]:
+        print(f"{d['kind']} seed {d['seed']}: {d['was']} -> {d['now']}")
+    print(f"{out['compared']} cases compared ({out['unmatched']} unmatched): "
+          f"{len(out['differ'])} name different effects; held-out gaps change by at most "
+          f"{out['max_relative_gap_change']:.1e} (relative)")  # fmt: skip
+    return 1 if out["differ"] else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -95,6 +95,9 @@ def test_a_column_zero_on_every_row_is_not_identified() -> None:
     assert beta[2] == 0.0 and cov[2, 2] == np.inf
     assert not cov[2, [0, 1, 3]].any() and not cov[[0, 1, 3], 2].any()
     assert np.isfinite(rss)
+    beta, rss, cov = least_squares(np.zeros((50, 2)), y[:50])
+    assert not beta.any() and rss == pytest.approx(float(y[:50] @ y[:50]))
+    assert (np.diag(cov) == np.inf).all()
 
 
 @pytest.mark.parametrize("cond", [5.0, 2e4, 1e5])

@@ -241,7 +241,9 @@ def least_squares(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float, np.n
     g = gram[np.ix_(seen, seen)] / np.outer(ns, ns)  # the Gram matrix of the unit columns
     lam, v = np.linalg.eigh(g)
     beta = np.zeros(x.shape[1])
-    if lam.size and lam[0] > lam[-1] / NORMAL_EQUATIONS_MAX_COND**2:
+    if not seen.any():
+        g_inv = np.zeros((0, 0))
+    elif lam[0] > lam[-1] / NORMAL_EQUATIONS_MAX_COND**2:
         g_inv = (v / lam) @ v.T
         beta[seen] = g_inv @ ((x.T @ y)[seen] / ns) / ns
         beta[seen] += g_inv @ ((x.T @ (y - x @ beta))[seen] / ns) / ns

@@ -27,11 +27,11 @@ import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError, HyperparameterError
-from agents.evaluate import VALIDATION_SEEDS, run_episode
 from agents.hyperparams_file import read_hyperparams
 from agents.imitation import behaviour_clone, seed_stream
 from agents.numpy_policy import NumpyPPOPolicy
 from agents.policy_file import export_policy
+from agents.validation import Validator, validation_rmse, validation_seeds  # noqa: F401
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.json"
 #: The checkpoint, written as a set (the model, the observation normaliser, the curve).
@@ -115,27 +115,6 @@ def normalized(venv: Any, hp: dict[str, Any]) -> Any:
 def validate(policy: NumpyPPOPolicy, scenario: str, episodes: int) -> float:
     """Mean episode RMSE on the first ``episodes`` validation seeds [nT]."""
     return float(np.mean(validation_rmse(policy, scenario, episodes)))
-
-
-def validation_rmse(policy: Any, scenario: str, episodes: int,
-                    env_kwargs: dict[str, Any] | None = None) -> np.ndarray:  # fmt: skip
-    """Each episode's RMSE on the first ``episodes`` validation seeds [nT]; ``policy`` a
-    policy object or a name of :func:`agents.make_policy` (then in ``env_kwargs``)."""
-    from agents import make_policy
-
-    kwargs = policy.env_kwargs if env_kwargs is None else env_kwargs
-    env = gym.make("AeroMagCompensation-v0", scenario=scenario, **kwargs)
-    if isinstance(policy, str):
-        policy = make_policy(policy, env)
-    return np.array([run_episode(env, policy, s)["rmse_nt"] for s in validation_seeds(episodes)])
-
-
-def validation_seeds(episodes: int) -> range:
-    """The first ``episodes`` seeds of the validation range (never a test seed)."""
-    if not 1 <= episodes <= len(VALIDATION_SEEDS):
-        n = len(VALIDATION_SEEDS)
-        raise AeromagError(f"validation takes 1 to {n} episodes, got {episodes}")
-    return range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + episodes)
 
 
 def train_ppo(
@@ -306,7 +285,7 @@ class _Callback(_callback_base()):  # type: ignore[misc]
         best = min(curve, key=_selection_score, default=None)
         self.best = float("inf") if best is None else _selection_score(best)
         self.best_rmse = float("inf") if best is None else best["validation_rmse_nt"]
-        self.reference: np.ndarray | None = None
+        self.validator = Validator(hp.get("select_by", "rmse"), scenario, int(hp["eval_episodes"]))
         self.next_eval = 0
         self.t0 = time.perf_counter()
         self.bar: Any = None
@@ -341,19 +320,10 @@ class _Callback(_callback_base()):  # type: ignore[misc]
             "hyperparams_version": self.hp["version"],
         }
         candidate = export_policy(self.model, self.venv, self.out / "candidate.npz", meta)
-        episodes = int(self.hp["eval_episodes"])
-        each = validation_rmse(NumpyPPOPolicy.load(candidate), self.scenario, episodes)
         point = {"timesteps": int(self.model.num_timesteps),
-                 "validation_rmse_nt": float(each.mean()),
+                 **self.validator(NumpyPPOPolicy.load(candidate)),
                  "seconds": time.perf_counter() - self.t0}  # fmt: skip
-        score = point["validation_rmse_nt"]
-        if self.hp.get("select_by", "rmse") == "ratio_to_privileged":
-            if self.reference is None:  # the privileged policy on the same flights, once
-                from agents import policy_env_kwargs
-
-                self.reference = validation_rmse("privileged", self.scenario, episodes,
-                                                 policy_env_kwargs("privileged"))  # fmt: skip
-            score = point["validation_score"] = float(np.mean(each / self.reference))
+        score = _selection_score(point)
         self.curve.append(point)
         if score < self.best:
             self.best, self.best_rmse = score, point["validation_rmse_nt"]

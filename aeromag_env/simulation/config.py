@@ -234,6 +234,31 @@ class ScalarConfig:
         )
 
 
+@dataclass(frozen=True, kw_only=True)
+class GeologyConfig:
+    """Crustal magnetic anomaly (:mod:`aeromag_env.geo.crust`): a random potential field of
+    sources ``depth_to_source_m`` [m] to ``depth_to_source_m + source_thickness_m`` [m] below a
+    flat ground at altitude 0, spectrum ``∝ |k|^(−fractal_exponent)``, scaled to a total-field
+    anomaly of ``rms_nt`` [nT] RMS at ``reference_altitude_m`` [m]. Every sensor sees it; the
+    compensation's base model (IGRF + diurnal) does not. ``seed`` fixes the ground for every
+    flight of one pattern; None draws it from the flight's seed.
+    """
+
+    rms_nt: float = 50.0
+    reference_altitude_m: float = 400.0
+    depth_to_source_m: float = 200.0
+    source_thickness_m: float = 3000.0
+    fractal_exponent: float = 2.0
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        require_nonnegative(self, "rms_nt", "reference_altitude_m")
+        require_positive(self, "depth_to_source_m", "source_thickness_m")
+        beta = self.fractal_exponent
+        check(0 <= beta < 4, f"GeologyConfig.fractal_exponent must be in [0, 4), got {beta}")
+        check(self.seed is None or self.seed >= 0, f"GeologyConfig.seed must be ≥ 0: {self.seed}")
+
+
 AUX_KINDS = ("switching", "strobe", "temperature", "random_walk")
 
 
@@ -292,7 +317,7 @@ class SimulationConfig:
 
     ``aux_channels`` are simulated auxiliary channels and ``effects`` the extra physical effects
     (effects library, :mod:`aeromag_env.simulation.effects`) added to the fluxgate on top of paper
-    eq. 5.
+    eq. 5; ``geology`` the crustal anomaly (None: none, as in every preset).
     """
 
     preset: str = "nominal"
@@ -304,6 +329,7 @@ class SimulationConfig:
     scalar: ScalarConfig = field(default_factory=ScalarConfig)
     aux_channels: tuple[AuxChannelConfig, ...] = ()
     effects: tuple[EffectConfig, ...] = ()
+    geology: GeologyConfig | None = None
 
     def __post_init__(self) -> None:
         check(

@@ -6,6 +6,7 @@ the sensor noise leaves the trajectory and the coefficients of the same seed unc
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import json
 from collections.abc import Callable
@@ -18,11 +19,12 @@ from aeromag_env.configs import to_json
 from aeromag_env.errors import ConfigError
 from aeromag_env.flight.data import Flight, vector_names
 from aeromag_env.geo import earth
+from aeromag_env.geo.crust import field_at_positions, random_crust
 from aeromag_env.geo.earth import external_variation_ned, igrf_ned_along_track, parse_date
 from aeromag_env.geo.frames import dcm_from_euler, nav_to_body, time_derivative
 from aeromag_env.simulation import trajectory
 from aeromag_env.simulation.auxiliary import aux_channel
-from aeromag_env.simulation.config import SimulationConfig
+from aeromag_env.simulation.config import GeologyConfig, SimulationConfig
 from aeromag_env.simulation.effects import EffectContext, simulate_effects
 from aeromag_env.simulation.interference import (
     VectorCoefficients,
@@ -58,11 +60,12 @@ class _Flown:
 
 @dataclass(frozen=True)
 class _Ambient:
-    """The Earth-field stage: main field and external variation (NED), attitude and the
-    body-frame ambient field with its time derivative."""
+    """The Earth-field stage: main field, external variation and crustal anomaly (NED; None
+    without geology), attitude and the body-frame ambient field with its time derivative."""
 
     earth_n: np.ndarray
     ext_n: np.ndarray
+    crust_n: np.ndarray | None
     c_nb: np.ndarray
     t_b: np.ndarray
     tdot_b: np.ndarray
@@ -112,20 +115,21 @@ def simulate_flight(
     -------
     Flight
         Fields of DESIGN.md plus ``truth_earth_*`` (body-frame ambient field: IGRF + external
-        variation), ``truth_interf_*`` (interference at the fluxgate) and, with a scalar sensor,
-        ``truth_interf_mag_N``; attributes ``date``, ``config`` (JSON), ``seed`` (if given),
-        ``truth_coefficients`` (JSON) and ``maneuver_kinds``; all attributes are strings.
+        variation + crustal anomaly), ``truth_crust_*`` (its crustal part, with
+        ``config.geology``), ``truth_interf_*`` (interference at the fluxgate) and, with a
+        scalar sensor, ``truth_interf_mag_N``; attributes ``date``, ``config`` (JSON),
+        ``seed`` (if given), ``truth_coefficients`` (JSON) and ``maneuver_kinds`` (strings).
     """
     seed = rng if isinstance(rng, (int, np.integer)) else None
     gen = np.random.default_rng(rng)
     r_traj, r_earth, r_coef, r_flux, r_scalar, r_extra = gen.spawn(6)
-    r_aux, r_fx = r_extra.spawn(2)
+    r_aux, r_fx, r_geo = r_extra.spawn(3)  # a third child leaves the first two as they were
     step = progress or (lambda _stage: None)
 
     step(STAGES[0])
     flown = _fly(config, replay, r_traj, r_aux)
     step(STAGES[1])
-    ambient = _earth_field(config, flown, replay, r_earth)
+    ambient = _earth_field(config, flown, replay, (r_earth, r_geo))
     step(STAGES[2])
     aircraft = _aircraft_field(config, flown, ambient, r_coef, r_fx)
     step(STAGES[3])
@@ -166,11 +170,16 @@ def _fly(
 
 
 def _earth_field(
-    config: SimulationConfig, flown: _Flown, replay: Flight | None, r_earth: np.random.Generator
+    config: SimulationConfig,
+    flown: _Flown,
+    replay: Flight | None,
+    rngs: tuple[np.random.Generator, np.random.Generator],
 ) -> _Ambient:
     """Earth-field stage: IGRF along the track plus the external variation (the replayed
-    flight's ``diurnal`` along the main field, else simulated), rotated into the body frame."""
+    flight's ``diurnal`` along the main field, else simulated, from ``rngs[0]``) and the
+    crustal anomaly (from ``rngs[1]``), rotated into the body frame."""
     traj, start = flown.traj, flown.start
+    r_earth, r_geo = rngs
     earth_n = igrf_ned_along_track(
         traj.tt, traj.lat, traj.lon, traj.alt, start, config.earth.igrf_grid_spacing_s
     )
@@ -187,10 +196,27 @@ def _earth_field(
             r_earth,
             config.earth.external_smoothing_s,
         )
+    crust_n = None if config.geology is None else _crust(config.geology, traj, earth_n, r_geo)
+    ambient_n = earth_n + ext_n if crust_n is None else earth_n + ext_n + crust_n
     c_nb = dcm_from_euler(traj.roll, traj.pitch, traj.yaw)
-    t_b = nav_to_body(c_nb, earth_n + ext_n)
+    t_b = nav_to_body(c_nb, ambient_n)
     tdot_b = time_derivative(t_b, traj.tt, "central")
-    return _Ambient(earth_n=earth_n, ext_n=ext_n, c_nb=c_nb, t_b=t_b, tdot_b=tdot_b)
+    return _Ambient(
+        earth_n=earth_n, ext_n=ext_n, crust_n=crust_n, c_nb=c_nb, t_b=t_b, tdot_b=tdot_b
+    )
+
+
+def _crust(
+    geology: GeologyConfig, traj: Trajectory, earth_n: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """The crustal anomaly along the track (n, 3) NED [nT]; its total-field part is along the
+    mean main field. Drawn from ``rng``, or from ``geology.seed`` when set."""
+    spectrum = dataclasses.asdict(geology)
+    seed = spectrum.pop("seed")
+    rng = rng if seed is None else np.random.default_rng(seed)
+    crust = random_crust(traj.lat, traj.lon, traj.alt, rng, **spectrum,
+                         main_field_ned=earth_n.mean(axis=0))  # fmt: skip
+    return field_at_positions(crust, traj.lat, traj.lon, traj.alt)
 
 
 def _aircraft_field(
@@ -294,6 +320,9 @@ def _truth_fields(
     }
     fields.update(zip(vector_names("truth_earth"), ambient.t_b.T, strict=True))
     fields.update(zip(vector_names("truth_interf"), aircraft.interf.T, strict=True))
+    if ambient.crust_n is not None:
+        crust_b = nav_to_body(ambient.c_nb, ambient.crust_n)
+        fields.update(zip(vector_names("truth_crust"), crust_b.T, strict=True))
     if aircraft.extra is not None:
         fields.update(zip(vector_names("truth_effects"), aircraft.extra.T, strict=True))
     if scalar is not None:

@@ -27,7 +27,7 @@ from aeromag_env.flight.mount_choice import in_body_axes
 from aeromag_env.flight.selection import select
 
 #: 2: the provenance blocks of :func:`aeromag_env.cli.provenance.provenance`.
-REPORT_VERSION = 2
+REPORT_VERSION = 3
 #: The output set of ``aeromag discover``, in the folder ``out``.
 OUTPUTS = ("report.json", "report.md", "model_config.json", "residual.png", "diagnostics.png")
 
@@ -69,6 +69,8 @@ def run_discover(
               "input_problems": problems, "selection": chosen.report,
               **provenance(path, inputs.work, inputs, earth_model_used=True)}  # fmt: skip
     report = _jsonable(report)
+    for caveat in report["caveats"]:
+        warn(caveat)
     model = json.loads(to_json(result.model))
     with output_set(out, OUTPUTS, sources) as stage:
         write_text(stage / "report.json", json.dumps(report, indent=2))
@@ -86,6 +88,7 @@ def markdown(report: dict[str, Any]) -> str:
         "",
         f"**Verdict: {report['verdict']}.**",
         "",
+        *[f"**Caveat:** {c}.\n" for c in report.get("caveats", [])],
         f"Held-out gap (measured − simulated, above the {gap['white_noise_floor_nt']:.2f} nT "
         f"white-noise floor): {gap['rms_before_nt']:.3f} nT with the base model → "
         f"{gap['rms_after_nt']:.3f} nT with the named effects ({gap['shrink']:.2f}×); raw RMS "

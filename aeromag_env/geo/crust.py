@@ -79,6 +79,9 @@ class CrustField:
         Origin of the local frame (north = east = 0) [rad].
     depth_to_source_m : float
         Depth of the sources' top below the ground [m]; the field exists above it.
+    level_base_m : float or None
+        Lowest of fixed altitude levels [m] (geometric in ``h + d`` from it), so that every
+        evaluation samples the same levels; None: the levels span the altitudes asked for.
     """
 
     spectrum: np.ndarray
@@ -88,6 +91,7 @@ class CrustField:
     lat0_rad: float
     lon0_rad: float
     depth_to_source_m: float
+    level_base_m: float | None = None
 
     def wavenumbers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``k_n`` (n_north, 1), ``k_e`` (1, n_east // 2 + 1) and ``|k|`` [rad/m]."""
@@ -176,17 +180,39 @@ def random_crust(
     north, east = local_north_east(lat, lon, lat0, lon0)
     alt = np.asarray(alt_m, float)
     shape, spacing, origin = _grid(north, east, alt, depth_to_source_m, source_thickness_m)
+    grid = CrustField(spectrum=np.empty((0, 0), complex), shape=shape, spacing_m=spacing,
+                      origin_m=origin, lat0_rad=lat0, lon0_rad=lon0,
+                      depth_to_source_m=depth_to_source_m)  # fmt: skip
+    return draw_crust(grid, rng, rms_nt=rms_nt, reference_altitude_m=reference_altitude_m,
+                      source_thickness_m=source_thickness_m, fractal_exponent=fractal_exponent,
+                      main_field_ned=main_field_ned)  # fmt: skip
+
+
+def draw_crust(
+    grid: CrustField,
+    rng: np.random.Generator,
+    *,
+    rms_nt: float,
+    reference_altitude_m: float,
+    source_thickness_m: float,
+    fractal_exponent: float,
+    main_field_ned: np.ndarray | None = None,
+) -> CrustField:
+    """Draw a crustal anomaly on a given grid: ``grid`` with its ``spectrum`` replaced.
+
+    White noise (``rng.standard_normal(grid.shape)``) coloured by :func:`source_spectrum` at
+    ``grid.depth_to_source_m``, scaled so that the total-field anomaly along ``main_field_ned``
+    (default straight down) has ``rms_nt`` RMS over the grid at ``reference_altitude_m`` [m];
+    the other arguments as in :func:`random_crust`.
+    """
     p = source_spectrum(
-        _wavenumbers(shape, spacing)[2],
-        depth_to_source_m=depth_to_source_m,
+        _wavenumbers(grid.shape, grid.spacing_m)[2],
+        depth_to_source_m=grid.depth_to_source_m,
         source_thickness_m=source_thickness_m,
         fractal_exponent=fractal_exponent,
     )
-    crust = CrustField(
-        spectrum=np.fft.rfft2(rng.standard_normal(shape)) * np.sqrt(p), shape=shape,
-        spacing_m=spacing, origin_m=origin, lat0_rad=lat0, lon0_rad=lon0,
-        depth_to_source_m=depth_to_source_m,
-    )  # fmt: skip
+    crust = dataclasses.replace(grid, spectrum=np.fft.rfft2(rng.standard_normal(grid.shape))
+                                * np.sqrt(p))  # fmt: skip
     down = np.array([0.0, 0.0, 1.0])
     direction = down if main_field_ned is None else np.asarray(main_field_ned, float)
     direction = direction / np.linalg.norm(direction)
@@ -257,7 +283,8 @@ def field_at(
     periodic cubic splines; between levels a cubic Hermite in altitude.
     """
     alt = np.asarray(alt_m, float)
-    levels = _levels(float(np.min(alt)), float(np.max(alt)), crust.depth_to_source_m)
+    levels = _levels(float(np.min(alt)), float(np.max(alt)), crust.depth_to_source_m,
+                     crust.level_base_m)  # fmt: skip
     j = np.clip(np.searchsorted(levels, alt, side="right") - 1, 0, levels.size - 2)
     origin = np.reshape(crust.origin_m, (2, 1))
     coords = np.stack([np.asarray(north_m, float), np.asarray(east_m, float)]) - origin
@@ -277,11 +304,18 @@ def field_at(
     return h00 * ends[0, 0] + h10 * dh * ends[0, 1] + h01 * ends[1, 0] + h11 * dh * ends[1, 1]
 
 
-def _levels(alt_min: float, alt_max: float, depth_m: float) -> np.ndarray:
-    """Altitudes [m] from ``alt_min`` to ``alt_max`` (at least two), geometric in ``h + d``."""
+def _levels(alt_min: float, alt_max: float, depth_m: float, base_m: float | None) -> np.ndarray:
+    """Altitudes [m] geometric in ``h + d`` (at least two) spanning ``alt_min`` to ``alt_max``:
+    from ``alt_min`` to ``alt_max``, or, with ``base_m``, the fixed levels ``(base_m + d) 1.5^j
+    − d`` that enclose them."""
     low, high = alt_min + depth_m, max(alt_max + depth_m, alt_min + depth_m + 1.0)
     if not low > 0:
         raise ValueError(f"altitude {alt_min:.0f} m is below the crustal sources' top")
+    if base_m is not None:
+        step = math.log(_LEVEL_RATIO)
+        first = math.floor(math.log(low / (base_m + depth_m)) / step)
+        last = max(first + 1, math.ceil(math.log(high / (base_m + depth_m)) / step))
+        return (base_m + depth_m) * _LEVEL_RATIO ** np.arange(first, last + 1.0) - depth_m
     count = max(1, math.ceil(math.log(high / low) / math.log(_LEVEL_RATIO)))
     return np.geomspace(low, high, count + 1) - depth_m
 

@@ -240,8 +240,10 @@ class GeologyConfig:
     sources ``depth_to_source_m`` [m] to ``depth_to_source_m + source_thickness_m`` [m] below a
     flat ground at altitude 0, spectrum ``∝ |k|^(−fractal_exponent)``, scaled to a total-field
     anomaly of ``rms_nt`` [nT] RMS at ``reference_altitude_m`` [m]. Every sensor sees it; the
-    compensation's base model (IGRF + diurnal) does not. ``seed`` fixes the ground for every
-    flight of one pattern; None draws it from the flight's seed.
+    compensation's base model (IGRF + diurnal) does not. ``seed`` fixes one ground over a square
+    area (:mod:`aeromag_env.geo.crust_area`; side ``area_size_km``, centred on the area_center
+    [deg], None: the trajectory's start; flown ≥ ``min_altitude_m`` [m]), the same for every
+    flight over it; None draws it from the flight's seed on a grid around the track.
     """
 
     rms_nt: float = 50.0
@@ -250,13 +252,20 @@ class GeologyConfig:
     source_thickness_m: float = 3000.0
     fractal_exponent: float = 2.0
     seed: int | None = None
+    area_center_lat_deg: float | None = None
+    area_center_lon_deg: float | None = None
+    area_size_km: float = 100.0
+    min_altitude_m: float = 300.0
 
     def __post_init__(self) -> None:
+        from aeromag_env.geo.crust_area import check_area
+
         require_nonnegative(self, "rms_nt", "reference_altitude_m")
         require_positive(self, "depth_to_source_m", "source_thickness_m")
         beta = self.fractal_exponent
         check(0 <= beta < 4, f"GeologyConfig.fractal_exponent must be in [0, 4), got {beta}")
         check(self.seed is None or self.seed >= 0, f"GeologyConfig.seed must be ≥ 0: {self.seed}")
+        check_area(self)
 
 
 AUX_KINDS = ("switching", "strobe", "temperature", "random_walk")

@@ -19,12 +19,12 @@ from aeromag_env.configs import to_json
 from aeromag_env.errors import ConfigError
 from aeromag_env.flight.data import Flight, vector_names
 from aeromag_env.geo import earth
-from aeromag_env.geo.crust import field_at_positions, random_crust
+from aeromag_env.geo.crust_area import crust_along_track
 from aeromag_env.geo.earth import external_variation_ned, igrf_ned_along_track, parse_date
 from aeromag_env.geo.frames import dcm_from_euler, nav_to_body, time_derivative
 from aeromag_env.simulation import trajectory
 from aeromag_env.simulation.auxiliary import aux_channel
-from aeromag_env.simulation.config import GeologyConfig, SimulationConfig
+from aeromag_env.simulation.config import SimulationConfig
 from aeromag_env.simulation.effects import EffectContext, simulate_effects
 from aeromag_env.simulation.interference import (
     VectorCoefficients,
@@ -196,7 +196,17 @@ def _earth_field(
             r_earth,
             config.earth.external_smoothing_s,
         )
-    crust_n = None if config.geology is None else _crust(config.geology, traj, earth_n, r_geo)
+    crust_n = None
+    if config.geology is not None:  # the area's ground with a seed, else one around the track
+        crust_n = crust_along_track(
+            traj.lat,
+            traj.lon,
+            traj.alt,
+            r_geo,
+            main_field_ned=earth_n.mean(axis=0),
+            start_deg=(config.trajectory.start_lat_deg, config.trajectory.start_lon_deg),
+            **dataclasses.asdict(config.geology),
+        )
     ambient_n = earth_n + ext_n if crust_n is None else earth_n + ext_n + crust_n
     c_nb = dcm_from_euler(traj.roll, traj.pitch, traj.yaw)
     t_b = nav_to_body(c_nb, ambient_n)
@@ -204,19 +214,6 @@ def _earth_field(
     return _Ambient(
         earth_n=earth_n, ext_n=ext_n, crust_n=crust_n, c_nb=c_nb, t_b=t_b, tdot_b=tdot_b
     )
-
-
-def _crust(
-    geology: GeologyConfig, traj: Trajectory, earth_n: np.ndarray, rng: np.random.Generator
-) -> np.ndarray:
-    """The crustal anomaly along the track (n, 3) NED [nT]; its total-field part is along the
-    mean main field. Drawn from ``rng``, or from ``geology.seed`` when set."""
-    spectrum = dataclasses.asdict(geology)
-    seed = spectrum.pop("seed")
-    rng = rng if seed is None else np.random.default_rng(seed)
-    crust = random_crust(traj.lat, traj.lon, traj.alt, rng, **spectrum,
-                         main_field_ned=earth_n.mean(axis=0))  # fmt: skip
-    return field_at_positions(crust, traj.lat, traj.lon, traj.alt)
 
 
 def _aircraft_field(

@@ -16,6 +16,7 @@ from aeromag_env.configs import from_dict, from_json, to_json
 from aeromag_env.errors import ConfigError
 from aeromag_env.flight.data import Flight
 from aeromag_env.geo import crust as cr
+from aeromag_env.geo import crust_area
 from aeromag_env.geo.frames import body_to_nav, dcm_from_euler
 from aeromag_env.simulation.config import (
     PRESETS,
@@ -306,3 +307,137 @@ def test_the_box_at_3000_m_sees_much_less_ground_than_the_lines_at_400_m():
     rms = [np.sqrt(np.mean(np.sum(crust[sel] ** 2, axis=1))) for sel in (box, lines)]
     assert rms[1] > 20.0
     assert 0.15 < rms[0] / rms[1] < 0.65
+
+
+# The ground of an area (``GeologyConfig.seed`` set): aeromag_env.geo.crust_area.
+
+
+def _ned_crust(f: Flight) -> np.ndarray:
+    return body_to_nav(dcm_from_euler(*f.attitude_rad()), f.vector("truth_crust"))
+
+
+def _exact(crust: cr.CrustField, north: np.ndarray, east: np.ndarray, alt: np.ndarray):
+    """The crustal field at local positions by the direct sum of its Fourier series (n, 3) [nT]."""
+    k_n, k_e, _ = crust.wavenumbers()
+    weight = np.full(k_e.shape, 2.0)  # the half spectrum stands for its mirror too
+    weight[0, 0] = 1.0
+    weight[0, -1] = 1.0 if crust.shape[1] % 2 == 0 else 2.0
+    exact = np.empty((north.size, 3))
+    for i in range(north.size):
+        phase = np.exp(
+            1j * (k_n * (north[i] - crust.origin_m[0]) + k_e * (east[i] - crust.origin_m[1]))
+        )
+        spectra = cr.component_spectra(crust, alt[i])
+        exact[i] = np.real(np.sum(spectra * phase * weight, axis=(1, 2))) / np.prod(crust.shape)
+    return exact
+
+
+AREA = GeologyConfig(seed=7)
+
+
+def test_flights_of_other_patterns_lengths_and_seeds_see_the_same_ground():
+    """A calibration+survey flight (nominal, seed 1, 20 min) and a replay of part of its survey
+    lines backwards (paper, seed 2, other attitude): both get the area's ground, so the replay
+    sees the first flight's NED vector at every one of its positions — to round-off, since the
+    grid and the altitude levels come from the configuration alone (a grid around each track
+    would give two different grounds, tens of nT apart)."""
+    first = _flight("nominal", 1, AREA, pattern="calibration+survey", duration_s=1200.0)
+    lines = np.flatnonzero(first["line"] >= 1001)[::-1][:2000]  # backwards along the lines
+    assert lines.size == 2000 and np.ptp(first["alt"]) > 2000  # box and lines, lines only
+    fields = {"tt": np.arange(lines.size) * 0.1, "lat": first["lat"][lines],
+              "lon": first["lon"][lines], "alt": first["alt"][lines],
+              "ins_roll": np.full(lines.size, 5.0), "ins_pitch": np.full(lines.size, -2.0),
+              "ins_yaw": np.full(lines.size, 30.0)}  # fmt: skip
+    replay = Flight(fields=fields, attrs={"date": "2027-03-01T09:00:00"})
+    second = simulate_flight(dataclasses.replace(preset("paper"), geology=AREA), 2, replay=replay)
+    seen = _ned_crust(second)
+    assert np.sqrt(np.mean(seen**2)) > 10.0  # a ground worth comparing
+    np.testing.assert_allclose(seen, _ned_crust(first)[lines], atol=1e-9)
+
+
+def test_each_flight_samples_the_areas_exact_fourier_series():
+    """A survey flight and a calibration+survey flight of other lengths and seeds: at 12 samples
+    of each (box at 3000 m and lines at 400 m) the NED vector is the area ground's exact
+    Fourier series, within the evaluation's tested 0.05 nT."""
+    flights = [
+        _flight("nominal", 3, AREA, pattern="survey", duration_s=900.0),
+        _flight("paper", 4, AREA, pattern="calibration+survey", duration_s=1500.0),
+    ]
+    center = (AREA.area_center_lat_deg or 45.3, AREA.area_center_lon_deg or -76.0)
+    ground = crust_area.area_ground(7, center, 100.0, 300.0, rms_nt=50.0,
+                                    reference_altitude_m=400.0, **SPECTRUM)  # fmt: skip
+    for f in flights:
+        pick = np.linspace(0, f.n - 1, 12).astype(int)
+        north, east = cr.local_north_east(np.deg2rad(f["lat"][pick]), np.deg2rad(f["lon"][pick]),
+                                          ground.crust.lat0_rad, ground.crust.lon0_rad)  # fmt: skip
+        exact = _exact(ground.crust, north, east, f["alt"][pick])
+        assert np.abs(exact).max() > 10.0
+        np.testing.assert_allclose(_ned_crust(f)[pick], exact, atol=0.05)
+
+
+def test_the_areas_fixed_levels_match_the_exact_fourier_series():
+    """Splines across and Hermite between the levels anchored at ``min_altitude_m`` (not at the
+    points' own altitudes): within 0.05 nT at 40 points from 300 to 3000 m, as for a track's
+    grid; the levels of two altitude ranges coincide where they overlap."""
+    ground = crust_area.area_ground(3, (45.3, -76.0), 10.0, 300.0, rms_nt=50.0,
+                                    reference_altitude_m=400.0, **SPECTRUM)  # fmt: skip
+    rng = np.random.default_rng(11)
+    north, east = rng.uniform(-5000.0, 5000.0, (2, 40))
+    alt = rng.uniform(300.0, 3000.0, 40)
+    exact = _exact(ground.crust, north, east, alt)
+    assert np.abs(exact).max() > 20.0
+    np.testing.assert_allclose(cr.field_at(ground.crust, north, east, alt), exact, atol=0.05)
+    low, wide = cr._levels(400.0, 400.0, 200.0, 300.0), cr._levels(350.0, 3000.0, 200.0, 300.0)
+    np.testing.assert_array_equal(low, wide[:2])
+    np.testing.assert_allclose(wide[[0, -1]], [300.0, 500 * 1.5**5 - 200])
+
+
+def test_a_seeded_ground_is_drawn_once_for_many_flights():
+    crust_area.area_ground.cache_clear()
+    for seed in (1, 2):
+        _flight("nominal", seed, GeologyConfig(seed=5), pattern="survey", duration_s=60.0)
+    info = crust_area.area_ground.cache_info()
+    assert (info.misses, info.hits) == (1, 1)
+
+
+@pytest.mark.parametrize(
+    ("geology", "trajectory", "words"),
+    [
+        (GeologyConfig(seed=1, area_size_km=10.0), {"pattern": "survey", "duration_s": 300.0},
+         r"the track leaves the 10 km geology area around \(45.3000°, -76.0000°\) by 6\.03 km: "
+         "set GeologyConfig.area_size_km or area_center_lat_deg/area_center_lon_deg"),
+        (GeologyConfig(seed=1, area_center_lat_deg=46.0, area_center_lon_deg=-76.0),
+         {"pattern": "survey", "duration_s": 60.0}, "leaves the 100 km geology area around "
+         r"\(46\.0000°, -76\.0000°\) by 2[78]\.\d\d km"),
+        (GeologyConfig(seed=1, min_altitude_m=500.0), {"pattern": "survey", "duration_s": 60.0},
+         "the track flies down to 400 m, below GeologyConfig.min_altitude_m = 500 m"),
+    ],
+)  # fmt: skip
+def test_a_track_the_area_does_not_serve_is_refused(geology, trajectory, words):
+    with pytest.raises(ValueError, match=words) as err:
+        _flight("nominal", 0, geology, **trajectory)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("fields", "words"),
+    [
+        ({"area_center_lat_deg": 45.0}, "area_center_lon_deg must be both set or both None"),
+        ({"area_center_lat_deg": 95.0, "area_center_lon_deg": 0.0}, r"must be in \(-90, 90\)"),
+        ({"area_center_lat_deg": 0.0, "area_center_lon_deg": 400.0}, "out of range: 400.0"),
+        ({"area_size_km": 0.0}, "GeologyConfig.area_size_km must be > 0"),
+        ({"min_altitude_m": float("nan")}, "GeologyConfig.min_altitude_m must be ≥ 0"),
+        ({"area_size_km": 300.0}, "GeologyConfig.area_size_km: a 300 km area down to 300 m "
+         r"needs 3200 × 3200 crustal grid nodes at 100 m, more than 4194304"),
+    ],
+)  # fmt: skip
+def test_geology_area_errors_are_one_line(fields, words):
+    with pytest.raises(ConfigError, match=words) as err:
+        GeologyConfig(**fields)
+    assert "\n" not in str(err.value)
+
+
+def test_geology_area_round_trip():
+    cfg = with_overrides(preset("paper"), {"geology": {"seed": 3, "area_center_lat_deg": 50.0,
+                                                       "area_center_lon_deg": 10.0}})  # fmt: skip
+    assert from_json(SimulationConfig, to_json(cfg)) == cfg

@@ -30,8 +30,10 @@ The grid is periodic (FFT), so it is padded around the track by several correlat
 no two track points are closer through the periodic image than directly. Along a track the
 field is sampled from grids at a few altitudes (geometric in ``h + d``): periodic cubic splines
 across, cubic Hermite (value and exact ``∂B/∂h``) in altitude; tested against the exact Fourier
-series. The field depends on position only, and the realisation on the rng and the grid (which
-follows from the track's extent and altitudes).
+series. The field depends on position only, and the realisation on the rng and the grid: here
+(:func:`random_crust`) the grid follows from the track's extent and altitudes; for one ground
+shared by every flight over a survey area, :mod:`aeromag_env.geo.crust_area` fixes the grid and
+the altitude levels from the configuration alone.
 """
 
 from __future__ import annotations

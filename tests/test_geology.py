@@ -6,6 +6,7 @@ its configuration, and its place in the simulated flight."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -441,3 +442,19 @@ def test_geology_area_round_trip():
     cfg = with_overrides(preset("paper"), {"geology": {"seed": 3, "area_center_lat_deg": 50.0,
                                                        "area_center_lon_deg": 10.0}})  # fmt: skip
     assert from_json(SimulationConfig, to_json(cfg)) == cfg
+
+
+def test_cli_refuses_a_track_off_the_geology_area_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A configuration error, not an internal one: exit 2, one line, no file written."""
+    from aeromag_env.cli.main import main
+    from aeromag_env.simulation.config import preset, with_overrides
+
+    cfg = with_overrides(preset("nominal"), {"geology": {"seed": 3, "area_size_km": 5.0}})
+    path = tmp_path / "small_area.json"
+    path.write_text(to_json(cfg))
+    assert main(["simulate", "--config", str(path), "--out", str(tmp_path / "f.h5")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "error: the track leaves the 5 km geology area" in err[0]
+    assert "internal error" not in err[0] and not (tmp_path / "f.h5").exists()

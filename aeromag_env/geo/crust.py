@@ -45,6 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aeromag_env.errors import ConfigError
 from aeromag_env.geo.frames import earth_radii_m
 
 #: Grid spacing = (lowest altitude + depth to source) / this [-]: a mode at the grid's Nyquist
@@ -231,7 +232,7 @@ def _grid(
 
     low, high = float(np.min(alt_m)) + depth_m, float(np.max(alt_m)) + depth_m
     if not low > 0:
-        raise ValueError(
+        raise ConfigError(
             f"the track goes down to {low - depth_m:.0f} m, below the crustal sources' top "
             f"at {-depth_m:.0f} m"
         )
@@ -241,7 +242,7 @@ def _grid(
     spacing = max(low / _NODES_PER_DEPTH, math.sqrt(span_n * span_e / _MAX_NODES))
     if spacing > low / 2:
         extent = f"{np.ptp(north) / 1e3:.0f} km × {np.ptp(east) / 1e3:.0f} km"
-        raise ValueError(
+        raise ConfigError(
             f"the track spans {extent}: too large for a crustal grid down to {low - depth_m:.0f} m"
         )
     shape = (
@@ -312,7 +313,7 @@ def _levels(alt_min: float, alt_max: float, depth_m: float, base_m: float | None
     − d`` that enclose them."""
     low, high = alt_min + depth_m, max(alt_max + depth_m, alt_min + depth_m + 1.0)
     if not low > 0:
-        raise ValueError(f"altitude {alt_min:.0f} m is below the crustal sources' top")
+        raise ConfigError(f"altitude {alt_min:.0f} m is below the crustal sources' top")
     if base_m is not None:
         step = math.log(_LEVEL_RATIO)
         first = math.floor(math.log(low / (base_m + depth_m)) / step)

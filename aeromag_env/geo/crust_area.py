@@ -69,7 +69,7 @@ def area_grid(
     reference_altitude_m: float,
 ) -> tuple[tuple[int, int], float, tuple[float, float]]:
     """Grid shape, spacing [m] and origin (north, east of node 0 from the centre) [m] of an
-    area of side ``size_m`` [m]; ValueError (one line) beyond ``crust._MAX_NODES`` nodes."""
+    area of side ``size_m`` [m]; ConfigError (one line) beyond ``crust._MAX_NODES`` nodes."""
     from scipy.fft import next_fast_len
 
     spacing = (min_altitude_m + depth_m) / cr._NODES_PER_DEPTH
@@ -78,7 +78,7 @@ def area_grid(
     span = max(size_m + 2 * pad, cr._SPAN_SCALES * correlation_m)
     n = next_fast_len(math.ceil(span / spacing) + 1, real=True)
     if n * n > cr._MAX_NODES:
-        raise ValueError(
+        raise ConfigError(
             f"a {size_m / 1e3:g} km area down to {min_altitude_m:g} m needs {n} × {n} crustal "
             f"grid nodes at {spacing:g} m, more than {cr._MAX_NODES}"
         )
@@ -191,7 +191,7 @@ def crust_along_track(
 
     Raises
     ------
-    ValueError
+    ConfigError
         One line, if with ``seed`` the track leaves the area or flies below ``min_altitude_m``.
     """
     if seed is None:
@@ -208,20 +208,20 @@ def area_field_at(
     ground: AreaGround, lat: np.ndarray, lon: np.ndarray, alt_m: np.ndarray
 ) -> np.ndarray:
     """The ground's field at geodetic positions [rad] and altitudes [m], shape (n, 3) NED [nT];
-    ValueError (one line) if a position is outside the area or below its lowest altitude."""
+    ConfigError (one line) if a position is outside the area or below its lowest altitude."""
     crust = ground.crust
     north, east = cr.local_north_east(lat, lon, crust.lat0_rad, crust.lon0_rad)
     beyond = max(float(np.max(np.abs(north))), float(np.max(np.abs(east)))) - ground.half_size_m
     if beyond > 0:
         center = f"({np.rad2deg(crust.lat0_rad):.4f}°, {np.rad2deg(crust.lon0_rad):.4f}°)"
-        raise ValueError(
+        raise ConfigError(
             f"the track leaves the {2 * ground.half_size_m / 1e3:g} km geology area around "
             f"{center} by {beyond / 1e3:.2f} km: set GeologyConfig.area_size_km or "
             f"area_center_lat_deg/area_center_lon_deg"
         )
     alt = np.asarray(alt_m, float)
     if float(np.min(alt)) < ground.min_altitude_m:
-        raise ValueError(
+        raise ConfigError(
             f"the track flies down to {float(np.min(alt)):.0f} m, below "
             f"GeologyConfig.min_altitude_m = {ground.min_altitude_m:g} m"
         )

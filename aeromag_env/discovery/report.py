@@ -85,8 +85,8 @@ def build_report(
 
 
 #: A slow signal no candidate explains, above this size [nT], is a caveat: the coloured part of
-#: the final noise model (std, on any axis) or the held-out gap with the named effects. The
-#: suite's coloured-noise nulls and single effects at SNR 4 left at most 3.3 nT and 1 nT; over
+#: the final noise model (std, on any axis) or the held-out gap with the named effects. Of the
+#: 716 suite flights it flagged one, a pair whose temperature drift went unnamed; over
 #: simulated crustal geology (``GeologyConfig``) of 10 nT at 400 m the held-out gap was
 #: 5.6–7.8 nT, of 50 nT 27–38 nT (``python -m experiments.discovery_geology``, 2026-11-26).
 SLOW_RESIDUAL_NT = 5.0

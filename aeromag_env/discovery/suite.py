@@ -265,4 +265,5 @@ def run_case(case: Case) -> dict[str, Any]:
         "gap_before_nt": found["gap"]["rms_before_nt"],
         "gap_after_nt": found["gap"]["rms_after_nt"],
         "shrink": found["gap"]["shrink"],
+        "caveats": len(found["caveats"]),
     }

@@ -23,3 +23,31 @@ def test_an_error_in_any_chunk_is_raised():
 
     with pytest.raises(ValueError, match="chunk"):
         run_chunks(kernel, 64)
+
+
+def test_map_threads_keeps_order_runs_on_several_threads_and_re_raises(monkeypatch) -> None:
+    import threading
+
+    from aeromag_env import threads
+
+    monkeypatch.setattr(threads, "cores", lambda: 3)
+    seen: set[str] = set()
+    barrier = threading.Barrier(3, timeout=10)
+
+    def work(i: int) -> int:
+        seen.add(threading.current_thread().name)
+        barrier.wait()  # only returns when three threads are inside at once
+        return i * i
+
+    assert threads.map_threads(work, range(3)) == [0, 1, 4]
+    assert len(seen) == 3
+
+    def boom(i: int) -> int:
+        if i == 2:
+            raise ValueError("axis 2")
+        return i
+
+    with pytest.raises(ValueError, match="axis 2"):
+        threads.map_threads(boom, range(3))
+    monkeypatch.setattr(threads, "cores", lambda: 1)
+    assert threads.map_threads(lambda i: i + 1, range(3)) == [1, 2, 3]

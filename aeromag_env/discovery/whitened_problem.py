@@ -15,6 +15,7 @@ import numpy as np
 from aeromag_env.discovery.base_model import orthonormal
 from aeromag_env.discovery.noise_model import NoiseModel, fogm_quadratic, whiten
 from aeromag_env.discovery.preparation import PreparedFlight
+from aeromag_env.threads import map_threads
 
 
 class WhitenedProblem:
@@ -104,9 +105,9 @@ class WhitenedProblem:
         assert noise is not None
         m = self.idx.size
         out = np.empty((3 * m, cols.shape[2]))
-        for i in range(3):
-            whiten(cols[i], self.gap, noise.white_std_nt[i], noise.fogm_std_nt[i],
-                   noise.fogm_tau_s[i], out=out[i * m : (i + 1) * m])  # fmt: skip
+        map_threads(lambda i: whiten(cols[i], self.gap, noise.white_std_nt[i],
+                                     noise.fogm_std_nt[i], noise.fogm_tau_s[i],
+                                     out=out[i * m : (i + 1) * m]), range(3))  # fmt: skip
         return out
 
     def _rows(self, columns: np.ndarray) -> np.ndarray:

@@ -175,3 +175,30 @@ def test_hidden_effects_counts_power_against_duration_apart_from_the_snr_claims(
     row = next(line for line in text.splitlines() if line.startswith(f"| `{nm}` | 67 %"))
     assert "(2/3;" in row and "0 % (0/1;" in row and "| – |" in row
     assert "for the 5 cases of this run" in text
+
+
+def test_same_verdicts_flags_a_changed_named_list_and_counts_unmatched(tmp_path, capsys):
+    """experiments.same_verdicts: equal named sets (in any order) pass; a changed one fails
+    with exit 1 and is printed; a case only in the new run is counted, not compared."""
+    import json
+
+    from experiments.same_verdicts import main as same_verdicts
+
+    def row(seed, named, gap=1.0):
+        return {"kind": "single", "seed": seed, "named": named,
+                "gap_before_nt": 2.0, "gap_after_nt": gap}  # fmt: skip
+
+    old = [row(1, [["a", None], ["b", "ch"]]), row(2, [])]
+    same = [row(1, [["b", "ch"], ["a", None]], gap=1.0 + 1e-9), row(2, []), row(3, [["a", None]])]
+    changed = [row(1, [["a", None]]), row(2, [])]
+    paths = {}
+    for name, rows in (("old", old), ("same", same), ("changed", changed)):
+        paths[name] = tmp_path / f"{name}.json"
+        paths[name].write_text(json.dumps(rows))
+    assert same_verdicts([str(paths["old"]), str(paths["same"])]) == 0
+    out = capsys.readouterr().out
+    assert "2 cases compared (1 unmatched): 0 name different effects" in out
+    assert "at most 1.0e-09" in out
+    assert same_verdicts([str(paths["old"]), str(paths["changed"])]) == 1
+    assert "single seed 1:" in capsys.readouterr().out
+    assert same_verdicts([str(paths["old"])]) == 2

@@ -31,7 +31,7 @@ from agents.hyperparams_file import read_hyperparams
 from agents.imitation import behaviour_clone, seed_stream
 from agents.numpy_policy import NumpyPPOPolicy
 from agents.policy_file import export_policy
-from agents.validation import Validator, validation_rmse, validation_seeds  # noqa: F401
+from agents.validation import Validator, validation_rmse
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.json"
 #: The checkpoint, written as a set (the model, the observation normaliser, the curve).

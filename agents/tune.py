@@ -36,8 +36,9 @@ from aeromag_env.errors import AeromagError
 from aeromag_env.parallel.tasks import one_line
 from aeromag_env.threads import cores
 from agents.hyperparams_file import read_hyperparams
-from agents.ppo import HYPERPARAMS, load_hyperparams, training_torch, validation_seeds
+from agents.ppo import HYPERPARAMS, load_hyperparams, training_torch
 from agents.tune_space import plain, read_space, tune_domains
+from agents.validation import validation_seeds
 
 #: The outputs in ``--out``, written as a set.
 OUTPUTS = ("ppo.json", "tune.json")
@@ -248,7 +249,7 @@ def _validate(model: Any, venv: Any, hp: dict[str, Any], job: TuneJob, tmp: Path
     (the policy ``aeromag train`` would keep)."""
     from agents.numpy_policy import NumpyPPOPolicy
     from agents.policy_file import export_policy
-    from agents.ppo import validation_rmse
+    from agents.validation import validation_rmse
 
     meta = {"scenario": job.scenario, "env_kwargs": hp["env_kwargs"], "seed": job.seed,
             "timesteps": int(model.num_timesteps),

@@ -15,9 +15,10 @@ from aeromag_env.cli.main import main
 from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.evaluate import TEST_SEED_START, VALIDATION_SEEDS
 from agents.hyperparams_file import read_hyperparams
-from agents.ppo import HYPERPARAMS, load_hyperparams, validation_seeds
+from agents.ppo import HYPERPARAMS, load_hyperparams
 from agents.tune import OUTPUTS, ray_session
 from agents.tune_space import SPACE, read_space
+from agents.validation import validation_seeds
 
 #: A small space of the three kinds of distribution (the shipped one has six keys).
 SMALL = {

@@ -54,7 +54,7 @@ def cmd_discover(args: argparse.Namespace) -> int:
     """
     limits.check_window("--calibration-window", args.calibration_window)
     from aeromag_env.cli import fleet
-    from aeromag_env.cli.discover import run_discover
+    from aeromag_env.cli.discover import run_discover, shrink_text
 
     out = Path(args.out)
     window = tuple(args.calibration_window) if args.calibration_window else None
@@ -66,17 +66,17 @@ def cmd_discover(args: argparse.Namespace) -> int:
     if fleet.is_fleet(args.file):
         job = fleet.DiscoverJob(path=Path(args.file), out=out, flux=args.flux,
                                 calibration_window=window, mount=args.mount,
-                                selection=selection_options(args))  # fmt: skip
+                                selection=selection_options(args), ground=args.ground)  # fmt: skip
         return fleet.discover_fleet(job, args.file, args.ray, args.quiet)
     fleet.note_single_file("discover", args.ray)
     report = run_discover(Path(args.file), out, args.flux, window, say, mount=args.mount,
-                          selection=selection_options(args))  # fmt: skip
+                          selection=selection_options(args), ground=args.ground)  # fmt: skip
     gap, problems = report["gap"], report["input_problems"]
     warned = (f"; {len(problems)} input warning(s), listed in report.json (aeromag info explains "
               "them)") if problems else ""  # fmt: skip
     print(
         f"{report['verdict']}; held-out gap {gap['rms_before_nt']:.3g} → "
-        f"{gap['rms_after_nt']:.3g} nT ({gap['shrink']:.2f}×); wrote {out}/report.json, "
+        f"{gap['rms_after_nt']:.3g} nT ({shrink_text(gap)}); wrote {out}/report.json, "
         f"report.md, model_config.json, residual.png, diagnostics.png{warned}"
     )
     return 0

@@ -41,6 +41,7 @@ def run_discover(
     mount: str = "auto",
     warn: Warn = warn_stderr,
     selection: dict[str, Any] | None = None,
+    ground: str = "ignore",
 ) -> dict[str, Any]:
     """Do the work of ``aeromag discover``; return the report (also written to disk).
 
@@ -49,7 +50,8 @@ def run_discover(
     fluxgate into body axes before the workflow reads it. Warnings go to ``warn``.
     ``selection`` (``lines``, ``segment_s``, ``calibration_line``) picks the part of the flight
     (:func:`aeromag_env.flight.selection.select`); a calibration line is fitted on as a
-    calibration window from its first to its last sample.
+    calibration window from its first to its last sample. ``ground`` (``ignore`` or
+    ``separate``) is :func:`~aeromag_env.discovery.workflow.discover`'s.
     """
     sources = [path] if mount in ("auto", "identity") else [path, Path(mount)]
     check_output_set(out, OUTPUTS, sources)
@@ -64,7 +66,7 @@ def run_discover(
         calibration_window = (float(tt[0]), float(tt[-1]))
     work = in_body_axes(chosen.flight, inputs.mount)
     result = discover(work, flux=inputs.flux_name, calibration_window=calibration_window,
-                      progress=progress)  # fmt: skip
+                      progress=progress, ground=ground)  # fmt: skip
     report = {"report_version": REPORT_VERSION, "input": str(path), **result.report,
               "input_problems": problems, "selection": chosen.report,
               **provenance(path, inputs.work, inputs, earth_model_used=True)}  # fmt: skip
@@ -91,10 +93,11 @@ def markdown(report: dict[str, Any]) -> str:
         *[f"**Caveat:** {c}.\n" for c in report.get("caveats", [])],
         f"Held-out gap (measured − simulated, above the {gap['white_noise_floor_nt']:.2f} nT "
         f"white-noise floor): {gap['rms_before_nt']:.3f} nT with the base model → "
-        f"{gap['rms_after_nt']:.3f} nT with the named effects ({gap['shrink']:.2f}×); raw RMS "
+        f"{gap['rms_after_nt']:.3f} nT with the named effects ({shrink_text(gap)}); raw RMS "
         f"{gap['raw_rms_before_nt']:.3f} → {gap['raw_rms_after_nt']:.3f} nT. "
         f"Held-out scheme: {gap['held_out_scheme']}.",
         "",
+        *_ground_lines(report.get("ground") or {"mode": "ignore"}),
     ]
     lines += _effects_table(report["missing_effects"])
     head = "| effect | channel | regressors | identifiable fraction | verdict |"
@@ -126,6 +129,28 @@ def markdown(report: dict[str, Any]) -> str:
         f"{data['nonfinite_samples_dropped']} non-finite samples dropped.",
     ]
     return "\n".join(lines) + "\n"
+
+
+def shrink_text(gap: dict[str, Any]) -> str:
+    """The gap's shrink factor as text (``∞×`` when the named effects close it: report.json
+    holds null there)."""
+    shrink = gap["shrink"]
+    return "∞×" if shrink is None or shrink == float("inf") else f"{shrink:.2f}×"
+
+
+def _ground_lines(ground: dict[str, Any]) -> list[str]:
+    """The report's paragraph on the magnetic ground."""
+    if ground["mode"] == "ignore":
+        return ["Magnetic ground: ignored (`--ground separate` fits only what it cannot explain).",
+                ""]  # fmt: skip
+    lo, hi = ground["knot_spacing_s"] or [float("nan")] * 2
+    return [
+        f"Magnetic ground: separated ({ground['model']}; {ground['runs']} runs, "
+        f"{ground['columns']} columns, knots {lo:.1f}–{hi:.1f} s apart; clearance from "
+        f"{ground['clearance_source']}). Every series, fit and gap here is off the ground; "
+        f"{ground['base_model']}.",
+        "",
+    ]
 
 
 def plot_discovery(result: Discovery, out: Path) -> None:

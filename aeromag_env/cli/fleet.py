@@ -119,6 +119,7 @@ class DiscoverJob:
     calibration_window: tuple[float, float] | None = None
     mount: str = "auto"
     selection: dict[str, Any] | None = None
+    ground: str = "ignore"
 
 
 def compensate_flight(req: CompensateRequest) -> dict[str, Any]:
@@ -149,7 +150,7 @@ def discover_flight(job: DiscoverJob) -> dict[str, Any]:
     try:
         report = run_discover(job.path, job.out, job.flux, job.calibration_window, None,
                               mount=job.mount, warn=warnings.append,
-                              selection=job.selection)  # fmt: skip
+                              selection=job.selection, ground=job.ground)  # fmt: skip
     except (AeromagError, OSError) as e:
         return _failed(e, warnings)
     gap = report["gap"]

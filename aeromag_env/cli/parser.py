@@ -20,6 +20,7 @@ from aeromag_env.cli.commands import (
     cmd_train,
     cmd_tune,
 )
+from aeromag_env.discovery.ground import GROUND_MODES
 from aeromag_env.simulation.config import PATTERNS, PRESETS
 
 #: The exit statuses of every subcommand (``--help`` epilog; :func:`aeromag_env.cli.main.main`).
@@ -104,6 +105,9 @@ def _add_discover(sub: argparse._SubParsersAction) -> None:
         help="fit on this time window [s] and score the rest (default: interleaved 60-s "
         "blocks, every third held out)",
     )
+    p.add_argument("--ground", choices=GROUND_MODES, default="ignore", help="separate: fit, test "
+                   "and score only what magnetic ground cannot explain (survey lines; the "
+                   "report lists effects it cannot tell from ground) (default ignore)")  # fmt: skip
     _add_selection_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_discover)

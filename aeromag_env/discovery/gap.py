@@ -64,7 +64,7 @@ def gap_record(
     gap = {
         "rms_before_nt": before_nt,
         "rms_after_nt": after_nt,
-        "shrink": before_nt / after_nt if after_nt > 0 else float("inf"),
+        "shrink": before_nt / after_nt if after_nt > 0 else float("inf") if before_nt else 1.0,
         "evaluated_on": "held_out",
         "held_out_scheme": data.scheme,
         "definition": "sqrt(RMS² − σ_white²) of measured − simulated on the held-out samples",

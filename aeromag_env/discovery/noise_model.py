@@ -223,7 +223,10 @@ def _fit_one(
     f0 = max(math.sqrt(max(sd * sd - w0 * w0, 0.0)), 1e-2 * sd)
 
     def nll(z: np.ndarray) -> float:
-        w, f, t = np.exp(z)
+        with np.errstate(over="ignore"):  # τ → ∞ is a random walk's limit, not an error
+            w, f, t = np.exp(z)
+        if t == 0.0 or w * w + f * f == 0.0:  # underflow: on a white residual the search may
+            return math.inf  # drive τ to 0 (the FOGM becomes white noise too)
         return -_innovations(col, gap, t, f * f, w * w, buf)
 
     opts = {"xatol": 1e-2, "fatol": 1e-2, "maxiter": 200}

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from aeromag_env.compensation.samples import flight_samples
+from aeromag_env.discovery.base_model import base_columns
+from aeromag_env.discovery.ground import GroundReference, ground_reference
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.data import ATTITUDE_NAMES, Flight, vector_names
 from aeromag_env.simulation.effects import EffectContext
@@ -59,6 +61,9 @@ class PreparedFlight:
         Time gaps found.
     n_nonfinite : int
         Samples dropped for non-finite values.
+    ground : GroundReference or None
+        With ground separation, the ground's span: ``y`` is already off it, and every regressor
+        must be (:meth:`GroundReference.remove`, :meth:`GroundReference.group`).
     """
 
     ctx: EffectContext
@@ -70,10 +75,14 @@ class PreparedFlight:
     scheme: str
     n_gaps: int
     n_nonfinite: int
+    ground: GroundReference | None = None
 
 
 def prepare(
-    flight: Flight, flux: str, calibration_window: tuple[float, float] | None
+    flight: Flight,
+    flux: str,
+    calibration_window: tuple[float, float] | None,
+    ground: bool = False,
 ) -> PreparedFlight:
     """Model Earth field, usable samples and the calibration/held-out split of a flight.
 
@@ -86,6 +95,9 @@ def prepare(
     calibration_window : tuple of float or None
         ``(T0, T1)`` [s] to fit on that window and hold out the rest; None for interleaved
         blocks.
+    ground : bool
+        Separate the magnetic ground (:mod:`~aeromag_env.discovery.ground`): ``y`` is taken
+        off its span, run by run.
 
     Returns
     -------
@@ -119,9 +131,25 @@ def prepare(
     _check_amounts(calibration, held_out, dt)
     aux = {nm: np.nan_to_num(flight[nm]) for nm in flight.aux_channels()}
     ctx = EffectContext(tt=tt, c_nb=c_nb, t_b=t_b, tdot_b=tdot, t2dot_b=t2dot, alt=alt, aux=aux)
+    ref = None
+    if ground:
+        ref = ground_reference(flight, c_nb, y, base_columns(t_b, tdot), usable, calibration)
+        y = _off_ground(ref, y, (usable, calibration, held_out), dt)
     return PreparedFlight(
-        ctx, y, usable, calibration, held_out, dt, scheme, int(gap_after.size), n_nonfinite
+        ctx, y, usable, calibration, held_out, dt, scheme, int(gap_after.size), n_nonfinite, ref
     )
+
+
+def _off_ground(
+    ref: GroundReference, y: np.ndarray, masks: tuple[np.ndarray, ...], dt: float
+) -> np.ndarray:
+    """``y`` off the ground; the samples of runs too short for it leave the masks (in place),
+    which are checked again."""
+    for idx in ref.dropped:
+        for mask in masks:
+            mask[idx] = False
+    _check_amounts(masks[1], masks[2], dt)
+    return ref.remove(y)
 
 
 def _check_channels(flight: Flight, flux: str) -> None:

@@ -17,6 +17,7 @@ from aeromag_env.discovery.base_model import BaseSpan, base_dict, base_state
 from aeromag_env.discovery.candidates import Candidates
 from aeromag_env.discovery.evidence import JOINT_PENALTY, MIN_DELTA_BIC, rounded
 from aeromag_env.discovery.gap import effect_gap, rms
+from aeromag_env.discovery.ground import SEPARABLE_FRACTION, as_fitted
 from aeromag_env.discovery.joint import SCREEN_P
 from aeromag_env.discovery.preparation import PreparedFlight
 from aeromag_env.discovery.selection import Selection
@@ -55,8 +56,8 @@ def build_report(
     Returns
     -------
     dict
-        ``missing_effects``, ``gap``, ``verdict``, ``candidates``, ``skipped``, ``selection``,
-        ``diagnostics``, ``base_model`` and ``data``.
+        ``missing_effects``, ``gap``, ``verdict``, ``caveats``, ``ground``, ``candidates``,
+        ``skipped``, ``selection``, ``diagnostics``, ``base_model`` and ``data``.
     """
     groups = cands.groups
     return {
@@ -71,14 +72,15 @@ def build_report(
             if not missing
             else "missing: " + ", ".join(groups[j - 1].family for j in sel.chosen[1:])
         ),
-        "caveats": caveats(sel, gap),
+        "caveats": caveats(sel, gap, data.ground is not None, _unjudged(cands, sel)),
+        "ground": _ground_record(data, cands),
         "candidates": candidate_verdicts(cands, sel),
         "skipped": cands.skipped,
         "selection": _selection_record(alpha, groups, sel),
         "diagnostics": diagnostics,
         "base_model": {
-            "coefficients": base_dict(base_state(sel.beta_base)),
-            "augmented_coefficients": base_dict(base_state(sel.beta)),
+            "coefficients": base_dict(base_state(as_fitted(sel.beta_base, data.ground))),
+            "augmented_coefficients": base_dict(base_state(as_fitted(sel.beta, data.ground))),
         },
         "data": _data_record(flight, flux, data),
     }
@@ -92,30 +94,70 @@ def build_report(
 SLOW_RESIDUAL_NT = 5.0
 
 
-def caveats(sel: Selection, gap: dict[str, Any]) -> list[str]:
+def caveats(
+    sel: Selection,
+    gap: dict[str, Any],
+    ground: bool = False,
+    inseparable: list[dict[str, Any]] | None = None,
+) -> list[str]:
     """One-line cautions on what the verdict can say: a large slow signal no candidate explains
-    (:data:`SLOW_RESIDUAL_NT`), which on survey lines is mostly crustal geology.
+    (:data:`SLOW_RESIDUAL_NT`), which on survey lines is mostly crustal geology, and, with
+    ground separation, the effects not named that the ground's span leaves too little of to
+    judge (``inseparable``).
 
-    With 50 nT of simulated geology, effects at SNR 2 that vary slowly or with the attitude
-    (``external_field_variation``, ``permanent_field_drift``, ``induced_second_order``,
-    ``altitude_gradient``) were all missed, while ``onboard_current``, ``eddy_time_constant``
-    and ``sensor_lag`` were found; one of six plain flights named two decoys.
+    With 50 nT of simulated geology and no ground separation, effects at SNR 2 that vary slowly
+    or with the attitude (``external_field_variation``, ``permanent_field_drift``,
+    ``induced_second_order``, ``altitude_gradient``) were all missed, while ``onboard_current``,
+    ``eddy_time_constant`` and ``sensor_lag`` were found; one of six plain flights named two
+    decoys.
     """
+    out = []
+    if inseparable:
+        names = ", ".join(dict.fromkeys(d["name"] + (f" ({d['channel']})" if d["channel"] else "")
+                                        for d in inseparable))  # fmt: skip
+        out.append(
+            f"the ground reference absorbs, or leaves under {SEPARABLE_FRACTION:.0%} of, {names}: "
+            "on this flight they can hardly be told from geology, so their verdicts say little "
+            "of them"
+        )
     noise = sel.noise_after
     i = int(np.argmax(noise.fogm_std_nt))
     fogm, tau, white = noise.fogm_std_nt[i], noise.fogm_tau_s[i], noise.white_std_nt[i]
     held_out = float(gap.get("rms_after_nt") or 0.0)
     if max(fogm, held_out) <= SLOW_RESIDUAL_NT:
-        return []
+        return out
+    what = (
+        f"held-out gap {held_out:.1f} nT; the noise model's slow part {fogm:.1f} nT RMS, "
+        f"correlation time {tau:.0f} s, on axis {'xyz'[i]}; white floor {white:.2f} nT"
+    )
+    if ground:
+        return [*out, f"even off the ground's span the residual holds a signal no candidate "
+                f"explains ({what}): geology shorter than the knots (flown lower than the "
+                "clearance says?) or an effect outside the library"]  # fmt: skip
     return [
-        f"the residual holds a slow signal no candidate explains (held-out gap {held_out:.1f} "
-        f"nT; the noise model's slow part {fogm:.1f} nT RMS, correlation time {tau:.0f} s, on "
-        f"axis {'xyz'[i]}; white floor {white:.2f} nT): on survey lines that is mostly crustal "
-        "geology. Slow or attitude-driven effects smaller than it (external_field_variation, "
-        "permanent_field_drift, induced_second_order, altitude_gradient) cannot be told from "
-        "it and may be missed or misnamed, and the held-out gap measures it; fit on a "
-        "calibration box flown high (--calibration-window)"
+        *out,
+        f"the residual holds a slow signal no candidate explains ({what}): on survey lines that "
+        "is mostly crustal geology. Slow or attitude-driven effects smaller than it "
+        "(external_field_variation, permanent_field_drift, induced_second_order, "
+        "altitude_gradient) cannot be told from it and may be missed or misnamed, and the "
+        "held-out gap measures it; separate the ground (--ground separate) or fit on a "
+        "calibration box flown high (--calibration-window)",
     ]
+
+
+def _unjudged(cands: Candidates, sel: Selection) -> list[dict[str, Any]]:
+    """The groups, not named, that the ground reference absorbs or leaves too little of."""
+    named = {(cands.groups[j - 1].effect, cands.groups[j - 1].channel) for j in sel.chosen[1:]}
+    out = [d for d in cands.inseparable if (d["name"], d["channel"]) not in named]
+    return out + [a for a in cands.absorbed if "ground" in a["absorbed_by"]]
+
+
+def _ground_record(data: PreparedFlight, cands: Candidates) -> dict[str, Any]:
+    """The report's ``ground`` entry: ``mode`` ``ignore``, or the ground reference used and the
+    effects it leaves too little of."""
+    if data.ground is None:
+        return {"mode": "ignore"}
+    return data.ground.record() | {"inseparable": cands.inseparable}
 
 
 def missing_effects(

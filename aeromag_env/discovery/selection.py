@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env.discovery.base_model import base_columns
 from aeromag_env.discovery.evidence import (
     group_statistics,
     rounded,
@@ -107,23 +108,31 @@ def lag_on_signal(
     if lag is None:
         return
     g = groups[lag - 1]
+    ground = prob.data.ground
+    # off the ground, the base columns lose part of the aircraft field, whose shift matters
+    signal_base = base if ground is None else base_columns(ctx.t_b, ctx.tdot_b)
     lag_effect = EFFECTS["sensor_lag"]
     assert g.profile is not None and isinstance(lag_effect, SensorLag)
     for _ in range(LAG_SIGNAL_ITERATIONS):
         beta, _ = prob.fit(chosen)
-        signal = ctx.t_b.copy()
-        offset = 0
-        for j in chosen:
-            cols = base if j == 0 else groups[j - 1].columns
-            p = cols.shape[2]
-            if j != lag:
-                signal += np.einsum("kip,p->ki", cols, beta[offset : offset + p])
-            offset += p
+        cols = [signal_base if j == 0 else groups[j - 1].columns for j in chosen]
+        signal = ctx.t_b + _modelled(cols, beta, chosen.index(lag))
         g = lag_effect.group(dataclasses.replace(ctx, signal=signal), g.profile)
+        if ground is not None:
+            g = ground.group(g)
         groups[lag - 1] = g
         prob.replace(lag, g.columns)
     if lag in evidence:
         evidence[lag]["lag_model"] = "modelled signal shifted (S(t − τ) − S(t))"
+
+
+def _modelled(columns: list[np.ndarray], beta: np.ndarray, skip: int) -> np.ndarray:
+    """The modelled field (n, 3) of every group of ``columns`` but ``skip``; ``beta`` holds the
+    coefficients of all of them, concatenated."""
+    parts = np.split(beta, np.cumsum([c.shape[2] for c in columns])[:-1])
+    keep = [k for k in range(len(columns)) if k != skip]
+    x = np.concatenate([columns[k] for k in keep], axis=2)
+    return np.einsum("kip,p->ki", x, np.concatenate([parts[k] for k in keep]))
 
 
 def refine(

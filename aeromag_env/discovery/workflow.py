@@ -77,6 +77,7 @@ from aeromag_env.discovery.candidates import candidate_groups
 from aeromag_env.discovery.diagnostics import diagnostics
 from aeromag_env.discovery.evidence import ALPHA
 from aeromag_env.discovery.gap import held_out_gap
+from aeromag_env.discovery.ground import GROUND_MODES, as_fitted, base_off_ground
 from aeromag_env.discovery.preparation import prepare
 from aeromag_env.discovery.report import build_report, missing_effects
 from aeromag_env.discovery.selection import select_effects
@@ -115,6 +116,7 @@ def discover(
     calibration_window: tuple[float, float] | None = None,
     alpha: float = ALPHA,
     progress: Callable[[str], None] | None = None,
+    ground: str = "ignore",
 ) -> Discovery:
     """Run the discrepancy workflow on one flight (real or simulated; ``truth_*`` is never read).
 
@@ -128,6 +130,9 @@ def discover(
         Family-wise false-alarm level of the effect tests, in (0, 1).
     progress : callable or None
         Called with a short message at each stage.
+    ground : str
+        ``ignore``, or ``separate``: fit, test and score only what the magnetic ground cannot
+        explain (:mod:`~aeromag_env.discovery.ground`), for survey lines over geology.
 
     Returns
     -------
@@ -140,16 +145,20 @@ def discover(
     Raises
     ------
     AeromagError
-        ``alpha`` outside (0, 1), or a flight the workflow cannot use (:func:`.prepare`).
+        ``alpha`` outside (0, 1), ``ground`` not one of :data:`GROUND_MODES`, or a flight the
+        workflow cannot use (:func:`.prepare`).
     """
     if not 0 < alpha < 1:
         raise AeromagError(f"alpha must be in (0, 1), got {alpha}")
+    if ground not in GROUND_MODES:
+        raise AeromagError(f"ground must be one of {', '.join(GROUND_MODES)}, got {ground!r}")
     from threadpoolctl import threadpool_limits
 
     # tall, thin products and SVDs: a second BLAS thread gains nothing on a quiet machine and
     # made every run 3-5x slower on a busy one (measured on 2 cores)
     with threadpool_limits(limits=1, user_api="blas"):
-        return _discover(flight, flux, calibration_window, alpha, progress or (lambda _m: None))
+        say = progress or (lambda _m: None)
+        return _discover(flight, flux, calibration_window, alpha, say, ground == "separate")
 
 
 def _discover(
@@ -158,20 +167,24 @@ def _discover(
     calibration_window: tuple[float, float] | None,
     alpha: float,
     say: Callable[[str], None],
+    ground: bool,
 ) -> Discovery:
     """:func:`discover` after its argument checks."""
     say("model field")
-    data = prepare(flight, flux, calibration_window)
+    data = prepare(flight, flux, calibration_window, ground)
     ctx = data.ctx
     base = base_columns(ctx.t_b, ctx.tdot_b)
+    if data.ground is not None:
+        base = base_off_ground(data.ground, base)
     span = BaseSpan(base, data.calibration)
-    cands = candidate_groups(ctx, span)
+    cands = candidate_groups(ctx, span, data.ground)
     say("noise model")
     sel = select_effects(data, base, cands.groups, cands.fractions, alpha, say)
     say("gap")
     gap, res_before, res_after = held_out_gap(data, base, cands.groups, sel)
     missing = missing_effects(data, cands.groups, sel, base)
-    model = model_config(flight, flux, base_state(sel.beta), sel.noise_after, missing)
+    state = base_state(as_fitted(sel.beta, data.ground))
+    model = model_config(flight, flux, state, sel.noise_after, missing)
     diag = diagnostics(
         data, span, res_before, sel.noise_before, sel.noise_after, sel.lb_before, sel.lb_after
     )

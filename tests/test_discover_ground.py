@@ -77,6 +77,26 @@ def test_stronger_ground_gets_closer_knots() -> None:
     assert factors[500.0] < factors[5.0] <= KNOT_FACTORS[0]
 
 
+@pytest.mark.parametrize(("extra", "source"), [("radar", "radar"), ("dem", "alt − dem")])
+def test_the_clearance_comes_from_the_radar_or_the_terrain_model(
+    ground_flight: Flight, extra: str, source: str
+) -> None:
+    """Over terrain at 300 m (radar ``alt − 300``, or ``dem`` 300) the lines are 100 m above
+    the ground: their knots are 4× closer than at the 400 m the altitude says; a few bad radar
+    samples (0 m) do not move them."""
+    alt = ground_flight["alt"]
+    values = np.full_like(alt, 300.0) if extra == "dem" else alt - 300.0
+    if extra == "radar":
+        values[::500] = 0.0
+    flight = dataclasses.replace(ground_flight, fields={**ground_flight.fields, extra: values})
+    ref = prepare(flight, "flux_a", None, ground=True).ground
+    plain = prepare(ground_flight, "flux_a", None, ground=True).ground
+    assert ref is not None and plain is not None and ref.clearance_source == source
+    low = [r for r in ref.runs if r.clearance_m < 150.0]
+    assert low and all(r.clearance_m > 90.0 for r in low)
+    assert min(r.spacing_s for r in low) < 0.35 * min(r.spacing_s for r in plain.runs)
+
+
 def test_over_ground_nothing_is_named_and_the_gap_no_longer_measures_geology(
     ground_flight: Flight,
 ) -> None:
@@ -176,3 +196,11 @@ def test_ground_mode_is_validated_and_reaches_the_cli(
         main(["discover", str(path), "--out", str(tmp_path / "e"), "--ground", "band"])
     assert exit_info.value.code == 2
     assert "invalid choice: 'band'" in capsys.readouterr().err
+    # a fleet (a folder) passes the mode on to each flight
+    fleet = tmp_path / "fleet"
+    fleet.mkdir()
+    path.rename(fleet / "ground.h5")
+    assert main(["discover", str(fleet), "--out", str(tmp_path / "f"), "--ground", "separate",
+                 "--quiet"]) == 0  # fmt: skip
+    one = json.loads((tmp_path / "f" / "ground" / "report.json").read_text())
+    assert one["ground"]["mode"] == "separate" and one["report_version"] == 4

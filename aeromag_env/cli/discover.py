@@ -26,8 +26,9 @@ from aeromag_env.flight.files import load_flight
 from aeromag_env.flight.mount_choice import in_body_axes
 from aeromag_env.flight.selection import select
 
-#: 2: the provenance blocks of :func:`aeromag_env.cli.provenance.provenance`.
-REPORT_VERSION = 3
+#: 2: the provenance blocks of :func:`aeromag_env.cli.provenance.provenance`; 3: ``caveats``;
+#: 4: ``ground`` (``--ground``), and ``gap.shrink`` 1 where both gaps are 0 (it was inf).
+REPORT_VERSION = 4
 #: The output set of ``aeromag discover``, in the folder ``out``.
 OUTPUTS = ("report.json", "report.md", "model_config.json", "residual.png", "diagnostics.png")
 

@@ -55,6 +55,13 @@ module of :mod:`aeromag_env.discovery`:
    the named effects and every candidate's verdict, and the augmented model as a simulator
    configuration.
 
+With ``ground="separate"`` (survey lines over magnetic ground), each run of calibration or
+held-out samples is first projected off the ground's span
+(:mod:`~aeromag_env.discovery.ground`): navigation-frame splines rotated by the attitude, knots
+a fraction of the clearance apart. The measured series and every regressor lose that part, so
+every step above sees only what the ground cannot explain; candidates the ground takes (almost)
+entirely are absorbed by it and listed in a caveat.
+
 The held-out part is, by default, every third 60-s block (interleaved: a slowly varying field is
 interpolated, not extrapolated); with ``calibration_window`` it is everything outside that window.
 Gaps in time (a step over 1.5× the median interval) split the flight: samples within

@@ -106,6 +106,7 @@ def test_over_ground_nothing_is_named_and_the_gap_no_longer_measures_geology(
     assert ignored["gap"]["rms_before_nt"] > 20.0 and ignored["ground"] == {"mode": "ignore"}
     sep = discover(ground_flight, ground="separate").report
     assert sep["missing_effects"] == [] and sep["gap"]["rms_before_nt"] < 0.5
+    assert sep["verdict"] == "nothing significant is missing off the ground"
     assert sep["ground"]["mode"] == "separate" and sep["ground"]["columns"] > 100
     absorbed = {c["name"] for c in sep["candidates"] if c["verdict"] == "absorbed"}
     assert set(SLOW) <= absorbed

@@ -71,7 +71,8 @@ def build_report(
             "nothing significant is missing"
             if not missing
             else "missing: " + ", ".join(groups[j - 1].family for j in sel.chosen[1:])
-        ),
+        )
+        + ("" if data.ground is None else " off the ground"),
         "caveats": caveats(sel, gap, data.ground is not None, _unjudged(cands, sel)),
         "ground": _ground_record(data, cands),
         "candidates": candidate_verdicts(cands, sel),

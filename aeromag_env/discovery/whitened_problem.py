@@ -10,6 +10,8 @@ FOGM a group could absorb.
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 
 from aeromag_env.discovery.base_model import orthonormal
@@ -40,8 +42,13 @@ class WhitenedProblem:
         self.y = data.y[self.idx]
         self._y_axes = np.ascontiguousarray(self.y.T[:, :, None])  # (3, m, 1)
         # each axis-major (3, m, p), so an axis is contiguous and stacking is a reshape; 0 is
-        # the base
-        self.columns = [self._rows(c) for c in columns]
+        # the base. The groups given here are views of one array, whitened without a copy
+        self._bulk = np.empty((3, self.idx.size, sum(c.shape[2] for c in columns)))
+        self._edges = np.cumsum([0] + [c.shape[2] for c in columns])
+        for j, c in enumerate(columns):
+            self._bulk[:, :, self._edges[j] : self._edges[j + 1]] = self._rows(c)
+        self.columns = [self._bulk[:, :, a:b] for a, b in pairwise(self._edges)]
+        self._buffers: dict[str, np.ndarray] = {}
         self.noise: NoiseModel | None = None
         self.white: list[np.ndarray] = []
         self.yw = np.empty(0)
@@ -56,12 +63,16 @@ class WhitenedProblem:
         """Whiten the data and every group under ``noise`` and project the base out of them."""
         self.noise = noise
         self.yw = self._whiten_columns(self._y_axes)[:, 0]
-        allc = self._whiten_columns(np.concatenate(self.columns, axis=2))
+        extra = self.columns[len(self._edges) - 1 :]  # groups added since: rare
+        cols = np.concatenate([self._bulk, *extra], axis=2) if extra else self._bulk
+        # fresh 100-MB arrays cost more in page faults than their arithmetic: reuse them
+        allc = self._whiten_columns(cols, out=self._buffer("white", cols.shape[2]))
         edges = np.cumsum([0] + [c.shape[2] for c in self.columns])
         self.white = [allc[:, edges[j] : edges[j + 1]] for j in range(len(self.columns))]
         self._q0 = orthonormal(self.white[0])
         self.r0 = self._off_base(self.yw)
-        allp = self._off_base(allc)  # one product for all groups, not one per group
+        # one product for all groups, not one per group
+        allp = self._off_base(allc, out=self._buffer("perp", cols.shape[2]))
         self.perp = [allp[:, edges[j] : edges[j + 1]] for j in range(len(self.columns))]
         self.scale = [_largest_norm(w) for w in self.white]
         self.k0 = self._q0.shape[1]
@@ -82,15 +93,24 @@ class WhitenedProblem:
 
     def replace(self, index: int, columns: np.ndarray) -> None:
         """Rebuild candidate ``index`` from new columns (n, 3, p), under the current noise."""
-        self.columns[index] = self._rows(columns)
+        if index < len(self._edges) - 1 and columns.shape[2] == self.columns[index].shape[2]:
+            self.columns[index][...] = self._rows(columns)  # stays a view of the bulk array
+        else:
+            self.columns[index] = self._rows(columns)
         self.white[index] = self._whiten_columns(self.columns[index])
         self.perp[index] = self._off_base(self.white[index])
         self.scale[index] = _largest_norm(self.white[index])
         self._spans, self._raw_spans, self._bases = {}, {}, {}
 
-    def _off_base(self, x: np.ndarray) -> np.ndarray:
-        out = self._q0 @ (self._q0.T @ x)
+    def _off_base(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        out = np.matmul(self._q0, self._q0.T @ x, out=out)
         return np.subtract(x, out, out=out)
+
+    def _buffer(self, name: str, p: int) -> np.ndarray:
+        """A reused (3m, p) array: what :meth:`set_noise` held in it before is replaced."""
+        if name not in self._buffers or self._buffers[name].shape[1] != p:
+            self._buffers[name] = np.empty((3 * self.idx.size, p))
+        return self._buffers[name]
 
     def gls(self, chosen: list[int], noise: NoiseModel) -> np.ndarray:
         """GLS coefficients of ``chosen`` (base first) under ``noise`` (not the problem's)."""
@@ -98,13 +118,15 @@ class WhitenedProblem:
         yw = self._whiten_columns(self._y_axes, noise)[:, 0]
         return least_squares(x, yw)[0]
 
-    def _whiten_columns(self, cols: np.ndarray, noise: NoiseModel | None = None) -> np.ndarray:
+    def _whiten_columns(
+        self, cols: np.ndarray, noise: NoiseModel | None = None, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """Whitened, axis-stacked copy (3m, p) of axis-major calibration-row columns (3, m, p),
-        under ``noise`` or else the problem's noise model."""
+        under ``noise`` or else the problem's noise model; into ``out`` when given."""
         noise = noise or self.noise
         assert noise is not None
         m = self.idx.size
-        out = np.empty((3 * m, cols.shape[2]))
+        out = np.empty((3 * m, cols.shape[2])) if out is None else out
         map_threads(lambda i: whiten(cols[i], self.gap, noise.white_std_nt[i],
                                      noise.fogm_std_nt[i], noise.fogm_tau_s[i],
                                      out=out[i * m : (i + 1) * m]), range(3))  # fmt: skip

@@ -7,7 +7,8 @@ continuation damps wavenumber ``k`` by ``exp(−k h)``). So on each run of conse
 one part (calibration or held out), the ground is modelled as three navigation-frame cubic
 B-splines in time, rotated into body axes by the attitude (``C_bnᵀ e_j N_m(t)``, the form of
 ``external_field_variation``), with knots every :data:`KNOTS_PER_CLEARANCE` ``× h`` metres of
-track (``h`` the run's lowest clearance, at least :data:`MIN_KNOT_SPACING_S` apart).
+track (``h`` the run's 5th-percentile clearance), or closer (:data:`KNOT_FACTORS`, at least
+:data:`MIN_KNOT_SPACING_S` apart) where AIC says strong ground leaves enough between them.
 
 The measured-minus-model series and every regressor are projected off that span, run by run
 (Frisch–Waugh–Lovell): what the workflow then fits, tests and scores is the part of the data
@@ -68,8 +69,9 @@ _EARTH_RADIUS_M = 6_371_000.0
 @dataclass
 class Run:
     """Usable samples ``idx`` of one run and the orthonormal basis ``q`` (3m, r) of the ground
-    there, on axis-stacked rows; ``spacing_s`` the knot spacing [s], ``clearance_m`` the lowest
-    clearance [m] and ``knots_per_clearance`` the knots' spacing along the track in clearances."""
+    there, on axis-stacked rows; ``spacing_s`` the knot spacing [s], ``clearance_m`` the run's
+    5th-percentile clearance [m] and ``knots_per_clearance`` the knots' spacing along the track
+    in clearances."""
 
     idx: np.ndarray
     q: np.ndarray

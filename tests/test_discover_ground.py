@@ -91,10 +91,28 @@ def test_the_clearance_comes_from_the_radar_or_the_terrain_model(
     flight = dataclasses.replace(ground_flight, fields={**ground_flight.fields, extra: values})
     ref = prepare(flight, "flux_a", None, ground=True).ground
     plain = prepare(ground_flight, "flux_a", None, ground=True).ground
-    assert ref is not None and plain is not None and ref.clearance_source == source
+    assert ref is not None and plain is not None
+    assert ref.clearance_source == f"{source} on 100% of samples"
     low = [r for r in ref.runs if r.clearance_m < 150.0]
     assert low and all(r.clearance_m > 90.0 for r in low)
     assert min(r.spacing_s for r in low) < 0.35 * min(r.spacing_s for r in plain.runs)
+
+
+def test_a_radar_out_of_range_leaves_the_clearance_to_the_altitude(ground_flight: Flight) -> None:
+    """A radar that reads NaN above 1000 m: the lines take its 100 m, the box at 3000 m its
+    altitude (knots over 10 s apart, not the 0.5 s a zero-filled radar would give)."""
+    alt = ground_flight["alt"]
+    radar = np.where(alt < 1000.0, alt - 300.0, np.nan)
+    flight = dataclasses.replace(ground_flight, fields={**ground_flight.fields, "radar": radar})
+    ref = prepare(flight, "flux_a", None, ground=True).ground
+    assert ref is not None
+    assert (
+        ref.clearance_source.startswith("radar on ")
+        and "alt (ground at 0 m) on" in ref.clearance_source
+    )
+    box = [r for r in ref.runs if r.clearance_m > 2500.0]
+    assert box and min(r.spacing_s for r in box) > 10.0
+    assert min(r.clearance_m for r in ref.runs) == pytest.approx(100.0, abs=1.0)
 
 
 def test_over_ground_nothing_is_named_and_the_gap_no_longer_measures_geology(

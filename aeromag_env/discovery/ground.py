@@ -17,11 +17,13 @@ seconds apart); on low, straight lines little but fast effects survive. A candid
 variance the ground span takes almost entirely cannot be told from geology on this flight,
 and the report says so (:data:`SEPARABLE_FRACTION`).
 
-Clearance is the radar altimeter (``radar``) where the file has one, else the altitude above
-the terrain model (``alt − dem``), else the altitude itself (the ground taken at sea level,
-which is what the simulator's geology assumes). On 50 nT of simulated ground at 400 m the
-splines leave under 2 % of its RMS (``tests/test_discover_ground.py``); over 0–200 nT no plain
-flight named anything (``python -m experiments.discovery_ground``).
+Clearance is, sample by sample, the radar altimeter (``radar``) where it is finite, else the
+altitude above the terrain model (``alt − dem``), else the altitude itself (the ground taken at
+sea level, which is what the simulator's geology assumes); the report says how much came from
+each. A radar that holds its maximum out of range, rather than reporting NaN, is not detected.
+On 50 nT of simulated ground at 400 m the splines leave under 2 % of its RMS
+(``tests/test_discover_ground.py``); over 0–200 nT no plain flight named anything
+(``python -m experiments.discovery_ground``).
 """
 
 from __future__ import annotations
@@ -333,14 +335,23 @@ def as_fitted(beta: np.ndarray, ref: GroundReference | None) -> np.ndarray:
 
 
 def _clearance(flight: Flight) -> tuple[np.ndarray, str]:
-    """Height above the ground (n,) [m] and where it came from."""
-    if "radar" in flight and np.isfinite(flight["radar"]).any():
-        return np.asarray(flight["radar"], float), "radar"
+    """Height above the ground (n,) [m] and where it came from: per sample the radar altimeter,
+    else the altitude above the terrain model, else the altitude (a radar out of range or
+    dropped out is NaN there, and the next source fills in)."""
     alt_name = flight.altitude_name() or "alt"
     alt = np.asarray(flight[alt_name], float) if alt_name in flight else np.full(flight.n, np.nan)
-    if "dem" in flight and np.isfinite(flight["dem"]).any():
-        return alt - np.asarray(flight["dem"], float), f"{alt_name} − dem"
-    return alt, f"{alt_name} (ground at 0 m: no radar or dem channel)"
+    sources = [("radar", np.asarray(flight["radar"], float) if "radar" in flight else None),
+               (f"{alt_name} − dem", alt - flight["dem"] if "dem" in flight else None),
+               (f"{alt_name} (ground at 0 m)", alt)]  # fmt: skip
+    out, used = np.full(flight.n, np.nan), []
+    for name, values in sources:
+        if values is None:
+            continue
+        fill = np.isnan(out) & np.isfinite(values)
+        if fill.any():
+            out[fill] = values[fill]
+            used.append(f"{name} on {fill.mean():.0%} of samples")
+    return out, ", ".join(used) or "none (no finite radar, dem or altitude)"
 
 
 def _ground_speed(flight: Flight) -> np.ndarray:

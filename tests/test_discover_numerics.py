@@ -193,3 +193,26 @@ def test_cached_bases_are_forgotten_when_a_freed_index_is_reused(flight: Flight)
     np.testing.assert_allclose(prob.absorbable_share([0], 2, taus),
                                fresh.absorbable_share([0], 2, taus), rtol=1e-9)  # fmt: skip
     assert not np.allclose(prob.absorbable_share([0], 2, taus), spline_share)
+
+
+@pytest.mark.parametrize("wider", [False, True])
+def test_a_replaced_group_is_what_the_next_noise_model_whitens(flight: Flight, wider: bool) -> None:
+    """The groups live in one array that set_noise whitens without a copy: a group replaced by
+    one of the same width, or of another, must be whitened as a fresh problem with it would."""
+    data = prepare(flight, "flux_a", None)
+    ctx = data.ctx
+    base = base_columns(ctx.t_b, ctx.tdot_b)
+    lags = EFFECTS["sensor_lag"].groups(ctx)[0]
+    splines = EFFECTS["external_field_variation"].groups(ctx)[0][0]
+    new = splines.columns if wider else lags[-1].columns
+    noise = NoiseModel(np.ones(3), np.full(3, 2.0), np.full(3, 600.0))
+    prob = WhitenedProblem(data, [base, lags[0].columns, lags[1].columns])
+    prob.set_noise(noise)
+    prob.replace(1, new)
+    prob.set_noise(noise)
+    fresh = WhitenedProblem(data, [base, new, lags[1].columns])
+    fresh.set_noise(noise)
+    for j in range(3):
+        np.testing.assert_array_equal(prob.white[j], fresh.white[j])
+        np.testing.assert_array_equal(prob.perp[j], fresh.perp[j])
+    assert prob.test([0], 1) == fresh.test([0], 1)

@@ -43,11 +43,7 @@ class WhitenedProblem:
         self._y_axes = np.ascontiguousarray(self.y.T[:, :, None])  # (3, m, 1)
         # each axis-major (3, m, p), so an axis is contiguous and stacking is a reshape; 0 is
         # the base. The groups given here are views of one array, whitened without a copy
-        self._bulk = np.empty((3, self.idx.size, sum(c.shape[2] for c in columns)))
-        self._edges = np.cumsum([0] + [c.shape[2] for c in columns])
-        for j, c in enumerate(columns):
-            self._bulk[:, :, self._edges[j] : self._edges[j + 1]] = self._rows(c)
-        self.columns = [self._bulk[:, :, a:b] for a, b in pairwise(self._edges)]
+        self.columns = self._pack([self._rows(c) for c in columns])
         self._buffers: dict[str, np.ndarray] = {}
         self.noise: NoiseModel | None = None
         self.white: list[np.ndarray] = []
@@ -93,8 +89,12 @@ class WhitenedProblem:
 
     def replace(self, index: int, columns: np.ndarray) -> None:
         """Rebuild candidate ``index`` from new columns (n, 3, p), under the current noise."""
-        if index < len(self._edges) - 1 and columns.shape[2] == self.columns[index].shape[2]:
+        packed = len(self._edges) - 1
+        if index < packed and columns.shape[2] == self.columns[index].shape[2]:
             self.columns[index][...] = self._rows(columns)  # stays a view of the bulk array
+        elif index < packed:  # another width: pack the groups again
+            self.columns[index] = self._rows(columns)
+            self.columns[:packed] = self._pack(self.columns[:packed])
         else:
             self.columns[index] = self._rows(columns)
         self.white[index] = self._whiten_columns(self.columns[index])
@@ -105,6 +105,13 @@ class WhitenedProblem:
     def _off_base(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         out = np.matmul(self._q0, self._q0.T @ x, out=out)
         return np.subtract(x, out, out=out)
+
+    def _pack(self, groups: list[np.ndarray]) -> list[np.ndarray]:
+        """Copy axis-major groups (3, m, p) into one array (``_bulk``, bounds ``_edges``) and
+        return its views, one per group."""
+        self._edges = np.cumsum([0] + [g.shape[2] for g in groups])
+        self._bulk = np.concatenate(groups, axis=2)
+        return [self._bulk[:, :, a:b] for a, b in pairwise(self._edges)]
 
     def _buffer(self, name: str, p: int) -> np.ndarray:
         """A reused (3m, p) array: what :meth:`set_noise` held in it before is replaced."""

@@ -36,6 +36,7 @@ import numpy as np
 
 from aeromag_env.discovery.base_model import orthonormal, stack
 from aeromag_env.flight.data import Flight
+from aeromag_env.flight.quality import ground_speed
 from aeromag_env.simulation.effects import Group
 from aeromag_env.simulation.effects_base import spline_basis, spline_knots
 
@@ -64,8 +65,6 @@ ISOTROPIC_NOTE = (
     "the isotropic part of A (a·I: a field along the Earth field) cannot be told from the "
     "ground and is left at 0 in base_model and model_config"
 )
-#: Earth radius for the ground speed from positions [m].
-_EARTH_RADIUS_M = 6_371_000.0
 
 
 @dataclass
@@ -189,7 +188,7 @@ def ground_reference(
     """
     tt = flight.tt
     clearance, source = _clearance(flight)
-    speed = _ground_speed(flight)
+    speed = _speed(flight)
     ref = GroundReference(clearance_source=source)
     runs = []
     for idx in _runs(tt, usable, calibration):
@@ -354,9 +353,8 @@ def _clearance(flight: Flight) -> tuple[np.ndarray, str]:
     return out, ", ".join(used) or "none (no finite radar, dem or altitude)"
 
 
-def _ground_speed(flight: Flight) -> np.ndarray:
-    """Ground speed (n,) [m/s] from the positions (NaN where unknown)."""
-    lat, lon = np.deg2rad(flight["lat"]), np.deg2rad(flight["lon"])
-    d = np.hypot(np.diff(lat), np.diff(lon) * np.cos(lat[:-1])) * _EARTH_RADIUS_M
-    v = d / np.maximum(np.diff(flight.tt), 1e-9)
-    return np.r_[v, v[-1:]] if v.size else np.full(flight.n, np.nan)
+def _speed(flight: Flight) -> np.ndarray:
+    """Ground speed (n,) [m/s] of the step after each sample; NaN where unknown."""
+    speed = np.r_[ground_speed(flight), np.nan]
+    speed[~np.isfinite(speed)] = np.nan
+    return speed

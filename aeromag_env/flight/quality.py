@@ -215,23 +215,26 @@ def fault_problems(report: dict[str, object]) -> list[str]:
 GROUND_SPEED_RANGE_M_S = (2.0, 350.0)
 
 
-def ground_speed_problem(flight: Flight) -> str | None:
-    """A one-line warning when the median ground speed from ``lat``, ``lon`` [deg] and ``tt``
-    [s] is outside :data:`GROUND_SPEED_RANGE_M_S`; None otherwise or without them.
-
-    The speed is the spherical (equirectangular) distance between consecutive samples where
-    both are finite, over their time step; accurate to well under 1 % at survey spacings.
-    """
-    if not all(name in flight for name in ("lat", "lon")):
-        return None
+def ground_speed(flight: Flight) -> np.ndarray:
+    """Ground speed between consecutive samples (n − 1,) [m/s] from ``lat``, ``lon`` [deg] and
+    ``tt`` [s]: the spherical (equirectangular) distance over the time step, accurate to well
+    under 1 % at survey spacings; NaN or inf where a position is not finite or a step is not
+    positive."""
     lat, lon, tt = np.deg2rad(flight["lat"]), np.deg2rad(flight["lon"]), flight.tt
-    with np.errstate(invalid="ignore"):
-        dt = np.diff(tt)
+    with np.errstate(invalid="ignore", divide="ignore"):
         d_north = np.diff(lat) * WGS84_A_M
         d_lon = (np.diff(lon) + np.pi) % (2 * np.pi) - np.pi  # across the antimeridian
         d_east = d_lon * WGS84_A_M * np.cos(lat[1:])
-        speed = np.hypot(d_north, d_east) / dt
-    speed = speed[np.isfinite(speed) & (dt > 0)]
+        return np.asarray(np.hypot(d_north, d_east) / np.diff(tt))
+
+
+def ground_speed_problem(flight: Flight) -> str | None:
+    """A one-line warning when the median :func:`ground_speed` is outside
+    :data:`GROUND_SPEED_RANGE_M_S`; None otherwise or without ``lat`` and ``lon``."""
+    if not all(name in flight for name in ("lat", "lon")):
+        return None
+    speed = ground_speed(flight)
+    speed = speed[np.isfinite(speed) & (np.diff(flight.tt) > 0)]
     if speed.size == 0:
         return None
     median = float(np.median(speed))

@@ -324,7 +324,7 @@ def test_step_statistic_follows_its_definition_and_flags_a_step():
     """The two-window change statistic equals its formula on the filter's innovations, sits
     near 1 + K/(M − K) on white noise at any level, and a 5-sigma step lifts it by decades."""
     from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_POS, INT_WINDOW
-    from aeromag_env.environment.kernels import _step_statistic
+    from aeromag_env.environment.statistics import step_statistic
 
     env = _make(scenario="nonstationary", extras=True, step_statistic=True, split_q=True)
     assert env.observation_space.shape == (9,)
@@ -344,16 +344,42 @@ def test_step_statistic_follows_its_definition_and_flags_a_step():
     ints[INT_COUNT], ints[INT_POS], ints[INT_WINDOW] = m, 17, m  # a full, wrapped window
     rng = np.random.default_rng(0)
     for std in (1.0, 15.0):
-        stats = [_step_statistic(k, ints, std * rng.standard_normal((m, 3))) for _ in range(2000)]
+        stats = [step_statistic(k, ints, std * rng.standard_normal((m, 3))) for _ in range(2000)]
         # E = (1 + k/(m−k)) · ν/(ν − 2) with ν = 3(m − k − 1) = 117 (the variance's degrees of
         # freedom); the mean of 2000 draws has a 1.8 % std, so ±5 % is a 2.7-sigma bound
         assert np.mean(stats) == pytest.approx(1.25 * 117 / 115, rel=0.05)
     buf = rng.standard_normal((m, 3))
     order = [(17 - 1 - j) % m for j in range(k)]  # the last k updates in the circular buffer
     buf[order] += 5.0
-    assert _step_statistic(k, ints, buf) > 100.0
+    assert step_statistic(k, ints, buf) > 100.0
     with pytest.raises(ConfigError, match="step_statistic needs extras"):
         _make(step_statistic=True)
+
+
+def test_turn_rate_follows_its_definition_and_the_manoeuvres():
+    """The turn-rate observation is log10 of the RMS of |Ṫ|/|T| over the last decision window;
+    on ``manoeuvre_heavy``, whose flex noise std is proportional to the INS angular rate, it
+    follows that noise (log std against it: correlation 0.91 in the same window, 0.77 in the
+    next one, which the action sets R for, on this flight), and it needs extras."""
+    env = _make(scenario="manoeuvre_heavy", extras=True, turn_rate=True)
+    env.reset(seed=100_005)
+    f, k_window = env.unwrapped.filter, env.unwrapped.config.decision_window
+    column = observation_index(env.unwrapped.config, "log_turn_rate")
+    noise_var = env.unwrapped.episode.noise_var
+    seen, noise, coming = [], [], []
+    for _ in range(400):
+        obs, *_ = env.step(np.zeros(2, np.float32))
+        k1 = f.k
+        t, td = f.t[k1 - k_window : k1], f.td[k1 - k_window : k1]
+        expect = np.sqrt(np.mean(np.sum(td**2, 1) / np.sum(t**2, 1)))
+        assert obs[column] == pytest.approx(np.log10(expect), rel=1e-5)
+        seen.append(obs[column])
+        noise.append(0.5 * np.log10(np.mean(noise_var[k1 - k_window : k1])))
+        coming.append(0.5 * np.log10(np.mean(noise_var[k1 : k1 + k_window])))
+    assert np.corrcoef(seen, noise)[0, 1] > 0.85
+    assert np.corrcoef(seen, coming)[0, 1] > 0.6
+    with pytest.raises(ConfigError, match="turn_rate needs extras"):
+        _make(turn_rate=True)
 
 
 def _lag1(r: np.ndarray) -> float:
@@ -366,20 +392,20 @@ def test_whiteness_without_gaps_is_bitwise_the_general_loop_and_is_the_lag1_corr
     """The whiteness observation has a fast loop for a window without skipped samples; it
     equals the general loop (which drops non-finite rows) bit for bit, and both equal the
     pooled lag-1 autocorrelation computed with numpy to 1e-12 (relative: summation order)."""
-    from aeromag_env.environment.kernels import _whiteness, _whiteness_with_gaps
+    from aeromag_env.environment.statistics import whiteness, whiteness_with_gaps
 
     rng = np.random.default_rng(3)
     r = np.cumsum(rng.standard_normal((120, 3)), axis=0) * 7.0  # correlated, not zero-mean
     for k1, window in ((120, 50), (30, 50), (3, 50), (120, 120)):
         lo = max(0, k1 - window)
-        fast = _whiteness(k1, window, r)
-        assert fast == _whiteness_with_gaps(lo, k1, k1 - lo, r)
+        fast = whiteness(k1, window, r)
+        assert fast == whiteness_with_gaps(lo, k1, k1 - lo, r)
         assert fast == pytest.approx(_lag1(r[lo:k1]), rel=1e-12)
     gaps = r.copy()
     gaps[[75, 76, 100]] = np.nan  # skipped samples: the rows around a gap become neighbours
     kept = gaps[70:120][np.all(np.isfinite(gaps[70:120]), axis=1)]
-    assert _whiteness(120, 50, gaps) == pytest.approx(_lag1(kept), rel=1e-12)
-    assert _whiteness(2, 50, r) == 0.0  # fewer than 3 rows
+    assert whiteness(120, 50, gaps) == pytest.approx(_lag1(kept), rel=1e-12)
+    assert whiteness(2, 50, r) == 0.0  # fewer than 3 rows
 
 
 def test_spaces_lay_out_the_observations_and_actions_as_documented():
@@ -390,8 +416,10 @@ def test_spaces_lay_out_the_observations_and_actions_as_documented():
     paper = EnvConfig()
     assert observation_names(paper) == ("log_ror", "log_qoq")
     assert action_names(paper) == ("a_q", "a_r")
-    full = EnvConfig(extras=True, split_q=True, innovation_power=True, step_statistic=True)
-    assert observation_names(full) == OBSERVATIONS and len(OBSERVATIONS) == 11
+    full = EnvConfig(
+        extras=True, split_q=True, innovation_power=True, step_statistic=True, turn_rate=True
+    )
+    assert observation_names(full) == OBSERVATIONS and len(OBSERVATIONS) == 12
     assert action_names(full) == ("a_q", "a_r", "a_qp")
     detector = EnvConfig(extras=True, split_q=True, innovation_power=True)
     assert observation_index(detector, "log_mean_innovation_power") == 9
@@ -399,9 +427,10 @@ def test_spaces_lay_out_the_observations_and_actions_as_documented():
     with pytest.raises(ValueError, match="not in this layout"):
         observation_index(paper, "whiteness")
     positions = observation_positions(detector)
-    assert positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, -1]
+    assert positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, -1, -1]
     low, high = observation_bounds(EnvConfig(extras=True))
     np.testing.assert_array_equal(low, np.float32([-8, -8, -8, -8, -1, 0, -8]))
     np.testing.assert_array_equal(high, np.float32([8, 8, 8, 8, 1, 1, 8]))
+    assert observation_index(EnvConfig(extras=True, turn_rate=True), "log_turn_rate") == 7
     env = _make(config=full)
-    assert env.observation_space.shape == (11,) and env.action_space.shape == (3,)
+    assert env.observation_space.shape == (12,) and env.action_space.shape == (3,)

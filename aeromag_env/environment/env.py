@@ -111,6 +111,11 @@ class EnvConfig:
         rest of the statistics window, over the latter's innovation variance (about 0 without
         a change at any noise level; an interference step of a few noise std lifts it by
         decades within one window)
+    turn_rate : with ``extras``, one more observation: log10 of the RMS of ``|Ṫ| / |T|`` over
+        the last decision window [rad/s], the aircraft's angular rate across the Earth field
+        from the attitude the filter already reads (−8 without a turn) — a design switch beyond
+        the paper: noise that airframe flex and control-surface currents add grows with the
+        angular rate, and an innovation burst while turning is that noise, not a step
     """
 
     scenario: str = "nominal"
@@ -130,6 +135,7 @@ class EnvConfig:
     split_q: bool = False
     innovation_power: bool = False
     step_statistic: bool = False
+    turn_rate: bool = False
     qp_gate: bool = False
 
     def __post_init__(self) -> None:
@@ -204,8 +210,9 @@ class AeroMagCompensationEnv(gym.Env):
     progress through the flight (in [0, 1]) and log10 of the ROR over the last decision window
     only (it reacts to an interference step within K samples, the M-window ROR only slowly);
     with ``split_q`` an eighth, log10 of the cumulative T_p Q scale; with ``innovation_power``
-    two more, with ``step_statistic`` one more, in that order (see :class:`EnvConfig`). Their
-    names and columns: :func:`aeromag_env.environment.spaces.observation_names` and
+    two more, with ``step_statistic`` and ``turn_rate`` one more each, in that order (see
+    :class:`EnvConfig`). Their names and columns:
+    :func:`aeromag_env.environment.spaces.observation_names` and
     :func:`~aeromag_env.environment.spaces.observation_index` (actions:
     :data:`~aeromag_env.environment.spaces.ACTIONS`).
 

@@ -22,12 +22,13 @@ import numpy as np
 from numba import njit
 
 from aeromag_env.compensation.arrays import FilterArrays, Packed, named, packed, row
-from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_DIV, INT_K, INT_POS, INT_WINDOW
+from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_WINDOW
 from aeromag_env.compensation.kernels import advance
 from aeromag_env.environment.spaces import (
     ACT_Q,
     ACT_QP,
     ACT_R,
+    OBS_LIMIT,
     OBS_LOG_INNOVATION_POWER,
     OBS_LOG_MEAN_INNOVATION_POWER,
     OBS_LOG_Q_SCALE,
@@ -37,8 +38,17 @@ from aeromag_env.environment.spaces import (
     OBS_LOG_RECENT_ROR,
     OBS_LOG_ROR,
     OBS_LOG_STEP_STATISTIC,
+    OBS_LOG_TURN_RATE,
     OBS_PROGRESS,
     OBS_WHITENESS,
+)
+from aeromag_env.environment.statistics import (
+    log10_or_zero,
+    recent_power,
+    recent_ratio,
+    step_statistic,
+    turn_rate,
+    whiteness,
 )
 from aeromag_env.simulation.interference import INDUCED_START, PERMANENT_START
 from aeromag_env.threads import run_chunks
@@ -146,166 +156,38 @@ def _episode_rmse(run: np.ndarray, window_rmse: float) -> float:
 
 
 @njit(cache=True)
-def _finite_row(x: np.ndarray, k: int) -> bool:
-    return np.isfinite(x[k, 0]) and np.isfinite(x[k, 1]) and np.isfinite(x[k, 2])
-
-
-@njit(cache=True)
-def _whiteness(k1: int, window: int, innov: np.ndarray) -> float:
-    """Lag-1 autocorrelation of the innovations of the last ``window`` samples (finite rows,
-    per-axis mean removed, pooled over axes); 0 with fewer than 3 rows or no variance."""
-    lo = max(0, k1 - window)
-    rows, mean0, mean1, mean2 = 0, 0.0, 0.0, 0.0
-    for k in range(lo, k1):
-        if _finite_row(innov, k):
-            rows += 1
-            mean0, mean1, mean2 = mean0 + innov[k, 0], mean1 + innov[k, 1], mean2 + innov[k, 2]
-    if rows < 3:
-        return 0.0
-    if rows < k1 - lo:  # skipped samples in the window
-        return _whiteness_with_gaps(lo, k1, rows, innov)
-    means = (mean0 / rows, mean1 / rows, mean2 / rows)
-    num, den = 0.0, 0.0
-    for i in range(3):  # the sums in the order of the loop with gaps: bitwise its result
-        prev = innov[lo, i] - means[i]
-        den += prev * prev
-        for k in range(lo + 1, k1):
-            c = innov[k, i] - means[i]
-            den += c * c
-            num += c * prev
-            prev = c
-    return num / den if den > 0.0 else 0.0
-
-
-@njit(cache=True)
-def _whiteness_with_gaps(lo: int, k1: int, rows: int, innov: np.ndarray) -> float:
-    """:func:`_whiteness` over samples ``lo ≤ k < k1`` of which ``rows`` are finite rows."""
-    num, den = 0.0, 0.0
-    for i in range(3):
-        mean = 0.0
-        for k in range(lo, k1):
-            if _finite_row(innov, k):
-                mean += innov[k, i]
-        mean /= rows
-        prev, first = 0.0, True
-        for k in range(lo, k1):
-            if _finite_row(innov, k):
-                c = innov[k, i] - mean
-                den += c * c
-                if not first:
-                    num += c * prev
-                prev, first = c, False
-    return num / den if den > 0.0 else 0.0
-
-
-@njit(cache=True, inline="always")
-def _previous(w: int, size: int) -> int:
-    """The slot before ``w`` in a circular buffer of ``size`` slots: ``(w − 1) mod size``
-    without an integer division (these loops run over the window at every step)."""
-    return w - 1 if w > 0 else size - 1
-
-
-@njit(cache=True)
-def _recent_ratio(m: int, ints: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray) -> float:
-    """ROR over the last ``m`` updates only: ``Σ|r|² / Σ tr S`` (NaN before any update)."""
-    m = min(m, ints[INT_COUNT])
-    num, den, w = 0.0, 0.0, ints[INT_POS]
-    for _ in range(m):  # newest first
-        w = _previous(w, ints[INT_WINDOW])
-        num += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
-        den += sbuf[w]
-    return num / den if den > 0.0 else np.nan
-
-
-@njit(cache=True)
-def _recent_power(m: int, ints: np.ndarray, rbuf: np.ndarray) -> tuple[float, float]:
-    """Over the last ``m`` updates: the mean innovation power ``mean |r|²`` and the power of
-    the mean innovation ``|mean r|²`` [nT²] (NaN before any update). Noise averages out of the
-    second, a step does not."""
-    m = min(m, ints[INT_COUNT])
-    if m == 0:
-        return np.nan, np.nan
-    power, s0, s1, s2, w = 0.0, 0.0, 0.0, 0.0, ints[INT_POS]
-    for _ in range(m):  # newest first
-        w = _previous(w, ints[INT_WINDOW])
-        power += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
-        s0, s1, s2 = s0 + rbuf[w, 0], s1 + rbuf[w, 1], s2 + rbuf[w, 2]
-    return power / m, (s0 * s0 + s1 * s1 + s2 * s2) / (m * m)
-
-
-@njit(cache=True)
-def _step_statistic(m: int, ints: np.ndarray, rbuf: np.ndarray) -> float:
-    """Two-window change statistic ``m |mean₁ r − mean₀ r|² / tr C₀``: the mean innovation of
-    the last ``m`` updates against that of the earlier updates in the statistics window, over
-    the earlier ones' innovation covariance trace. About 1 + m/(M − m) without a change,
-    whatever the noise level or R; an interference step raises it by m |step|² / tr C₀. NaN
-    with fewer than 3 earlier updates. (Per axis in scalars, newest first: no allocation.)"""
-    count = ints[INT_COUNT]
-    m = min(m, count)
-    earlier = count - m
-    if m < 1 or earlier < 3:
-        return np.nan
-    size = ints[INT_WINDOW]
-    recent0, recent1, recent2, before0, before1, before2 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    w = ints[INT_POS]
-    for j in range(count):
-        w = _previous(w, size)
-        if j < m:
-            recent0 += rbuf[w, 0]
-            recent1 += rbuf[w, 1]
-            recent2 += rbuf[w, 2]
-        else:
-            before0 += rbuf[w, 0]
-            before1 += rbuf[w, 1]
-            before2 += rbuf[w, 2]
-    recent0, recent1, recent2 = recent0 / m, recent1 / m, recent2 / m
-    before0, before1, before2 = before0 / earlier, before1 / earlier, before2 / earlier
-    sq0, sq1, sq2 = 0.0, 0.0, 0.0
-    w = (ints[INT_POS] - m) % size  # the earlier updates, newest first
-    for _ in range(m, count):
-        w = _previous(w, size)
-        sq0 += (rbuf[w, 0] - before0) ** 2
-        sq1 += (rbuf[w, 1] - before1) ** 2
-        sq2 += (rbuf[w, 2] - before2) ** 2
-    tr_c = (sq0 + sq1 + sq2) / (earlier - 1)
-    if not tr_c > 0.0:
-        return np.nan
-    change = (recent0 - before0) ** 2 + (recent1 - before1) ** 2 + (recent2 - before2) ** 2
-    return m * change / tr_c
-
-
-@njit(cache=True)
-def _log10_or_zero(v: float) -> float:
-    return math.log10(v) if v > 0.0 and np.isfinite(v) else 0.0
-
-
-@njit(cache=True)
-def _observe(k1: int, n: int, env: EnvArrays, settings: EnvSettings, f: FilterArrays) -> None:
-    """Write the observation at the end of the window (float32, clipped to the bounds), each
-    at its column (``settings.obs_at``)."""
+def _observe(
+    k0: int, k1: int, n: int, env: EnvArrays, settings: EnvSettings, f: FilterArrays
+) -> None:
+    """Write the observation at the end of the window ``k0 ≤ k < k1`` (float32, clipped to the
+    bounds), each at its column (``settings.obs_at``)."""
     run, obs, par, at = env.run, env.obs, settings.par, settings.obs_at
     ints, r0, rbuf = f.state.ints, f.state.r0, f.window.rbuf
     k = k1 - 1
-    obs[OBS_LOG_ROR] = _log10_or_zero(f.outputs.ror[k])
-    obs[OBS_LOG_QOQ] = _log10_or_zero(f.outputs.qoq[k])
+    obs[OBS_LOG_ROR] = log10_or_zero(f.outputs.ror[k])
+    obs[OBS_LOG_QOQ] = log10_or_zero(f.outputs.qoq[k])
     if at[OBS_LOG_Q_SCALE] >= 0:  # the extras
         obs[OBS_LOG_Q_SCALE] = run[RUN_LOG_Q] / par[PAR_LN10]
         obs[OBS_LOG_R_SCALE] = run[RUN_LOG_R] / par[PAR_LN10]
-        obs[OBS_WHITENESS] = _whiteness(k1, ints[INT_WINDOW], f.outputs.innov)
+        obs[OBS_WHITENESS] = whiteness(k1, ints[INT_WINDOW], f.outputs.innov)
         obs[OBS_PROGRESS] = k1 / n
-        short = _recent_ratio(int(par[PAR_K]), ints, rbuf, f.window.sbuf)
-        obs[OBS_LOG_RECENT_ROR] = _log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
+        short = recent_ratio(int(par[PAR_K]), ints, rbuf, f.window.sbuf)
+        obs[OBS_LOG_RECENT_ROR] = log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
     if at[OBS_LOG_QP_SCALE] >= 0:
         obs[at[OBS_LOG_QP_SCALE]] = run[RUN_LOG_QP] / par[PAR_LN10]
     if at[OBS_LOG_INNOVATION_POWER] >= 0:  # over tr R(0): the noise level and a step, R aside
         tr_r0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
-        power = _recent_power(ints[INT_WINDOW], ints, rbuf)[0]
-        obs[at[OBS_LOG_INNOVATION_POWER]] = _log10_or_zero(power / tr_r0)
-        mean_power = _recent_power(int(par[PAR_K]), ints, rbuf)[1]
-        obs[at[OBS_LOG_MEAN_INNOVATION_POWER]] = _log10_or_zero(mean_power / tr_r0)
+        power = recent_power(ints[INT_WINDOW], ints, rbuf)[0]
+        obs[at[OBS_LOG_INNOVATION_POWER]] = log10_or_zero(power / tr_r0)
+        mean_power = recent_power(int(par[PAR_K]), ints, rbuf)[1]
+        obs[at[OBS_LOG_MEAN_INNOVATION_POWER]] = log10_or_zero(mean_power / tr_r0)
     if at[OBS_LOG_STEP_STATISTIC] >= 0:
-        statistic = _step_statistic(int(par[PAR_K]), ints, rbuf)
-        obs[at[OBS_LOG_STEP_STATISTIC]] = _log10_or_zero(statistic)
+        statistic = step_statistic(int(par[PAR_K]), ints, rbuf)
+        obs[at[OBS_LOG_STEP_STATISTIC]] = log10_or_zero(statistic)
+    if at[OBS_LOG_TURN_RATE] >= 0:  # 0 (no turn seen) → the lower bound
+        s = f.signals
+        rate = turn_rate(k0, k1, s.t, s.td, s.valid)
+        obs[at[OBS_LOG_TURN_RATE]] = math.log10(rate) if rate > 0.0 else -OBS_LIMIT
     for j in range(obs.shape[0]):
         obs[j] = min(max(obs[j], settings.low[j]), settings.high[j])
 
@@ -363,7 +245,7 @@ def env_step(
     out[OUT_TERMINATED] = 1.0 if terminated else 0.0
     out[OUT_TRUNCATED] = 1.0 if k1 >= n and not terminated else 0.0
     out[OUT_EPISODE_RMSE] = _episode_rmse(run, rmse)
-    _observe(k1, n, env, settings, f)
+    _observe(k0, k1, n, env, settings, f)
 
 
 @njit(cache=True, nogil=True)

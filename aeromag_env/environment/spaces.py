@@ -37,6 +37,7 @@ OBSERVATIONS = (
     "log_innovation_power",  # log10 mean |r|² over the statistics window / tr R(0)
     "log_mean_innovation_power",  # log10 |mean r|² over the last decision window / tr R(0)
     "log_step_statistic",  # log10 of the two-window change statistic
+    "log_turn_rate",  # log10 RMS |Ṫ|/|T| over the last decision window [rad/s]
 )
 #: Each observation's index in OBSERVATIONS: for the first two (always given) and the five of
 #: ``extras`` also its column, for the optional ones the row of :func:`observation_positions`.
@@ -51,6 +52,7 @@ OBS_LOG_QP_SCALE = OBSERVATIONS.index("log_qp_scale")
 OBS_LOG_INNOVATION_POWER = OBSERVATIONS.index("log_innovation_power")
 OBS_LOG_MEAN_INNOVATION_POWER = OBSERVATIONS.index("log_mean_innovation_power")
 OBS_LOG_STEP_STATISTIC = OBSERVATIONS.index("log_step_statistic")
+OBS_LOG_TURN_RATE = OBSERVATIONS.index("log_turn_rate")
 BASE_OBSERVATIONS = OBSERVATIONS[: OBS_LOG_QOQ + 1]
 EXTRA_OBSERVATIONS = OBSERVATIONS[OBS_LOG_QOQ + 1 : OBS_LOG_RECENT_ROR + 1]
 #: The switch that adds each optional observation (with ``extras``; they follow the extras in the
@@ -60,6 +62,7 @@ OPTIONAL_OBSERVATIONS = {
     "log_innovation_power": "innovation_power",
     "log_mean_innovation_power": "innovation_power",
     "log_step_statistic": "step_statistic",
+    "log_turn_rate": "turn_rate",
 }
 #: Observations are log10 ratios clipped to ±OBS_LIMIT, except those with a range of their own.
 OBS_LIMIT = 8.0
@@ -77,6 +80,8 @@ class Layout(Protocol):
     def innovation_power(self) -> bool: ...
     @property
     def step_statistic(self) -> bool: ...
+    @property
+    def turn_rate(self) -> bool: ...
 
 
 def action_names(config: Layout) -> tuple[str, ...]:

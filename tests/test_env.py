@@ -382,6 +382,41 @@ def test_turn_rate_follows_its_definition_and_the_manoeuvres():
         _make(turn_rate=True)
 
 
+def test_innovation_bias_follows_its_definition_and_holds_a_missed_step():
+    """The bias statistic is M |mean r|² / tr C over the statistics window's innovations; on
+    white noise it sits near ν/(ν − 2) with ν = 3(M − 1) at any level, a bias of 2 noise std
+    lifts it by decades, and it stays up once a step fills the whole window, where the
+    two-window statistic falls back."""
+    from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_POS, INT_WINDOW
+    from aeromag_env.environment.statistics import innovation_bias, step_statistic
+
+    env = _make(scenario="nonstationary", extras=True, innovation_bias=True)
+    env.reset(seed=100_003)
+    f = env.unwrapped.filter
+    for _ in range(60):
+        obs, *_ = env.step(np.zeros(2, np.float32))
+    r = f.innov[: f.k]
+    r = r[np.all(np.isfinite(r), axis=1)][-f.cfg.window :]
+    expect = len(r) * np.sum(r.mean(0) ** 2) / np.sum(r.var(0, ddof=1))
+    column = observation_index(env.unwrapped.config, "log_innovation_bias")
+    assert obs[column] == pytest.approx(np.log10(expect), rel=1e-5)
+
+    m = 50
+    ints = np.zeros(8, np.int64)
+    ints[INT_COUNT], ints[INT_POS], ints[INT_WINDOW] = m, 17, m
+    rng = np.random.default_rng(0)
+    for std in (1.0, 15.0):
+        stats = [innovation_bias(ints, std * rng.standard_normal((m, 3))) for _ in range(2000)]
+        assert np.mean(stats) == pytest.approx(147 / 145, rel=0.05)  # std of the mean ~3 %
+    held = 15.0 * rng.standard_normal((m, 3)) + 30.0  # a 30-nT step in 15-nT noise, window full
+    assert innovation_bias(ints, held) > 100.0
+    assert step_statistic(10, ints, held) < 10.0
+    ints[INT_COUNT] = 2
+    assert np.isnan(innovation_bias(ints, held))
+    with pytest.raises(ConfigError, match="innovation_bias needs extras"):
+        _make(innovation_bias=True)
+
+
 def _lag1(r: np.ndarray) -> float:
     """Lag-1 autocorrelation of the rows of ``r``, per-axis mean removed, pooled over axes."""
     c = r - r.mean(axis=0)
@@ -417,9 +452,10 @@ def test_spaces_lay_out_the_observations_and_actions_as_documented():
     assert observation_names(paper) == ("log_ror", "log_qoq")
     assert action_names(paper) == ("a_q", "a_r")
     full = EnvConfig(
-        extras=True, split_q=True, innovation_power=True, step_statistic=True, turn_rate=True
-    )
-    assert observation_names(full) == OBSERVATIONS and len(OBSERVATIONS) == 12
+        extras=True, split_q=True, innovation_power=True, step_statistic=True, turn_rate=True,
+        innovation_bias=True,
+    )  # fmt: skip
+    assert observation_names(full) == OBSERVATIONS and len(OBSERVATIONS) == 13
     assert action_names(full) == ("a_q", "a_r", "a_qp")
     detector = EnvConfig(extras=True, split_q=True, innovation_power=True)
     assert observation_index(detector, "log_mean_innovation_power") == 9
@@ -427,10 +463,10 @@ def test_spaces_lay_out_the_observations_and_actions_as_documented():
     with pytest.raises(ValueError, match="not in this layout"):
         observation_index(paper, "whiteness")
     positions = observation_positions(detector)
-    assert positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, -1, -1]
+    assert positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, -1, -1, -1]
     low, high = observation_bounds(EnvConfig(extras=True))
     np.testing.assert_array_equal(low, np.float32([-8, -8, -8, -8, -1, 0, -8]))
     np.testing.assert_array_equal(high, np.float32([8, 8, 8, 8, 1, 1, 8]))
     assert observation_index(EnvConfig(extras=True, turn_rate=True), "log_turn_rate") == 7
     env = _make(config=full)
-    assert env.observation_space.shape == (12,) and env.action_space.shape == (3,)
+    assert env.observation_space.shape == (13,) and env.action_space.shape == (3,)

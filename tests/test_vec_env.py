@@ -45,7 +45,9 @@ def _pair(n, mode, **kw):
 def test_equals_gymnasium_sync_vector_env_of_single_envs(mode, split_q):
     """Over two autoresets (30-step flights), random actions beyond the clip range; with
     split_q also every optional observation."""
-    optional = dict.fromkeys(("innovation_power", "step_statistic", "turn_rate"), split_q)
+    optional = dict.fromkeys(
+        ("innovation_power", "step_statistic", "turn_rate", "innovation_bias"), split_q
+    )
     ours, sync = _pair(3, mode, scenario="misspecified", extras=True, duration_s=30.0,
                        split_q=split_q, **optional)  # fmt: skip
     _assert_identical(ours.reset(seed=100_000), sync.reset(seed=100_000))

@@ -41,7 +41,10 @@ MAX_DECADES = 100.0
 #: The keys ``reset(options=...)`` of the single environment takes.
 RESET_OPTIONS = ("scenario",)
 #: The boolean switches of the configuration.
-SWITCHES = ("extras", "split_q", "innovation_power", "step_statistic", "turn_rate", "qp_gate")
+SWITCHES = (
+    "extras", "split_q", "innovation_power", "step_statistic", "turn_rate", "innovation_bias",
+    "qp_gate",
+)  # fmt: skip
 #: The (lo, hi) log10 ranges of the absolute mode.
 LOG10_RANGES = ("absolute_q_log10", "absolute_r_log10", "absolute_qp_log10")
 
@@ -76,7 +79,8 @@ def check_config(cfg: Any) -> None:
     )
     check(cfg.extras or not cfg.innovation_power, "innovation_power needs extras=True")
     check(cfg.extras or not cfg.step_statistic, "step_statistic needs extras=True")
-    check(cfg.extras or not cfg.turn_rate, "turn_rate needs extras=True")
+    for name in ("turn_rate", "innovation_bias"):
+        check(cfg.extras or not getattr(cfg, name), f"{name} needs extras=True")
     check(
         not cfg.qp_gate or (cfg.split_q and cfg.action_mode == "absolute"),
         "qp_gate needs split_q=True and action_mode='absolute'",

@@ -116,6 +116,10 @@ class EnvConfig:
         from the attitude the filter already reads (−8 without a turn) — a design switch beyond
         the paper: noise that airframe flex and control-surface currents add grows with the
         angular rate, and an innovation burst while turning is that noise, not a step
+    innovation_bias : with ``extras``, one more observation: log10 of ``M |mean r|² / tr C``,
+        the mean innovation over the statistics window against zero over the innovations'
+        covariance trace (about 0 for a consistent filter at any noise level or R) — a step the
+        filter missed keeps it high after the two-window statistic has fallen
     """
 
     scenario: str = "nominal"
@@ -136,6 +140,7 @@ class EnvConfig:
     innovation_power: bool = False
     step_statistic: bool = False
     turn_rate: bool = False
+    innovation_bias: bool = False
     qp_gate: bool = False
 
     def __post_init__(self) -> None:
@@ -210,8 +215,8 @@ class AeroMagCompensationEnv(gym.Env):
     progress through the flight (in [0, 1]) and log10 of the ROR over the last decision window
     only (it reacts to an interference step within K samples, the M-window ROR only slowly);
     with ``split_q`` an eighth, log10 of the cumulative T_p Q scale; with ``innovation_power``
-    two more, with ``step_statistic`` and ``turn_rate`` one more each, in that order (see
-    :class:`EnvConfig`). Their names and columns:
+    two more, with ``step_statistic``, ``turn_rate`` and ``innovation_bias`` one more each, in
+    that order (see :class:`EnvConfig`). Their names and columns:
     :func:`aeromag_env.environment.spaces.observation_names` and
     :func:`~aeromag_env.environment.spaces.observation_index` (actions:
     :data:`~aeromag_env.environment.spaces.ACTIONS`).

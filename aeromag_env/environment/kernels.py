@@ -29,6 +29,7 @@ from aeromag_env.environment.spaces import (
     ACT_QP,
     ACT_R,
     OBS_LIMIT,
+    OBS_LOG_INNOVATION_BIAS,
     OBS_LOG_INNOVATION_POWER,
     OBS_LOG_MEAN_INNOVATION_POWER,
     OBS_LOG_Q_SCALE,
@@ -43,6 +44,7 @@ from aeromag_env.environment.spaces import (
     OBS_WHITENESS,
 )
 from aeromag_env.environment.statistics import (
+    innovation_bias,
     log10_or_zero,
     recent_power,
     recent_ratio,
@@ -188,6 +190,8 @@ def _observe(
         s = f.signals
         rate = turn_rate(k0, k1, s.t, s.td, s.valid)
         obs[at[OBS_LOG_TURN_RATE]] = math.log10(rate) if rate > 0.0 else -OBS_LIMIT
+    if at[OBS_LOG_INNOVATION_BIAS] >= 0:
+        obs[at[OBS_LOG_INNOVATION_BIAS]] = log10_or_zero(innovation_bias(ints, rbuf))
     for j in range(obs.shape[0]):
         obs[j] = min(max(obs[j], settings.low[j]), settings.high[j])
 

@@ -38,6 +38,7 @@ OBSERVATIONS = (
     "log_mean_innovation_power",  # log10 |mean r|² over the last decision window / tr R(0)
     "log_step_statistic",  # log10 of the two-window change statistic
     "log_turn_rate",  # log10 RMS |Ṫ|/|T| over the last decision window [rad/s]
+    "log_innovation_bias",  # log10 M |mean r|² / tr C over the statistics window
 )
 #: Each observation's index in OBSERVATIONS: for the first two (always given) and the five of
 #: ``extras`` also its column, for the optional ones the row of :func:`observation_positions`.
@@ -53,6 +54,7 @@ OBS_LOG_INNOVATION_POWER = OBSERVATIONS.index("log_innovation_power")
 OBS_LOG_MEAN_INNOVATION_POWER = OBSERVATIONS.index("log_mean_innovation_power")
 OBS_LOG_STEP_STATISTIC = OBSERVATIONS.index("log_step_statistic")
 OBS_LOG_TURN_RATE = OBSERVATIONS.index("log_turn_rate")
+OBS_LOG_INNOVATION_BIAS = OBSERVATIONS.index("log_innovation_bias")
 BASE_OBSERVATIONS = OBSERVATIONS[: OBS_LOG_QOQ + 1]
 EXTRA_OBSERVATIONS = OBSERVATIONS[OBS_LOG_QOQ + 1 : OBS_LOG_RECENT_ROR + 1]
 #: The switch that adds each optional observation (with ``extras``; they follow the extras in the
@@ -63,6 +65,7 @@ OPTIONAL_OBSERVATIONS = {
     "log_mean_innovation_power": "innovation_power",
     "log_step_statistic": "step_statistic",
     "log_turn_rate": "turn_rate",
+    "log_innovation_bias": "innovation_bias",
 }
 #: Observations are log10 ratios clipped to ±OBS_LIMIT, except those with a range of their own.
 OBS_LIMIT = 8.0
@@ -82,6 +85,8 @@ class Layout(Protocol):
     def step_statistic(self) -> bool: ...
     @property
     def turn_rate(self) -> bool: ...
+    @property
+    def innovation_bias(self) -> bool: ...
 
 
 def action_names(config: Layout) -> tuple[str, ...]:

@@ -164,3 +164,28 @@ def turn_rate(k0: int, k1: int, t: np.ndarray, td: np.ndarray, valid: np.ndarray
             total += (td[k, 0] ** 2 + td[k, 1] ** 2 + td[k, 2] ** 2) / norm2
             rows += 1
     return math.sqrt(total / rows) if rows > 0 else 0.0
+
+
+@njit(cache=True)
+def innovation_bias(ints: np.ndarray, rbuf: np.ndarray) -> float:
+    """Bias statistic ``M |mean r|² / tr C`` over the ``M`` updates of the statistics window:
+    the mean innovation against zero, over the innovations' covariance trace. About 1 for a
+    consistent filter (zero-mean innovations) at any noise level or R; a step the filter has not
+    absorbed keeps it high for as long as the bias stays, where the two-window statistic falls
+    once the step fills the window. NaN with fewer than 3 updates."""
+    count, size = ints[INT_COUNT], ints[INT_WINDOW]
+    if count < 3:
+        return np.nan
+    s0, s1, s2, w = 0.0, 0.0, 0.0, ints[INT_POS]
+    for _ in range(count):
+        w = _previous(w, size)
+        s0, s1, s2 = s0 + rbuf[w, 0], s1 + rbuf[w, 1], s2 + rbuf[w, 2]
+    m0, m1, m2 = s0 / count, s1 / count, s2 / count
+    sq, w = 0.0, ints[INT_POS]
+    for _ in range(count):
+        w = _previous(w, size)
+        sq += (rbuf[w, 0] - m0) ** 2 + (rbuf[w, 1] - m1) ** 2 + (rbuf[w, 2] - m2) ** 2
+    tr_c = sq / (count - 1)
+    if not tr_c > 0.0:
+        return np.nan
+    return count * (m0 * m0 + m1 * m1 + m2 * m2) / tr_c

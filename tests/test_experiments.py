@@ -202,3 +202,15 @@ def test_same_verdicts_flags_a_changed_named_list_and_counts_unmatched(tmp_path,
     assert same_verdicts([str(paths["old"]), str(paths["changed"])]) == 1
     assert "single seed 1:" in capsys.readouterr().out
     assert same_verdicts([str(paths["old"])]) == 2
+
+
+def test_lagged_privileged_pays_for_knowing_the_noise_one_window_late(capsys):
+    """On manoeuvre_heavy the privileged policy that sets R from the window just flown is worse
+    than the one that knows the coming window (the flex noise moves within a second), and the
+    table has a row per decision window."""
+    from experiments.lagged_privileged import main as lagged
+
+    rows = lagged(["--windows", "10", "--episodes", "2"])
+    assert [r["window"] for r in rows] == [10]
+    assert rows[0]["late"] > rows[0]["privileged"]
+    assert "| 10 |" in capsys.readouterr().out

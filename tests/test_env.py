@@ -320,6 +320,17 @@ def test_innovation_power_observations_follow_their_definition():
         _make(innovation_power=True)
 
 
+def _flown_window(env, steps: int = 60):
+    """The observation after ``steps`` zero actions on test flight 100 003 and the finite
+    innovations of the filter's statistics window at that point."""
+    env.reset(seed=100_003)
+    f = env.unwrapped.filter
+    for _ in range(steps):
+        obs, *_ = env.step(np.zeros(env.action_space.shape, np.float32))
+    r = f.innov[: f.k]
+    return obs, r[np.all(np.isfinite(r), axis=1)][-f.cfg.window :]
+
+
 def test_step_statistic_follows_its_definition_and_flags_a_step():
     """The two-window change statistic equals its formula on the filter's innovations, sits
     near 1 + K/(M − K) on white noise at any level, and a 5-sigma step lifts it by decades."""
@@ -328,12 +339,7 @@ def test_step_statistic_follows_its_definition_and_flags_a_step():
 
     env = _make(scenario="nonstationary", extras=True, step_statistic=True, split_q=True)
     assert env.observation_space.shape == (9,)
-    env.reset(seed=100_003)
-    f = env.unwrapped.filter
-    for _ in range(60):
-        obs, *_ = env.step(np.zeros(3, np.float32))
-    r = f.innov[: f.k]
-    r = r[np.all(np.isfinite(r), axis=1)][-f.cfg.window :]
+    obs, r = _flown_window(env)
     recent, before = r[-10:], r[:-10]
     expect = 10 * np.sum((recent.mean(0) - before.mean(0)) ** 2) / np.sum(before.var(0, ddof=1))
     column = observation_index(env.unwrapped.config, "log_step_statistic")
@@ -391,12 +397,7 @@ def test_innovation_bias_follows_its_definition_and_holds_a_missed_step():
     from aeromag_env.environment.statistics import innovation_bias, step_statistic
 
     env = _make(scenario="nonstationary", extras=True, innovation_bias=True)
-    env.reset(seed=100_003)
-    f = env.unwrapped.filter
-    for _ in range(60):
-        obs, *_ = env.step(np.zeros(2, np.float32))
-    r = f.innov[: f.k]
-    r = r[np.all(np.isfinite(r), axis=1)][-f.cfg.window :]
+    obs, r = _flown_window(env)
     expect = len(r) * np.sum(r.mean(0) ** 2) / np.sum(r.var(0, ddof=1))
     column = observation_index(env.unwrapped.config, "log_innovation_bias")
     assert obs[column] == pytest.approx(np.log10(expect), rel=1e-5)

@@ -51,7 +51,7 @@ def whiteness(k1: int, window: int, innov: np.ndarray) -> float:
 
 @njit(cache=True)
 def whiteness_with_gaps(lo: int, k1: int, rows: int, innov: np.ndarray) -> float:
-    """:func:`_whiteness` over samples ``lo ≤ k < k1`` of which ``rows`` are finite rows."""
+    """:func:`whiteness` over samples ``lo ≤ k < k1`` of which ``rows`` are finite rows."""
     num, den = 0.0, 0.0
     for i in range(3):
         mean = 0.0

@@ -418,6 +418,21 @@ def test_innovation_bias_follows_its_definition_and_holds_a_missed_step():
         _make(innovation_bias=True)
 
 
+def test_recent_samples_sets_the_window_of_the_recent_statistics():
+    """With ``recent_samples`` the step statistic (and the recent ROR and mean innovation power)
+    cover that many samples instead of the decision window: at K = 5 with 10 recent samples the
+    statistic is the formula over the last 10 innovations; a bad value is a config error."""
+    env = _make(scenario="nonstationary", extras=True, step_statistic=True, split_q=True,
+                decision_window=5, recent_samples=10)  # fmt: skip
+    obs, r = _flown_window(env, steps=120)
+    recent, before = r[-10:], r[:-10]
+    expect = 10 * np.sum((recent.mean(0) - before.mean(0)) ** 2) / np.sum(before.var(0, ddof=1))
+    column = observation_index(env.unwrapped.config, "log_step_statistic")
+    assert obs[column] == pytest.approx(np.log10(expect), rel=1e-5)
+    with pytest.raises(ConfigError, match="recent_samples"):
+        _make(recent_samples=0)
+
+
 def _lag1(r: np.ndarray) -> float:
     """Lag-1 autocorrelation of the rows of ``r``, per-axis mean removed, pooled over axes."""
     c = r - r.mean(axis=0)

@@ -62,6 +62,8 @@ def check_config(cfg: Any) -> None:
         value = getattr(cfg, name)
         require(isinstance(value, bool), name, "true or false", value)
     require_number(cfg, "decision_window", 1, MAX_DECISION_WINDOW, "[samples]", integer=True)
+    if cfg.recent_samples is not None:
+        require_number(cfg, "recent_samples", 1, MAX_DECISION_WINDOW, "[samples]", integer=True)
     require_number(cfg, "s_max", 1.0, math.inf, "(a factor per step)", low_open=True)
     require_number(cfg, "reward_scale_nt", *REWARD_SCALE_RANGE_NT, "[nT]")
     check(

@@ -40,6 +40,7 @@ from aeromag_env.environment.kernels import (
     PAR_QP_LO,
     PAR_R_HI,
     PAR_R_LO,
+    PAR_RECENT,
     PAR_REWARD_FORM,
     PAR_REWARD_NT,
     PAR_SPLIT_Q,
@@ -71,6 +72,9 @@ class EnvConfig:
     ----------
     scenario : one of :data:`aeromag_env.environment.scenarios.SCENARIOS`
     decision_window : K, samples the filter advances per step, an integer in [1, 10^6]
+    recent_samples : samples of the "last decision window" statistics (the recent ROR, the mean
+        innovation power and the two-window change statistic), an integer in [1, 10^6]; None:
+        K. A short decision window follows fast noise, a statistic over 5 samples finds no step
     s_max : largest scale factor per step (finite, > 1); action ``a`` → ``s = s_max ** a``
     extras : add log Q scale, log R scale, innovation whiteness and progress to the observation
     reward_scale_nt : error scale of the reward, in [1e-3, 1e6] [nT]
@@ -124,6 +128,7 @@ class EnvConfig:
 
     scenario: str = "nominal"
     decision_window: int = 10
+    recent_samples: int | None = None
     s_max: float = 2.0
     extras: bool = False
     reward_scale_nt: float = 1.0
@@ -152,6 +157,7 @@ def parameters(config: EnvConfig) -> np.ndarray:
     the ``PAR_*`` indices of :mod:`aeromag_env.environment.kernels`."""
     par = np.zeros(N_PAR)
     par[PAR_K] = config.decision_window
+    par[PAR_RECENT] = config.recent_samples or config.decision_window
     par[PAR_LOG_S_MAX] = math.log(config.s_max)
     par[PAR_LOG_LIMIT] = math.log(config.scale_limit)
     par[PAR_ABSOLUTE] = float(config.action_mode == "absolute")

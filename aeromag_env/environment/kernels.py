@@ -65,8 +65,8 @@ N_RUN = 7
 # environment parameters (float vector, see aeromag_env.environment.env.parameters)
 (PAR_K, PAR_LOG_S_MAX, PAR_LOG_LIMIT, PAR_ABSOLUTE, PAR_Q_LO, PAR_Q_HI, PAR_R_LO, PAR_R_HI,
  PAR_REWARD_NT, PAR_PENALTY, PAR_LN10, PAR_SPLIT_Q, PAR_QP_LO, PAR_QP_HI, PAR_REWARD_FORM,
- PAR_QP_GATE) = range(16)  # fmt: skip
-N_PAR = 16
+ PAR_QP_GATE, PAR_RECENT) = range(17)  # fmt: skip
+N_PAR = 17
 #: Reward forms of :class:`aeromag_env.environment.env.EnvConfig`, coded by their index in
 #: PAR_REWARD_FORM.
 REWARD_FORMS = ("log", "linear", "squared")
@@ -173,7 +173,7 @@ def _observe(
         obs[OBS_LOG_R_SCALE] = run[RUN_LOG_R] / par[PAR_LN10]
         obs[OBS_WHITENESS] = whiteness(k1, ints[INT_WINDOW], f.outputs.innov)
         obs[OBS_PROGRESS] = k1 / n
-        short = recent_ratio(int(par[PAR_K]), ints, rbuf, f.window.sbuf)
+        short = recent_ratio(int(par[PAR_RECENT]), ints, rbuf, f.window.sbuf)
         obs[OBS_LOG_RECENT_ROR] = log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
     if at[OBS_LOG_QP_SCALE] >= 0:
         obs[at[OBS_LOG_QP_SCALE]] = run[RUN_LOG_QP] / par[PAR_LN10]
@@ -181,10 +181,10 @@ def _observe(
         tr_r0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
         power = recent_power(ints[INT_WINDOW], ints, rbuf)[0]
         obs[at[OBS_LOG_INNOVATION_POWER]] = log10_or_zero(power / tr_r0)
-        mean_power = recent_power(int(par[PAR_K]), ints, rbuf)[1]
+        mean_power = recent_power(int(par[PAR_RECENT]), ints, rbuf)[1]
         obs[at[OBS_LOG_MEAN_INNOVATION_POWER]] = log10_or_zero(mean_power / tr_r0)
     if at[OBS_LOG_STEP_STATISTIC] >= 0:
-        statistic = step_statistic(int(par[PAR_K]), ints, rbuf)
+        statistic = step_statistic(int(par[PAR_RECENT]), ints, rbuf)
         obs[at[OBS_LOG_STEP_STATISTIC]] = log10_or_zero(statistic)
     if at[OBS_LOG_TURN_RATE] >= 0:  # 0 (no turn seen) → the lower bound
         s = f.signals

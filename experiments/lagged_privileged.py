@@ -26,6 +26,7 @@ if __package__ in (None, ""):  # run as a script: the checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.environment.spaces import ACT_R
+from agents.evaluate import run_episode
 from agents.policies import PrivilegedPolicy
 from agents.validation import validation_rmse, validation_seeds
 
@@ -54,15 +55,7 @@ def _fly(policy_class: type, scenario: str, window: int, episodes: int) -> float
     kwargs = dict(PrivilegedPolicy.ENV_KWARGS, extras=True, decision_window=window)
     env = gym.make("AeroMagCompensation-v0", scenario=scenario, **kwargs)
     policy = policy_class(env, cautious_start=True)
-    rmse = []
-    for seed in validation_seeds(episodes):
-        obs, _ = env.reset(seed=seed)
-        done = False
-        while not done:
-            action, _ = policy.predict(obs)
-            obs, _, terminated, truncated, info = env.step(action)
-            done = terminated or truncated
-        rmse.append(info["episode_rmse_nt"])
+    rmse = [run_episode(env, policy, seed)["rmse_nt"] for seed in validation_seeds(episodes)]
     return float(np.mean(rmse))
 
 

@@ -2,9 +2,10 @@
 
 Each is compiled and reads the filter's arrays in place (:mod:`aeromag_env.compensation.arrays`):
 the innovations of the last samples (whiteness), the circular window of the last M updates
-(recent ROR, innovation powers, the two-window change statistic) and the model field in body axes
-(the turn rate). :func:`aeromag_env.environment.kernels.env_step` writes them into the
-observation; their meaning is in :class:`aeromag_env.environment.env.EnvConfig`.
+(recent ROR, innovation powers, the two-window change statistic, the innovation bias) and the
+model field in body axes (the turn rate). :func:`aeromag_env.environment.kernels.env_step`
+writes them into the observation; their meaning is in
+:class:`aeromag_env.environment.env.EnvConfig`.
 """
 
 from __future__ import annotations

@@ -6,11 +6,14 @@ teacher. Used by :mod:`agents.ppo`; torch is imported here only when called.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from aeromag_env.atomic import atomic_path
 from agents.evaluate import TRAIN_SEEDS
 
 
@@ -25,7 +28,7 @@ def seed_stream(rank: int, n_envs: int, offset: int) -> Iterator[int]:
 
 def behaviour_clone(
     model: Any, venv: Any, hp: dict[str, Any], scenario: str = "nonstationary", seed: int = 0
-) -> None:
+) -> Demonstrations:
     """Pretrain ``model``'s actor to imitate a demonstrator and its critic to the discounted
     returns of the demonstrator's rollouts (``hp["pretrain"]``: ``steps`` environment steps
     of the training environments, ``epochs`` passes of Adam at ``learning_rate`` over them,
@@ -39,12 +42,16 @@ def behaviour_clone(
     departure from it that Gaussian exploration does not find. The demonstrator shows it;
     PPO then trains from there. The observation statistics and the reward scale of
     ``VecNormalize`` are those the rollouts leave behind, as PPO's own rollouts would.
+
+    Returns the demonstrations (all rounds' raw observations and the demonstrated actions), for
+    the behaviour-cloning steps that keep PPO near them (:class:`CloningTerm`).
     """
     spec = hp["pretrain"]
     steps = int(spec["steps"])
     if spec.get("demonstrator", "innovation_detector") != "privileged":
-        _fit(model, venv, hp, [_with_returns(_detector_rollouts(venv, hp, steps), hp)])
-        return
+        parts = [_with_returns(_detector_rollouts(venv, hp, steps), hp)]
+        _fit(model, venv, hp, parts)
+        return Demonstrations.of(parts)
     train_scenario = hp.get("train_scenario", scenario)
     parts, actor = [], None
     for round_ in range(int(spec.get("dagger_rounds", 1))):
@@ -54,6 +61,71 @@ def behaviour_clone(
         parts.append(_with_returns(rollout, hp))
         _fit(model, venv, hp, parts)
         actor = _student(model, venv)
+    return Demonstrations.of(parts)
+
+
+@dataclass(frozen=True)
+class Demonstrations:
+    """What the demonstrator did: raw observations (n, n_obs) and its actions (n, n_actions)."""
+
+    obs: np.ndarray
+    actions: np.ndarray
+
+    @classmethod
+    def of(cls, parts: list[tuple]) -> Demonstrations:
+        return cls(np.concatenate([p[0] for p in parts]).astype(np.float32),
+                   np.concatenate([p[1] for p in parts]).astype(np.float32))  # fmt: skip
+
+    def save(self, path: Path) -> None:
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, obs=self.obs, actions=self.actions)
+
+    @classmethod
+    def load(cls, path: Path) -> Demonstrations:
+        with np.load(path, allow_pickle=False) as data:
+            return cls(data["obs"], data["actions"])
+
+
+class CloningTerm:
+    """Behaviour cloning kept on during PPO (``pretrain.bc_minibatches``): after each PPO update,
+    that many minibatches of Adam (``pretrain.bc_learning_rate``) on the actor's mean toward the
+    demonstrated actions, drawn at random from the demonstrations.
+
+    Why: the student imitating the privileged teacher matches the tuned constant where the
+    noise follows the manoeuvres, and PPO's updates, driven by the scenarios with interference
+    steps, spend that margin within a few hundred thousand steps. Alternating PPO's update with
+    a cloning one is the auxiliary phase of phasic policy gradient with the teacher's labels
+    in place of the old policy's: PPO still improves the return, from near the demonstrations.
+    """
+
+    def __init__(self, model: Any, venv: Any, hp: dict[str, Any], demos: Demonstrations,
+                 seed: int) -> None:  # fmt: skip
+        import torch
+
+        spec = hp["pretrain"]
+        self.model, self.venv, self.demos = model, venv, demos
+        self.minibatches, self.batch = int(spec.get("bc_minibatches", 0)), int(hp["batch_size"])
+        policy = model.policy
+        actor = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]
+        self.optimiser = torch.optim.Adam(actor, lr=float(spec.get("bc_learning_rate", 1e-4)))
+        self.generator = torch.Generator().manual_seed(seed)
+
+    def step(self) -> float:
+        """One cloning phase; the mean squared action error of its last minibatch."""
+        import torch
+
+        policy, loss = self.model.policy, torch.zeros(())
+        n = self.demos.obs.shape[0]
+        for _ in range(self.minibatches):
+            idx = torch.randint(n, (self.batch,), generator=self.generator).numpy()
+            x = torch.as_tensor(self.venv.normalize_obs(self.demos.obs[idx]), dtype=torch.float32)
+            latent_pi = policy.mlp_extractor.forward_actor(policy.extract_features(x))
+            mean = policy.action_net(latent_pi)
+            loss = ((mean - torch.as_tensor(self.demos.actions[idx])) ** 2).mean()
+            self.optimiser.zero_grad()
+            loss.backward()
+            self.optimiser.step()
+        return float(loss.detach())
 
 
 def _with_returns(rollout: tuple[list, list, list, list], hp: dict[str, Any]) -> tuple:

@@ -28,7 +28,7 @@ from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.hyperparams_file import read_hyperparams
-from agents.imitation import behaviour_clone, seed_stream
+from agents.imitation import CloningTerm, Demonstrations, behaviour_clone, seed_stream
 from agents.numpy_policy import NumpyPPOPolicy
 from agents.policy_file import export_policy
 from agents.validation import Validator, validation_rmse
@@ -36,8 +36,9 @@ from agents.validation import Validator, validation_rmse
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.json"
 #: The checkpoint, written as a set (the model, the observation normaliser, the curve).
 CHECKPOINT = ("checkpoint.zip", "vecnormalize.pkl", "curve.json")
-#: The other outputs in ``--out``: the best policy, the latest candidate, the summary.
-OUTPUTS = ("policy.npz", "candidate.npz", "training.json")
+#: The other outputs in ``--out``: the best policy, the latest candidate, the summary, and the
+#: demonstrations the cloning term keeps PPO near (``pretrain.bc_minibatches``; read on resume).
+OUTPUTS = ("policy.npz", "candidate.npz", "training.json", "demonstrations.npz")
 
 
 def load_hyperparams(scenario: str, path: Path = HYPERPARAMS) -> dict[str, Any]:
@@ -168,9 +169,13 @@ def _train_ppo(
     callback = _Callback(out, venv, scenario, hp, seed, curve, timesteps, progress)
     t0 = time.perf_counter()
     if "pretrain" in hp and not ckpt.exists():  # a fresh run: imitate, then validate at step 0
-        behaviour_clone(model, venv, hp, scenario, seed)
+        demos = behaviour_clone(model, venv, hp, scenario, seed)
+        if _clones(hp):
+            demos.save(out / "demonstrations.npz")
         callback.init_callback(model)
         callback._validate()
+    if _clones(hp):
+        callback.cloning = CloningTerm(model, venv, hp, _demonstrations(out), seed)
     steps = max(0, timesteps - model.num_timesteps) if total else timesteps
     model.learn(steps, callback=callback, reset_num_timesteps=not ckpt.exists())
     callback.checkpoint(model)
@@ -187,6 +192,24 @@ def _train_ppo(
     }
     write_text(out / "training.json", json.dumps(summary, indent=2))
     return summary
+
+
+def _clones(hp: dict[str, Any]) -> bool:
+    """Whether behaviour cloning stays on during PPO (``pretrain.bc_minibatches`` > 0)."""
+    return int(hp.get("pretrain", {}).get("bc_minibatches", 0)) > 0
+
+
+def _demonstrations(out: Path) -> Demonstrations:
+    """The demonstrations of this run's pretraining (a resumed run reads them back)."""
+    path = out / "demonstrations.npz"
+    try:
+        return Demonstrations.load(path)
+    except (OSError, ValueError, KeyError) as e:
+        raise AeromagError(
+            f"cannot read the demonstrations {path} that pretrain.bc_minibatches needs "
+            f"({type(e).__name__}: {e}); remove checkpoint.zip and vecnormalize.pkl to start "
+            "afresh, or choose another --out"
+        ) from None
 
 
 @contextlib.contextmanager
@@ -289,6 +312,7 @@ class _Callback(_callback_base()):  # type: ignore[misc]
         self.next_eval = 0
         self.t0 = time.perf_counter()
         self.bar: Any = None
+        self.cloning: CloningTerm | None = None
 
     def _on_training_start(self) -> None:
         from tqdm import tqdm
@@ -297,6 +321,10 @@ class _Callback(_callback_base()):  # type: ignore[misc]
             total=self.total, unit="step", desc="train", disable=not self.progress or None
         )
         self.next_eval = self.model.num_timesteps + int(self.hp["eval_every"])
+
+    def _on_rollout_start(self) -> None:
+        if self.cloning is not None:  # after PPO's update (and once before the first rollout)
+            self.cloning.step()
 
     def _on_step(self) -> bool:
         self.bar.update(self.training_env.num_envs)

@@ -144,6 +144,12 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
     ("pretrain_threshold_negative", _sub("pretrain", "threshold_nt", -1.0),
      r"pretrain\.threshold_nt.*> 0"),
     ("pretrain_lr_zero", _sub("pretrain", "learning_rate", 0.0), r"pretrain\.learning_rate.*> 0"),
+    ("pretrain_bc_negative", _sub("pretrain", "bc_minibatches", -1),
+     r"pretrain\.bc_minibatches.*≥ 0"),
+    ("pretrain_bc_fraction", _sub("pretrain", "bc_minibatches", 2.5),
+     r"pretrain\.bc_minibatches.*integer"),
+    ("pretrain_bc_lr_zero", _sub("pretrain", "bc_learning_rate", 0.0),
+     r"pretrain\.bc_learning_rate.*> 0"),
     ("pretrain_unknown", _sub("pretrain", "stepz", 1), "'stepz' was unexpected"),
 ]  # fmt: skip
 

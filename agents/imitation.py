@@ -14,6 +14,7 @@ import gymnasium as gym
 import numpy as np
 
 from aeromag_env.atomic import atomic_path
+from aeromag_env.errors import AeromagError
 from agents.evaluate import TRAIN_SEEDS
 
 
@@ -51,45 +52,56 @@ def behaviour_clone(
     if spec.get("demonstrator", "innovation_detector") != "privileged":
         parts = [_with_returns(_detector_rollouts(venv, hp, steps), hp)]
         _fit(model, venv, hp, parts)
-        return Demonstrations.of(parts)
+        scenarios = np.full(parts[0][0].shape[0], hp.get("train_scenario", scenario))
+        return Demonstrations.of(parts, [scenarios])
     train_scenario = hp.get("train_scenario", scenario)
-    parts, actor = [], None
+    parts, flown, actor = [], [], None
     for round_ in range(int(spec.get("dagger_rounds", 1))):
         # each round and training seed flies flights of its own
         offset = TRAIN_SEEDS.stop // 2 + 5_000 * round_ + 1_000 * seed
         rollout = _privileged_rollouts(venv, hp, train_scenario, steps, actor, offset)
-        parts.append(_with_returns(rollout, hp))
+        parts.append(_with_returns(rollout[:4], hp))
+        flown.append(np.concatenate(rollout[4]))
         _fit(model, venv, hp, parts)
         actor = _student(model, venv)
-    return Demonstrations.of(parts)
+    return Demonstrations.of(parts, flown)
 
 
 @dataclass(frozen=True)
 class Demonstrations:
-    """What the demonstrator did: raw observations (n, n_obs) and its actions (n, n_actions)."""
+    """What the demonstrator did: raw observations (n, n_obs), its actions (n, n_actions) and
+    the scenario each sample was flown in (n,; a ``suite`` episode's drawn scenario)."""
 
     obs: np.ndarray
     actions: np.ndarray
+    scenarios: np.ndarray
 
     @classmethod
-    def of(cls, parts: list[tuple]) -> Demonstrations:
+    def of(cls, parts: list[tuple], scenarios: list[np.ndarray]) -> Demonstrations:
         return cls(np.concatenate([p[0] for p in parts]).astype(np.float32),
-                   np.concatenate([p[1] for p in parts]).astype(np.float32))  # fmt: skip
+                   np.concatenate([p[1] for p in parts]).astype(np.float32),
+                   np.concatenate(scenarios).astype(str))  # fmt: skip
+
+    def only(self, scenarios: list[str]) -> Demonstrations:
+        """The samples flown in one of ``scenarios``."""
+        keep = np.isin(self.scenarios, scenarios)
+        return Demonstrations(self.obs[keep], self.actions[keep], self.scenarios[keep])
 
     def save(self, path: Path) -> None:
         with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-            np.savez(fh, obs=self.obs, actions=self.actions)
+            np.savez(fh, obs=self.obs, actions=self.actions, scenarios=self.scenarios)
 
     @classmethod
     def load(cls, path: Path) -> Demonstrations:
         with np.load(path, allow_pickle=False) as data:
-            return cls(data["obs"], data["actions"])
+            return cls(data["obs"], data["actions"], data["scenarios"])
 
 
 class CloningTerm:
     """Behaviour cloning kept on during PPO (``pretrain.bc_minibatches``): after each PPO update,
     that many minibatches of Adam (``pretrain.bc_learning_rate``) on the actor's mean toward the
-    demonstrated actions, drawn at random from the demonstrations.
+    demonstrated actions, drawn at random from the demonstrations (those flown in
+    ``pretrain.bc_scenarios`` when given: PPO alone where the student is weak).
 
     Why: the student imitating the privileged teacher matches the tuned constant where the
     noise follows the manoeuvres, and PPO's updates, driven by the scenarios with interference
@@ -103,6 +115,11 @@ class CloningTerm:
         import torch
 
         spec = hp["pretrain"]
+        if "bc_scenarios" in spec:
+            demos = demos.only(list(spec["bc_scenarios"]))
+        if not demos.obs.shape[0]:
+            raise AeromagError(f"pretrain.bc_scenarios {spec.get('bc_scenarios')}: no "
+                               "demonstration was flown in these scenarios")  # fmt: skip
         self.model, self.venv, self.demos = model, venv, demos
         self.minibatches, self.batch = int(spec.get("bc_minibatches", 0)), int(hp["batch_size"])
         policy = model.policy
@@ -200,8 +217,9 @@ def _privileged_rollouts(
     steps: int,
     actor: Any = None,
     offset: int = TRAIN_SEEDS.stop // 2,
-) -> tuple[list, list, list, list]:
-    """The same from :class:`agents.policies.PrivilegedPolicy`, which reads each environment's
+) -> tuple[list, list, list, list, list]:
+    """The same, and the scenario each step was flown in, from
+    :class:`agents.policies.PrivilegedPolicy`, which reads each environment's
     episode (true noise, true Q, step times): it drives ``n_envs`` single environments of the
     training scenario (training seeds from ``offset``, a stream of their own), and ``venv``'s
     observation and reward statistics are updated with what they saw. The student imitates
@@ -218,9 +236,10 @@ def _privileged_rollouts(
     seeds = [seed_stream(rank, n, offset=offset) for rank in range(n)]
     teachers = [PrivilegedPolicy(env, after=3, cautious_start=True) for env in envs]
     obs = np.stack([env.reset(seed=next(seeds[i]))[0] for i, env in enumerate(envs)])
-    raw_obs, actions, rewards, dones = [], [], [], []
+    raw_obs, actions, rewards, dones, flown = [], [], [], [], []
     returns = np.zeros(n)
     for _ in range(steps // n):
+        flown.append(np.array([env.unwrapped.episode.scenario for env in envs]))
         action = np.stack([t.predict(o)[0] for t, o in zip(teachers, obs, strict=True)])
         taken = action if actor is None else actor(obs)
         reward, done, nxt = np.zeros(n), np.zeros(n, bool), obs.copy()
@@ -239,7 +258,7 @@ def _privileged_rollouts(
         obs = nxt
     for env in envs:
         env.close()
-    return raw_obs, actions, rewards, dones
+    return raw_obs, actions, rewards, dones, flown
 
 
 def _discounted(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.ndarray:

@@ -148,6 +148,10 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
      r"pretrain\.bc_minibatches.*≥ 0"),
     ("pretrain_bc_fraction", _sub("pretrain", "bc_minibatches", 2.5),
      r"pretrain\.bc_minibatches.*integer"),
+    ("pretrain_bc_scenarios_unknown", _sub("pretrain", "bc_scenarios", ["windy"]),
+     r"pretrain\.bc_scenarios\.0"),
+    ("pretrain_bc_scenarios_empty", _sub("pretrain", "bc_scenarios", []),
+     r"pretrain\.bc_scenarios"),
     ("pretrain_bc_lr_zero", _sub("pretrain", "bc_learning_rate", 0.0),
      r"pretrain\.bc_learning_rate.*> 0"),
     ("pretrain_unknown", _sub("pretrain", "stepz", 1), "'stepz' was unexpected"),
@@ -258,6 +262,8 @@ def test_the_schema_names_what_the_code_knows():
     scenario = SCHEMA["$defs"]["scenario"]
     assert set(scenario["properties"]["vec_env"]["enum"]) == set(VEC_ENVS)
     assert scenario["properties"]["train_scenario"]["enum"] == list(SCENARIOS + TRAINING_SCENARIOS)
+    pretrain = scenario["properties"]["pretrain"]["properties"]
+    assert pretrain["bc_scenarios"]["items"]["enum"] == list(SCENARIOS + TRAINING_SCENARIOS)
     # hyperparameters per evaluated scenario, and for the general policy validated on the suite
     assert SCHEMA["properties"]["scenarios"]["propertyNames"]["enum"] == [*SCENARIOS, "suite"]
     read = set(_ppo_kwargs(HP)) - {"policy_kwargs"} | {

@@ -6,6 +6,7 @@ import pytest
 
 import aeromag_env  # noqa: F401
 from aeromag_env.cli.main import main
+from aeromag_env.environment.ids import SUITE
 from aeromag_env.errors import AeromagError
 from agents import DEFAULT_PPO, make_policy, policy_env_kwargs
 from agents.numpy_policy import NumpyPPOPolicy
@@ -199,11 +200,12 @@ def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teac
     hp = {**load_hyperparams("suite"), "n_envs": 2, "prefetch": False}
     venv = make_training_env("suite", hp, seed=0)
     zeros = lambda obs: np.zeros((obs.shape[0], 3), np.float32)  # noqa: E731
-    obs, labels, _, _ = _privileged_rollouts(venv, hp, "suite", 400, zeros)
+    obs, labels, _, _, drawn = _privileged_rollouts(venv, hp, "suite", 400, zeros)
     # the flights followed the zero actions: the same as flying them with zero actions alone
     env = gym.make("AeroMagCompensation-v0", scenario="suite", **hp["env_kwargs"])
     first = env.reset(seed=next(iter(_first_seed())))[0]
     np.testing.assert_array_equal(obs[0][0], first)
+    assert drawn[0][0] == env.unwrapped.episode.scenario != "suite"  # the scenario drawn
     flown = [env.step(np.zeros(3, np.float32))[0] for _ in range(5)]
     np.testing.assert_array_equal(np.stack([o[0] for o in obs[1:6]]), np.stack(flown))
     assert np.abs(np.concatenate(labels)).max() > 0.5  # the teacher would have acted
@@ -252,7 +254,8 @@ def test_the_cloning_term_pulls_the_actor_to_the_demonstrations():
     states = np.concatenate(obs)
     # a demonstrator that acts on what it sees: the first observation's sign, on every action
     target = np.repeat(np.tanh(states[:, :1]), venv.action_space.shape[0], axis=1) * 0.8
-    demos = Demonstrations(states.astype(np.float32), target.astype(np.float32))
+    demos = Demonstrations(states.astype(np.float32), target.astype(np.float32),
+                           np.full(len(states), "nonstationary"))  # fmt: skip
 
     def gap() -> float:
         mean, _ = model.policy.predict(venv.normalize_obs(states), deterministic=True)
@@ -294,9 +297,34 @@ def test_training_with_the_cloning_term_keeps_and_reads_back_its_demonstrations(
         actions = np.stack([policy.predict(o, deterministic=True)[0] for o in demos["obs"]])
         gaps[name] = float(np.abs(actions - np.clip(demos["actions"], -1, 1)).mean())
     assert not (tmp_path / "without" / "demonstrations.npz").exists()
+    drawn = set(demos["scenarios"])  # suite flights: the scenarios drawn, several of them
+    assert len(drawn) > 1 and drawn <= {*SUITE, "nonstationary_dense"}, drawn
     assert gaps["with"] < 0.5 * gaps["without"], gaps  # measured 0.024 vs 0.157
     run = tmp_path / "with"
     assert main([*args, "--hyperparams", str(files["with"]), "--out", str(run)]) == 0
     (run / "demonstrations.npz").unlink()
     with pytest.raises(AeromagError, match=r"cannot read the demonstrations .*demonstrations\.npz"):
         train_ppo("suite", 256, 0, run, quick=True, progress=False, hyperparams=files["with"])
+
+
+def test_the_cloning_term_keeps_only_the_scenarios_named():
+    """``pretrain.bc_scenarios`` keeps the demonstrations flown in those scenarios (the others
+    are PPO's alone); naming only scenarios never flown is a one-line error."""
+    from agents.imitation import CloningTerm, Demonstrations
+
+    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "prefetch": False}
+    venv = make_training_env("nonstationary", hp, seed=0)
+    model = make_ppo(venv, hp, seed=0)
+    n_obs, n_act = venv.observation_space.shape[0], venv.action_space.shape[0]
+    flown = np.array(["manoeuvre_heavy", "nonstationary_dense", "paper", "manoeuvre_heavy"])
+    demos = Demonstrations(np.arange(4 * n_obs, dtype=np.float32).reshape(4, n_obs),
+                           np.zeros((4, n_act), np.float32), flown)  # fmt: skip
+    hp["pretrain"] = {"steps": 1, "epochs": 1, "bc_minibatches": 1,
+                      "bc_scenarios": ["manoeuvre_heavy", "paper"]}  # fmt: skip
+    kept = CloningTerm(model, venv, hp, demos, seed=0).demos
+    np.testing.assert_array_equal(kept.obs, demos.obs[[0, 2, 3]])
+    assert list(kept.scenarios) == ["manoeuvre_heavy", "paper", "manoeuvre_heavy"]
+    hp["pretrain"]["bc_scenarios"] = ["degradation"]
+    with pytest.raises(AeromagError, match=r"bc_scenarios \['degradation'\]: no demonstration"):
+        CloningTerm(model, venv, hp, demos, seed=0)
+    venv.close()

@@ -239,7 +239,7 @@ def _privileged_rollouts(
     raw_obs, actions, rewards, dones, flown = [], [], [], [], []
     returns = np.zeros(n)
     for _ in range(steps // n):
-        flown.append(np.array([env.unwrapped.episode.scenario for env in envs]))
+        flown.append(np.array([env.get_wrapper_attr("episode").scenario for env in envs]))
         action = np.stack([t.predict(o)[0] for t, o in zip(teachers, obs, strict=True)])
         taken = action if actor is None else actor(obs)
         reward, done, nxt = np.zeros(n), np.zeros(n, bool), obs.copy()

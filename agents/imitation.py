@@ -14,6 +14,7 @@ import gymnasium as gym
 import numpy as np
 
 from aeromag_env.atomic import atomic_path
+from aeromag_env.environment.env import EnvConfig
 from aeromag_env.errors import AeromagError
 from agents.evaluate import TRAIN_SEEDS
 
@@ -189,7 +190,6 @@ def _detector_rollouts(venv: Any, hp: dict[str, Any], steps: int) -> tuple[list,
     """Raw observations, actions, rewards and dones of the innovation detector driving the
     training environments ``venv`` for ``steps`` steps (their normalisation statistics are
     updated as PPO's own rollouts would)."""
-    from aeromag_env.environment.env import EnvConfig
     from agents.policies import InnovationDetectorPolicy
 
     spec = hp["pretrain"]
@@ -234,7 +234,8 @@ def _privileged_rollouts(
     envs = [gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"])
             for _ in range(n)]  # fmt: skip
     seeds = [seed_stream(rank, n, offset=offset) for rank in range(n)]
-    teachers = [PrivilegedPolicy(env, after=3, cautious_start=True) for env in envs]
+    after = teacher_after(EnvConfig(**hp["env_kwargs"]).decision_window)
+    teachers = [PrivilegedPolicy(env, after=after, cautious_start=True) for env in envs]
     obs = np.stack([env.reset(seed=next(seeds[i]))[0] for i, env in enumerate(envs)])
     raw_obs, actions, rewards, dones, flown = [], [], [], [], []
     returns = np.zeros(n)
@@ -259,6 +260,19 @@ def _privileged_rollouts(
     for env in envs:
         env.close()
     return raw_obs, actions, rewards, dones, flown
+
+
+#: How long after an interference step the teacher holds T_p's Q at the top [samples]: 3 s at
+#: 10 Hz, three decision windows of the default 10 samples.
+TEACHER_AFTER_SAMPLES = 30
+
+
+def teacher_after(decision_window: int) -> int:
+    """The teacher's ``after`` in decision windows: :data:`TEACHER_AFTER_SAMPLES` whatever the
+    window (three windows at 10 samples, six at 5). Held at three windows, a 5-sample teacher
+    let go of a step after 1.5 s — half a second of it before the student could see the step —
+    and the students of those runs were 1.3–3 times the tuned constant on ``nonstationary``."""
+    return max(1, -(-TEACHER_AFTER_SAMPLES // decision_window))
 
 
 def _discounted(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.ndarray:

@@ -328,3 +328,30 @@ def test_the_cloning_term_keeps_only_the_scenarios_named():
     with pytest.raises(AeromagError, match=r"bc_scenarios \['degradation'\]: no demonstration"):
         CloningTerm(model, venv, hp, demos, seed=0)
     venv.close()
+
+
+@pytest.mark.parametrize("window", [10, 5])
+def test_the_teacher_holds_a_step_for_the_same_time_at_any_decision_window(window):
+    """The DAgger teacher (``teacher_after``) keeps T_p's Q at the top for the windows within
+    30 samples after a step at K = 10 (3 windows) and K = 5 (6 windows): the same 3 s, so the
+    student, which sees a step one window late, has as long to learn the response at K = 5."""
+    from aeromag_env.environment.spaces import ACT_QP
+    from agents.imitation import TEACHER_AFTER_SAMPLES, teacher_after
+    from agents.policies import PrivilegedPolicy
+
+    assert teacher_after(10) == 3 and teacher_after(5) == 6 and teacher_after(7) == 5
+    env = gym.make("AeroMag/Nonstationary-v0", **{**policy_env_kwargs("ppo"),
+                                                  "decision_window": window})  # fmt: skip
+    obs, _ = env.reset(seed=100_000)
+    teacher = PrivilegedPolicy(env, after=teacher_after(window))
+    step = int(env.unwrapped.episode.step_samples[0])
+    raised, done = [], False
+    while not done:
+        k = env.unwrapped.filter.k
+        action, _ = teacher.predict(obs)
+        if action[ACT_QP] == 1.0 and k >= step:
+            raised.append(k)
+        obs, _, term, trunc, _ = env.step(action)
+        done = term or trunc or k > step + 100
+    held = raised[-1] + window - step  # samples after the step with T_p's Q at the top
+    assert TEACHER_AFTER_SAMPLES <= held < TEACHER_AFTER_SAMPLES + window, held

@@ -168,14 +168,16 @@ def _train_ppo(
     curve = _load_curve(out)
     callback = _Callback(out, venv, scenario, hp, seed, curve, timesteps, progress)
     t0 = time.perf_counter()
+    demos = None
     if "pretrain" in hp and not ckpt.exists():  # a fresh run: imitate, then validate at step 0
         demos = behaviour_clone(model, venv, hp, scenario, seed)
         if _clones(hp):
-            demos.save(out / "demonstrations.npz")
+            demos.save(out / "demonstrations.npz")  # for a resumed run
         callback.init_callback(model)
         callback._validate()
     if _clones(hp):
-        callback.cloning = CloningTerm(model, venv, hp, _demonstrations(out), seed)
+        demos = demos if demos is not None else _demonstrations(out)
+        callback.cloning = CloningTerm(model, venv, hp, demos, seed)
     steps = max(0, timesteps - model.num_timesteps) if total else timesteps
     model.learn(steps, callback=callback, reset_num_timesteps=not ckpt.exists())
     callback.checkpoint(model)
@@ -200,7 +202,7 @@ def _clones(hp: dict[str, Any]) -> bool:
 
 
 def _demonstrations(out: Path) -> Demonstrations:
-    """The demonstrations of this run's pretraining (a resumed run reads them back)."""
+    """The demonstrations of this run's pretraining, read back by a resumed run."""
     path = out / "demonstrations.npz"
     try:
         return Demonstrations.load(path)

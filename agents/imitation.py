@@ -225,7 +225,8 @@ def _privileged_rollouts(
     observation and reward statistics are updated with what they saw. The student imitates
     what the teacher does from what the student sees (asymmetric imitation: the observations
     only); the teacher raises T_p's Q for three windows after a step (the student sees a step
-    a window late) and starts cautiously (see its ``cautious_start``). With ``actor`` (a
+    a window late), starts cautiously (see its ``cautious_start``) and keeps R above
+    ``pretrain.teacher_r_floor`` where given (see its ``r_floor``). With ``actor`` (a
     function of the raw observations), the flights follow its actions and the teacher only
     labels them (DAgger)."""
     from agents.policies import PrivilegedPolicy
@@ -235,7 +236,9 @@ def _privileged_rollouts(
             for _ in range(n)]  # fmt: skip
     seeds = [seed_stream(rank, n, offset=offset) for rank in range(n)]
     after = teacher_after(EnvConfig(**hp["env_kwargs"]).decision_window)
-    teachers = [PrivilegedPolicy(env, after=after, cautious_start=True) for env in envs]
+    floor = hp["pretrain"].get("teacher_r_floor")
+    teachers = [PrivilegedPolicy(env, after=after, cautious_start=True, r_floor=floor)
+                for env in envs]  # fmt: skip
     obs = np.stack([env.reset(seed=next(seeds[i]))[0] for i, env in enumerate(envs)])
     raw_obs, actions, rewards, dones, flown = [], [], [], [], []
     returns = np.zeros(n)

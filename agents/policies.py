@@ -236,6 +236,13 @@ class PrivilegedPolicy:
     yet, and a first window at too small an R collapses P onto wrong coefficients that a small
     Q never leaves (measured: 63 nT on a ``paper`` flight against the teacher's 1.0).
 
+    ``r_floor`` (as a teacher, ``pretrain.teacher_r_floor``): per scenario, the log10 R scale
+    it never sets R below. Foresight makes a small R safe between bursts of equipment noise; a
+    tuner that sees a burst a window late has let it in by then, and where the filter tracks a
+    drift the error stays for the rest of the burst (one window late, K = 10: 4.24 nT on
+    ``noise_bursts`` against the tuned constant's 2.57; with R ≥ 10² R(0) 1.96 —
+    ``python -m experiments.lagged_privileged --floors``).
+
     Acts in the layout of ``ENV_KWARGS`` (absolute actions, ``split_q``, a graded T_p action),
     which :func:`agents.policy_env_kwargs` gives the environment it is evaluated in.
     """
@@ -248,12 +255,14 @@ class PrivilegedPolicy:
         "absolute_qp_log10": (-6.0, 10.0), "scale_limit": 1e10,
     }  # fmt: skip
 
-    def __init__(self, env: Any, after: int = 1, cautious_start: bool = False) -> None:
+    def __init__(self, env: Any, after: int = 1, cautious_start: bool = False,
+                 r_floor: dict[str, float] | None = None) -> None:  # fmt: skip
         self.env = env.unwrapped
         c = self.env.config
         if not (c.split_q and c.action_mode == "absolute"):
             raise ConfigError("privileged needs split_q and action_mode='absolute'")
         self.after, self.cautious_start = after, cautious_start
+        self.r_floor = dict(r_floor or {})
 
     def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
@@ -265,7 +274,9 @@ class PrivilegedPolicy:
         q_blocks, q_tp = ep.q_log10_true
         action = np.zeros((1, len(ACTIONS)))
         action[0, ACT_Q] = _to_action(q_blocks, c.absolute_q_log10)
-        action[0, ACT_R] = _to_action(math.log10(coming.max() / r0), c.absolute_r_log10)
+        log_r = math.log10(coming.max() / r0)
+        action[0, ACT_R] = _to_action(max(log_r, self.r_floor.get(ep.scenario, -math.inf)),
+                                      c.absolute_r_log10)  # fmt: skip
         if self.cautious_start and k == 0:
             action[0, ACT_R] = 1.0
         steps = ep.step_samples

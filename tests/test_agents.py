@@ -150,3 +150,29 @@ def test_the_privileged_policy_acts_on_the_true_noise_and_the_steps():
         done = terminated or truncated
     want_raised = sorted({w for s in steps for w in (s - s % 10, s - s % 10 + 10)})
     assert raised == want_raised
+
+
+def test_the_privileged_floor_on_r_holds_on_its_scenarios_only():
+    """With ``r_floor`` the teacher's R is the unfloored one where that is above the floor and
+    the floor elsewhere, on the scenarios named; on the others it is unchanged."""
+    from agents import policy_env_kwargs
+    from agents.policies import PrivilegedPolicy
+
+    for scenario, floor in (("noise_bursts", 2.0), ("degradation", None)):
+        env = gym.make("AeroMagCompensation-v0", scenario=scenario,
+                       **policy_env_kwargs("privileged"))  # fmt: skip
+        obs, _ = env.reset(seed=100_000)
+        plain = PrivilegedPolicy(env)
+        floored = PrivilegedPolicy(env, r_floor={"noise_bursts": 2.0})
+        held = below = 0
+        for _ in range(300):
+            a, b = plain.predict(obs)[0], floored.predict(obs)[0]
+            r_log10 = -2.0 + (a[1] + 1.0) / 2.0 * 9.0  # absolute_r_log10 = (-2, 7)
+            want = a[1] if floor is None or r_log10 >= floor else 2.0 * (floor + 2.0) / 9.0 - 1.0
+            assert b[1] == pytest.approx(want, abs=1e-9)
+            assert np.array_equal(np.delete(a, 1), np.delete(b, 1))
+            held += floor is not None and r_log10 < floor
+            below += r_log10 < 2.0
+            obs, *_ = env.step(a)
+        assert below > 0  # the floor was tested where it binds
+        assert (held > 0) == (floor is not None)

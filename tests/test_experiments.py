@@ -214,3 +214,18 @@ def test_lagged_privileged_pays_for_knowing_the_noise_one_window_late(capsys):
     assert [r["window"] for r in rows] == [10]
     assert rows[0]["late"] > rows[0]["privileged"]
     assert "| 10 |" in capsys.readouterr().out
+
+
+def test_lagged_privileged_with_a_floor_on_r_keeps_a_late_burst_out(capsys):
+    """On noise_bursts the late policy lets the first window of each burst in at a small R;
+    held at R ≥ 10² R(0) it loses far less (the teacher the general policy's cloning follows)."""
+    from experiments.lagged_privileged import main as lagged
+
+    rows = lagged(["--scenario", "noise_bursts", "--windows", "10", "--episodes", "2",
+                   "--floors", "2"])  # fmt: skip
+    assert rows[0]["late_floored"][2.0] < rows[0]["late"] - 0.5
+    out = capsys.readouterr().out
+    assert "late, R ≥ 10^2 R(0)" in out and out.count("|---") == 5
+    with pytest.raises(SystemExit):
+        lagged(["--floors", "high"])
+    assert "--floors 'high'" in capsys.readouterr().err

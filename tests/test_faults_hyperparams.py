@@ -154,6 +154,12 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
      r"pretrain\.bc_scenarios"),
     ("pretrain_bc_lr_zero", _sub("pretrain", "bc_learning_rate", 0.0),
      r"pretrain\.bc_learning_rate.*> 0"),
+    ("pretrain_floor_unknown_scenario", _sub("pretrain", "teacher_r_floor", {"windy": 2.0}),
+     r"pretrain\.teacher_r_floor"),
+    ("pretrain_floor_above_range", _sub("pretrain", "teacher_r_floor", {"noise_bursts": 9.0}),
+     r"pretrain\.teacher_r_floor\.noise_bursts.*\[-2, 7\]"),
+    ("pretrain_floor_text", _sub("pretrain", "teacher_r_floor", {"noise_bursts": "high"}),
+     r"pretrain\.teacher_r_floor\.noise_bursts.*number"),
     ("pretrain_unknown", _sub("pretrain", "stepz", 1), "'stepz' was unexpected"),
 ]  # fmt: skip
 
@@ -264,6 +270,9 @@ def test_the_schema_names_what_the_code_knows():
     assert scenario["properties"]["train_scenario"]["enum"] == list(SCENARIOS + TRAINING_SCENARIOS)
     pretrain = scenario["properties"]["pretrain"]["properties"]
     assert pretrain["bc_scenarios"]["items"]["enum"] == list(SCENARIOS + TRAINING_SCENARIOS)
+    assert pretrain["teacher_r_floor"]["propertyNames"]["enum"] == [
+        s for s in SCENARIOS + TRAINING_SCENARIOS if s != "suite"
+    ]
     # hyperparameters per evaluated scenario, and for the general policy validated on the suite
     assert SCHEMA["properties"]["scenarios"]["propertyNames"]["enum"] == [*SCENARIOS, "suite"]
     read = set(_ppo_kwargs(HP)) - {"policy_kwargs"} | {

@@ -7,6 +7,7 @@ import pytest
 import aeromag_env  # noqa: F401
 from aeromag_env.cli.main import main
 from aeromag_env.environment.ids import SUITE
+from aeromag_env.environment.spaces import ACT_R
 from aeromag_env.errors import AeromagError
 from agents import DEFAULT_PPO, make_policy, policy_env_kwargs
 from agents.numpy_policy import NumpyPPOPolicy
@@ -223,6 +224,26 @@ def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teac
     behaviour_clone(model, venv, hp, "suite")
     assert gap() < 0.6 * before, (before, gap())
     venv.close()
+
+
+def test_the_dagger_teacher_keeps_r_above_its_floor_on_the_named_scenarios():
+    """``pretrain.teacher_r_floor`` reaches the teacher: on noise_bursts flights every R label
+    is at or above the floor, and the same flights without it have labels below."""
+    from agents.imitation import _privileged_rollouts
+
+    hp = {**load_hyperparams("suite"), "n_envs": 2, "prefetch": False}
+    venv = make_training_env("noise_bursts", hp, seed=0)
+    lo, hi = hp["env_kwargs"]["absolute_r_log10"]
+    floor = 2.0 * (2.0 - lo) / (hi - lo) - 1.0
+    labels = {}
+    for name, given in (("plain", {}), ("floored", {"teacher_r_floor": {"noise_bursts": 2.0}})):
+        hp["pretrain"] = {**load_hyperparams("suite")["pretrain"], **given}
+        labels[name] = np.concatenate(_privileged_rollouts(venv, hp, "noise_bursts", 400)[1])
+    venv.close()
+    assert labels["plain"][:, ACT_R].min() < floor - 0.1
+    assert labels["floored"][:, ACT_R].min() >= floor - 1e-9
+    np.testing.assert_array_equal(np.delete(labels["plain"], ACT_R, 1),
+                                  np.delete(labels["floored"], ACT_R, 1))  # fmt: skip
 
 
 def _first_seed():

@@ -126,6 +126,20 @@ def test_seed_table_checks_a_policy_across_scenarios(tmp_path):
     row = next(line for line in table.splitlines() if line.startswith("| 0 | ") and "%" in line)
     assert "paper (+" in row  # ppo keeps paper's tiny R: 20 nT against the tuned 1.1
     assert "fis's mean over the 2 scenarios" in table
+    assert "| beyond a bootstrap CI only |" in table and row.count("|") == 6
+
+
+def test_the_bootstrap_interval_flags_what_a_few_bad_flights_hide_from_the_t_interval():
+    """Differences that are small and positive on most flights and large on two: the t interval
+    spans zero, the percentile bootstrap does not; a single flight has no interval."""
+    from agents.evaluate import ci95
+    from experiments.seed_table import _bootstrap_low
+
+    diff = np.array([0.1] * 28 + [5.0, 6.0])
+    assert ci95(diff)[0] < 0 < _bootstrap_low(diff)
+    assert _bootstrap_low(diff - 1.0) < 0
+    assert _bootstrap_low(np.array([3.0])) == -np.inf
+    assert _bootstrap_low(np.full(5, 0.2)) == 0.2
 
 
 def _suite_row(kind, effect=None, snr=None, named=(), duration_s=1800.0, decoys=()):

@@ -235,9 +235,10 @@ def test_the_dagger_teacher_keeps_r_above_its_floor_on_the_named_scenarios():
     venv = make_training_env("noise_bursts", hp, seed=0)
     lo, hi = hp["env_kwargs"]["absolute_r_log10"]
     floor = 2.0 * (2.0 - lo) / (hi - lo) - 1.0
-    labels = {}
+    labels, shipped = {}, load_hyperparams("suite")["pretrain"]
+    plain = {k: v for k, v in shipped.items() if k != "teacher_r_floor"}
     for name, given in (("plain", {}), ("floored", {"teacher_r_floor": {"noise_bursts": 2.0}})):
-        hp["pretrain"] = {**load_hyperparams("suite")["pretrain"], **given}
+        hp["pretrain"] = {**plain, **given}
         labels[name] = np.concatenate(_privileged_rollouts(venv, hp, "noise_bursts", 400)[1])
     venv.close()
     assert labels["plain"][:, ACT_R].min() < floor - 0.1
@@ -314,13 +315,16 @@ def test_training_with_the_cloning_term_keeps_and_reads_back_its_demonstrations(
         out = tmp_path / name
         assert main([*args, "--hyperparams", str(files[name]), "--out", str(out)]) == 0
         demos = np.load(tmp_path / "with" / "demonstrations.npz")
-        policy = NumpyPPOPolicy.load(out / "candidate.npz")
-        actions = np.stack([policy.predict(o, deterministic=True)[0] for o in demos["obs"]])
-        gaps[name] = float(np.abs(actions - np.clip(demos["actions"], -1, 1)).mean())
+        last = out / "candidate.npz"  # the last validated policy, unless it was the best
+        policy = NumpyPPOPolicy.load(last if last.exists() else out / "policy.npz")
+        cloned = np.isin(demos["scenarios"], hp["pretrain"]["bc_scenarios"])  # the term's data
+        obs, want = demos["obs"][cloned], np.clip(demos["actions"][cloned], -1, 1)
+        actions = np.stack([policy.predict(o, deterministic=True)[0] for o in obs])
+        gaps[name] = float(np.abs(actions - want).mean())
     assert not (tmp_path / "without" / "demonstrations.npz").exists()
     drawn = set(demos["scenarios"])  # suite flights: the scenarios drawn, several of them
     assert len(drawn) > 1 and drawn <= {*SUITE, "nonstationary_dense"}, drawn
-    assert gaps["with"] < 0.5 * gaps["without"], gaps  # measured 0.024 vs 0.157
+    assert gaps["with"] < 0.5 * gaps["without"], gaps
     run = tmp_path / "with"
     assert main([*args, "--hyperparams", str(files["with"]), "--out", str(run)]) == 0
     (run / "demonstrations.npz").unlink()

@@ -269,14 +269,10 @@ class PrivilegedPolicy:
         _single_env(obs, self.name)
         env, c = self.env, self.env.config
         ep, k, width = env.episode, env.filter.k, c.decision_window
-        coming = ep.noise_var[min(k, ep.n - 1) : k + width]  # the window it sets R for
-        r0 = float(np.mean(np.diag(env.filter.r0)))
         q_blocks, q_tp = ep.q_log10_true
         action = np.zeros((1, len(ACTIONS)))
         action[0, ACT_Q] = _to_action(q_blocks, c.absolute_q_log10)
-        log_r = math.log10(coming.max() / r0)
-        action[0, ACT_R] = _to_action(max(log_r, self.r_floor.get(ep.scenario, -math.inf)),
-                                      c.absolute_r_log10)  # fmt: skip
+        action[0, ACT_R] = self.r_action(ep.noise_var[min(k, ep.n - 1) : k + width])
         if self.cautious_start and k == 0:
             action[0, ACT_R] = 1.0
         steps = ep.step_samples
@@ -284,6 +280,14 @@ class PrivilegedPolicy:
         quiet = -1.0 if c.qp_gate else _to_action(q_tp, c.absolute_qp_log10)
         action[0, ACT_QP] = 1.0 if near.any() else quiet
         return _out(action, np.asarray(obs).ndim == 1), state
+
+    def r_action(self, noise_var: np.ndarray) -> float:
+        """The R action for a window whose true noise variances are ``noise_var``: R at their
+        largest, or at the floor of ``r_floor`` for the flight's scenario when that is higher."""
+        env = self.env
+        log_r = math.log10(noise_var.max() / float(np.mean(np.diag(env.filter.r0))))
+        floor = self.r_floor.get(env.episode.scenario, -math.inf)
+        return _to_action(max(log_r, floor), env.config.absolute_r_log10)
 
 
 def _to_action(log10_scale: float, lo_hi: tuple[float, ...]) -> float:

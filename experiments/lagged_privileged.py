@@ -16,7 +16,6 @@ per K.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -42,15 +41,10 @@ class LatePrivileged(PrivilegedPolicy):
     def predict(self, obs: np.ndarray, state: Any = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:  # fmt: skip
         action, state = super().predict(obs, state, episode_start, deterministic)
-        env, c = self.env, self.env.config
-        k, width = env.filter.k, c.decision_window
+        k, width = self.env.filter.k, self.env.config.decision_window
         if k >= width:  # the first window keeps the cautious start
-            past = env.episode.noise_var[k - width : k]
-            r0 = float(np.mean(np.diag(env.filter.r0)))
-            lo, hi = c.absolute_r_log10
             action = action.copy()
-            log_r = max(math.log10(past.max() / r0), self.r_floor.get(env.scenario, -math.inf))
-            action[..., ACT_R] = 2.0 * (log_r - lo) / (hi - lo) - 1.0
+            action[..., ACT_R] = self.r_action(self.env.episode.noise_var[k - width : k])
         return action, state
 
 

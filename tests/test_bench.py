@@ -125,3 +125,71 @@ def test_bench_only_discover_measures_the_workflow_alone(tmp_path, capsys):
     assert [r["benchmark"] for r in result["rows"]] == ["discover 1 flight-hour"]
     assert result["rows"][0]["target"] == "≤ 5 s"
     assert "discover 1 flight-hour" in capsys.readouterr().out
+
+
+def test_extra_time_row_splits_the_batched_runs_extra_time_by_part():
+    per_step = {"env": (40.0, 2.0), "forward": (60.0, 50.0), "update": (100.0, 101.0),
+                "rest": (30.0, 27.0)}  # fmt: skip
+    rates = {
+        "ppo_free_steps_per_s": 1e6 / 180.0,
+        "ppo_batched_steps_per_s": 1e6 / 230.0,
+        "ppo_free_env_time_share": 0.01,
+    }
+    figures = {**FIGURES, **rates,
+               **{f"ppo_{variant}_{part}_us_per_step": values[i]
+                  for part, values in per_step.items()
+                  for i, variant in enumerate(("batched", "free"))}}  # fmt: skip
+    rows = {r[0]: r for r in _rows(figures)}
+    assert rows["PPO learn, batched + prefetch beyond zero-cost, 8 envs"][1:] == (
+        "50 µs per env step", "environments 38, policy forward 10, updates -1, rest 3 µs more",
+        "", None)  # fmt: skip
+    assert "PPO learn, batched + prefetch beyond zero-cost, 64 envs" not in rows  # not measured
+
+
+class _FakeModel:
+    """Stands in for a PPO model: logs its ``learn`` calls, adds to its running part totals."""
+
+    def __init__(self, name, log, totals):
+        self.name, self.log, self.totals = name, log, totals
+
+    def learn(self, steps, reset_num_timesteps=True):
+        assert reset_num_timesteps is False
+        self.log.append((self.name, steps))
+        self.totals["env"][0] += 1.0
+        self.totals["forward"][0] += 0.5
+
+
+def test_interleaved_takes_turns_a_rollout_at_a_time_and_restarts_the_totals_each_repeat():
+    from aeromag_env.cli.bench_envs import PARTS, _interleaved
+
+    log: list = []
+    running = {name: {part: [7.0] for part in PARTS} for name in "abc"}
+    models = {name: _FakeModel(name, log, running[name]) for name in "abc"}
+    seconds, parts = _interleaved(models, running, timesteps=250, repeats=2, rollout=100)
+    turns = [log[i : i + 3] for i in range(0, len(log), 3)]
+    assert [[name for name, _ in turn] for turn in turns[:3]] == [list("abc"), list("bca"),
+                                                                  list("cab")]  # fmt: skip
+    assert [steps for _, steps in turns[2]] == [50, 50, 50]  # the last, partial rollout
+    assert sum(steps for name, steps in log if name == "a") == 2 * 250
+    assert parts["b"]["env"] == [3.0, 3.0] and parts["b"]["forward"] == [1.5, 1.5]
+    assert parts["b"]["update"] == [0.0, 0.0]
+    assert all(len(s) == 2 and all(x >= 0 for x in s) for s in seconds.values())
+
+
+def test_zero_cost_env_episodes_are_as_long_in_steps_as_the_flights():
+    from aeromag_env.cli.bench_envs import _free_env_like
+    from agents import ppo
+
+    hp = {**ppo.load_hyperparams("nonstationary"), "n_envs": 2, "prefetch": False}
+    venv = ppo.make_training_env("nonstationary", hp, seed=0)
+    venv.reset()
+    batched = venv.venv.venv
+    samples, window = int(batched.episode_lengths.max()), batched.config.decision_window
+    env = _free_env_like(venv)()
+    env.reset()
+    steps, done = 0, False
+    while not done:
+        env.step_async(np.zeros((2, *env.action_space.shape), np.float32))
+        done = bool(env.step_wait()[2].all())
+        steps += 1
+    assert steps == -(-samples // window) and steps < samples

@@ -282,6 +282,8 @@ def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
                      f"{rate / dummy:.2f}× DummyVecEnv ({note})",
                      "≥ 1.5× DummyVecEnv" if first else "",
                      rate >= 1.5 * dummy if first else None))  # fmt: skip
+    if f"{prefix}_free_env_us_per_step" in f:  # from 2026-11-27 on
+        rows.append(_extra_time_row(f, prefix, n))
     share = f.get(f"{prefix}_env_share")
     if share is not None:
         low, high = f[f"{prefix}_env_share_min"], f[f"{prefix}_env_share_max"]
@@ -291,6 +293,20 @@ def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
                      f"≤ {ENV_SHARE_TARGET:.0%}" if capped else "",
                      share <= ENV_SHARE_TARGET if capped else None))  # fmt: skip
     return rows
+
+
+def _extra_time_row(f: dict[str, Any], prefix: str, n: int) -> Row:
+    """Where the batched + prefetch run's time beyond the zero-cost run's goes, in µs per
+    environment step (medians over the repeats, part by part): the environments' ``step_wait``,
+    and what the policy's forward pass, the updates and the rest took beyond theirs there."""
+    us = f"{prefix}_{{}}_{{}}_us_per_step".format
+    extra = {part: f[us("batched", part)] - f[us("free", part)]
+             for part in ("env", "forward", "update", "rest")}  # fmt: skip
+    total = 1e6 / f[f"{prefix}_batched_steps_per_s"] - 1e6 / f[f"{prefix}_free_steps_per_s"]
+    return (f"PPO learn, batched + prefetch beyond zero-cost, {n} envs",
+            f"{total:.0f} µs per env step",
+            f"environments {extra['env']:.0f}, policy forward {extra['forward']:.0f}, updates "
+            f"{extra['update']:.0f}, rest {extra['rest']:.0f} µs more", "", None)  # fmt: skip
 
 
 def _ratio(value: float, reference: float | None, name: str, fmt: str = ".0f") -> str:

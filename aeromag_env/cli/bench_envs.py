@@ -14,25 +14,33 @@
   ``nonstationary``: its 8 envs, n_steps, batch size, epochs, network; torch set up as in
   training, :func:`agents.ppo.training_torch`): batched with flights prefetched in a worker
   process (the default), SB3's ``DummyVecEnv``, and ``ppo_batched_no_prefetch_steps_per_s``
-  (batched stepping alone); the variants alternate within each repeat. Steady-state
-  throughput: one untimed rollout first (the first reset of every environment, torch's first
-  calls), then ``learn`` goes on, timed, for five episodes per environment (with 8; two with
-  64), the resets at episode ends included. A training run of 1.5M steps has 20–160 episodes
-  per environment, so its first reset (``env_reset_s`` per environment) weighs little. With
-  them the share of each run's time spent in the environments (``ppo_*_env_time_share``): the
-  rest — policy inference, rollout buffer, gradient updates — is the same for all;
-  ``ppo_free_*``: PPO on :func:`free_vec_env`, that rest alone; ``ppo_batched_ratio_min`` /
-  ``_max``: the range over the repeats of the batched variant's ratio to ``DummyVecEnv`` in
-  the same repeat. ``ppo64_*``: the same with 64 environments.
+  (batched stepping alone). The four run side by side in one process, taking turns one
+  rollout (and its update) at a time, the order rotating each turn, so that the slow drifts of
+  a shared machine's speed fall on all of them alike (until 2026-11-27 each repeat ran one
+  variant's whole run after another's, and single repeats of the share below scattered from
+  −6 to 59 %). Steady-state throughput: one untimed rollout first (the first reset of every
+  environment, torch's first calls), then ``learn`` goes on, timed, for five episodes per
+  environment in each repeat (with 8; two with 64), the resets at episode ends included. A
+  training run of 1.5M steps has 20–160 episodes per environment, so its first reset
+  (``env_reset_s`` per environment) weighs little. With them the share of each run's time
+  spent in the environments (``ppo_*_env_time_share``) and the microseconds per environment
+  step in each part of the run (``ppo_*_{env,forward,update,rest}_us_per_step``: the
+  environments' ``step_wait``, the policy's forward pass in the rollouts, the updates, the
+  rest — rollout buffer, normalisation, SB3's loop); ``ppo_free_*``: PPO on
+  :func:`free_vec_env`, PPO's own cost alone; ``ppo_batched_ratio_min`` / ``_max``: the range
+  over the repeats of the batched variant's ratio to ``DummyVecEnv`` in the same repeat.
+  ``ppo64_*``: the same with 64 environments.
 * ``ppo_env_share`` — the environment's share of PPO's wall time with the batched training
   environments, ``1 − batched / free`` (steps per second with prefetching against the
-  zero-cost environment of the same spaces, same PPO settings), from the two runs of each
-  repeat, median over the repeats (5 with 8 environments in a full run), with its range
-  ``ppo_env_share_min`` / ``_max``; the target is at most 15 % with 8 environments. It is
-  wall time on a shared machine: the prefetching worker simulates flights on the other core,
-  and what another process takes of the cores is taken from both runs unequally (the spread
-  of the repeats says how much). The flights are simulated afresh in every run, none is
-  replayed (a training run never flies a flight twice).
+  zero-cost environment of the same spaces, episode length in steps and PPO settings), from
+  the two runs of each repeat, median over the repeats (5 with 8 environments in a full run),
+  with its range ``ppo_env_share_min`` / ``_max``; the target is at most 15 % with 8
+  environments. It is wall time on a shared machine: the prefetching worker simulates flights
+  on the other core, and what another process takes of the cores is taken from the variants
+  unequally (the spread of the repeats says how much). It holds all the environment costs
+  PPO's time, also what it costs torch after it (the policy's forward pass after an
+  environment step runs slower than after the zero-cost one's). The flights are simulated
+  afresh, none is replayed (a training run never flies a flight twice).
 """
 
 from __future__ import annotations
@@ -99,6 +107,12 @@ def bench_env(repeats: int) -> dict[str, float]:
     }
 
 
+#: Seconds per PPO variant and part of its time: one entry per repeat.
+Seconds = dict[str, dict[str, list[float]]]
+#: The parts of a PPO run's time timed apart: the environments' ``step_wait`` (stepping and the
+#: resets done there), the policy's forward pass in the rollouts, the updates (``train``).
+PARTS = ("env", "forward", "update")
+
 #: PPO variants: name → hyperparameter overrides (the rest as ``aeromag train``); ``free``: the
 #: zero-cost stand-in environment (:func:`free_vec_env`), PPO's own cost alone.
 PPO_VARIANTS: dict[str, dict[str, Any] | None] = {
@@ -112,42 +126,51 @@ PPO_VARIANTS: dict[str, dict[str, Any] | None] = {
 def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
               prefix: str = "ppo") -> dict[str, Any]:  # fmt: skip
     """PPO ``learn(timesteps)`` steps per second for each of :data:`PPO_VARIANTS`, with
-    ``ppo.json``'s hyperparameters (``n_envs`` overridden if given), alternating within each
-    repeat; the share of each run's time spent inside the environments' ``step_wait``
-    (stepping, and the resets done there); the range over the repeats of the batched
-    variant's ratio to ``DummyVecEnv`` in the same repeat; and the environment's share
-    ``1 − batched / free`` of each repeat, its median and range. Figures are named
+    ``ppo.json``'s hyperparameters (``n_envs`` overridden if given), interleaved one rollout at
+    a time (:func:`_interleaved`); the share of each run's time spent inside the environments'
+    ``step_wait`` (stepping, and the resets done there); each variant's microseconds per
+    environment step in each of :data:`PARTS` and in the rest; the range over the repeats of
+    the batched variant's ratio to ``DummyVecEnv`` in the same repeat; and the environment's
+    share ``1 − batched / free`` of each repeat, its median and range. Figures are named
     ``{prefix}_{variant}_…`` and ``{prefix}_env_share…``."""
     from agents import ppo
 
     hp = ppo.load_hyperparams("nonstationary")
     hp = {**hp, "n_envs": n_envs or int(hp["n_envs"])}
     free = _free_env_like(ppo.make_training_env("nonstationary", {**hp, "prefetch": False}, seed=0))
-    rates: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
-    shares: dict[str, list[float]] = {name: [] for name in PPO_VARIANTS}
     with ppo.training_torch():
-        for _ in range(repeats):
-            for name, overrides in PPO_VARIANTS.items():
-                if overrides is None:
-                    venv = ppo.normalized(free(), hp)
-                else:
-                    venv = ppo.make_training_env("nonstationary", {**hp, **overrides}, seed=0)
-                inner, in_env = venv.venv, [0.0]
-                inner.step_wait = _timed(inner.step_wait, in_env)
-                model = ppo.make_ppo(venv, hp, seed=0)
-                time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
-                model.learn(hp["n_steps"] * hp["n_envs"])  # the first reset, torch warmed up
-                in_env[0] = 0.0
-                t0 = time.perf_counter()
-                model.learn(timesteps, reset_num_timesteps=False)  # no reset: goes on
-                seconds = time.perf_counter() - t0
-                rates[name].append(timesteps / seconds)
-                shares[name].append(in_env[0] / seconds)
-                venv.close()
+        models: dict[str, Any] = {}
+        running = {name: {part: [0.0] for part in PARTS} for name in PPO_VARIANTS}
+        for name, overrides in PPO_VARIANTS.items():
+            if overrides is None:
+                venv = ppo.normalized(free(), hp)
+            else:
+                venv = ppo.make_training_env("nonstationary", {**hp, **overrides}, seed=0)
+            model = models[name] = ppo.make_ppo(venv, hp, seed=0)
+            inner, totals = venv.venv, running[name]
+            inner.step_wait = _timed(inner.step_wait, totals["env"])
+            model.policy.forward = _timed(model.policy.forward, totals["forward"])
+            model.train = _timed(model.train, totals["update"])
+        time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
+        rollout = int(hp["n_steps"]) * int(hp["n_envs"])
+        for model in models.values():
+            model.learn(rollout)  # the first reset, torch warmed up
+        try:
+            seconds, parts = _interleaved(models, running, timesteps, repeats, rollout)
+        finally:
+            for model in models.values():
+                model.get_env().close()
+    rates = {name: [timesteps / s for s in seconds[name]] for name in PPO_VARIANTS}
     figures: dict[str, Any] = {f"{prefix}_n_envs": hp["n_envs"], f"{prefix}_timesteps": timesteps}
     for name in PPO_VARIANTS:
+        total, part = seconds[name], parts[name]
+        shares = [e / s for e, s in zip(part["env"], total, strict=True)]
         figures[f"{prefix}_{name}_steps_per_s"] = statistics.median(rates[name])
-        figures[f"{prefix}_{name}_env_time_share"] = statistics.median(shares[name])
+        figures[f"{prefix}_{name}_env_time_share"] = statistics.median(shares)
+        rest = [t - sum(p) for t, *p in zip(total, *part.values(), strict=True)]
+        for key, values in (*part.items(), ("rest", rest)):
+            us = 1e6 * statistics.median(values) / timesteps
+            figures[f"{prefix}_{name}_{key}_us_per_step"] = us
     paired = [b / d for b, d in zip(rates["batched"], rates["dummyvec"], strict=True)]
     figures[f"{prefix}_batched_ratio_min"] = min(paired)
     figures[f"{prefix}_batched_ratio_max"] = max(paired)
@@ -158,11 +181,45 @@ def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
     return figures
 
 
+def _interleaved(models: dict[str, Any], running: Seconds, timesteps: int, repeats: int,
+                 rollout: int) -> tuple[dict[str, list[float]], Seconds]:  # fmt: skip
+    """Each repeat, every model goes on ``learn``-ing for ``timesteps`` steps, one rollout (and
+    its update) at a time, the models taking turns and the order rotating each turn. Returns
+    the seconds each model spent in each repeat, and of them the seconds in each part
+    (``running[name][part][0]``, which the timed methods add to). Taking turns a rollout at a
+    time (about half a second) pairs the variants against the minutes-long drifts of a shared
+    machine's speed, which a whole run of one variant after another took unequally."""
+    names = list(models)
+    seconds: dict[str, list[float]] = {name: [] for name in names}
+    parts: Seconds = {name: {part: [] for part in PARTS} for name in names}
+    turns = max(1, -(-timesteps // rollout))
+    for _ in range(repeats):
+        spent = dict.fromkeys(names, 0.0)
+        for totals in running.values():
+            for total in totals.values():
+                total[0] = 0.0
+        for turn in range(turns):
+            steps = min(rollout, timesteps - turn * rollout)
+            for j in range(len(names)):
+                name = names[(turn + j) % len(names)]
+                t0 = time.perf_counter()
+                models[name].learn(steps, reset_num_timesteps=False)  # no reset: goes on
+                spent[name] += time.perf_counter() - t0
+        for name in names:
+            seconds[name].append(spent[name])
+            for part in PARTS:
+                parts[name][part].append(running[name][part][0])
+    return seconds, parts
+
+
 def _free_env_like(venv: Any) -> Callable[[], Any]:
     """A factory of :func:`free_vec_env` with the spaces, number of environments and episode
-    length of the training environments ``venv`` (batched, under ``VecNormalize``; closed)."""
+    length (in steps: the longest flight over the decision window) of the training environments
+    ``venv`` (batched, under ``VecNormalize``; closed)."""
     venv.reset()
-    n_envs, steps = venv.num_envs, int(venv.venv.venv.episode_lengths.max())
+    batched = venv.venv.venv
+    n_envs, window = venv.num_envs, int(batched.config.decision_window)
+    steps = -(-int(batched.episode_lengths.max()) // window)
     spaces = (venv.observation_space, venv.action_space)
     venv.close()
     return lambda: free_vec_env(n_envs, *spaces, steps)
@@ -218,13 +275,13 @@ def free_vec_env(n_envs: int, observation_space: Any, action_space: Any,
     return FreeVecEnv()
 
 
-def _timed(fn: Callable[[], Any], total: list[float]) -> Callable[[], Any]:
+def _timed(fn: Callable[..., Any], total: list[float]) -> Callable[..., Any]:
     """``fn`` that adds its wall time to ``total[0]``."""
 
-    def wrapper() -> Any:
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
         t0 = time.perf_counter()
         try:
-            return fn()
+            return fn(*args, **kwargs)
         finally:
             total[0] += time.perf_counter() - t0
 

@@ -100,6 +100,11 @@ def test_bench_table_joins_runs_and_counts_met_targets(tmp_path):
     assert join_cells(ranges) == "1.2 / 1.3× a (repeats 1.1–1.3 / 1.2–1.4; env 5%)"
     shares = ["share 35.7% (repeats -5.5–59.2%)", "share 31.7% (repeats 31.5–57.7%)"]
     assert join_cells(shares) == "share 35.7 / 31.7% (repeats -5.5–59.2 / 31.5–57.7%)"
+    split = [
+        "environments 39; policy forward 5; rest -2 µs",
+        "environments 39; policy forward 3; rest 4 µs",
+    ]
+    assert join_cells(split) == "environments 39; policy forward 5 / 3; rest -2 / 4 µs"
     cells = ["1.2× a", "1.3× b"]
     assert join_cells(cells) == "<br>".join(cells)  # they differ in words
     slow = {**FIGURES, "env_single_steps_per_s": 1.5e4}
@@ -141,7 +146,7 @@ def test_extra_time_row_splits_the_batched_runs_extra_time_by_part():
                   for i, variant in enumerate(("batched", "free"))}}  # fmt: skip
     rows = {r[0]: r for r in _rows(figures)}
     assert rows["PPO learn, batched + prefetch beyond zero-cost, 8 envs"][1:] == (
-        "50 µs per env step", "environments 38, policy forward 10, updates -1, rest 3 µs more",
+        "50 µs per env step", "environments 38; policy forward 10; updates -1; rest 3 µs more",
         "", None)  # fmt: skip
     assert "PPO learn, batched + prefetch beyond zero-cost, 64 envs" not in rows  # not measured
 

@@ -298,15 +298,17 @@ def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
 def _extra_time_row(f: dict[str, Any], prefix: str, n: int) -> Row:
     """Where the batched + prefetch run's time beyond the zero-cost run's goes, in µs per
     environment step (medians over the repeats, part by part): the environments' ``step_wait``,
-    and what the policy's forward pass, the updates and the rest took beyond theirs there."""
+    and what the policy's forward pass, the updates and the rest took beyond theirs there
+    (separated by semicolons: a comma after a number would read as a thousands separator when
+    ``experiments/bench_table.py`` joins runs)."""
     us = f"{prefix}_{{}}_{{}}_us_per_step".format
     extra = {part: f[us("batched", part)] - f[us("free", part)]
              for part in ("env", "forward", "update", "rest")}  # fmt: skip
     total = 1e6 / f[f"{prefix}_batched_steps_per_s"] - 1e6 / f[f"{prefix}_free_steps_per_s"]
     return (f"PPO learn, batched + prefetch beyond zero-cost, {n} envs",
             f"{total:.0f} µs per env step",
-            f"environments {extra['env']:.0f}, policy forward {extra['forward']:.0f}, updates "
-            f"{extra['update']:.0f}, rest {extra['rest']:.0f} µs more", "", None)  # fmt: skip
+            f"environments {extra['env']:.0f}; policy forward {extra['forward']:.0f}; updates "
+            f"{extra['update']:.0f}; rest {extra['rest']:.0f} µs more", "", None)  # fmt: skip
 
 
 def _ratio(value: float, reference: float | None, name: str, fmt: str = ".0f") -> str:

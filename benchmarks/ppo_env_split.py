@@ -1,0 +1,60 @@
+"""Benchmark: inside PPO training, how much of the environments' time is the compiled step.
+
+``aeromag bench`` times the environments' ``step_wait`` inside PPO's ``learn``; this splits that
+time once more. PPO as in ``aeromag train`` (``agents/hyperparams/ppo.json``'s ``nonstationary``
+entry: 8 batched environments, flights prefetched, torch as in training) learns for one untimed
+rollout, then for 49 152 timed steps per repeat; per environment step, medians over the repeats:
+``step_wait`` (everything the environments cost PPO's loop), of it the compiled step of all
+environments (``kernels.env_step_batch``: the filter over the decision window, the score and the
+observation), and the rest (action check, info dicts, resets).
+
+Run: ``.venv/bin/python benchmarks/ppo_env_split.py [repeats]`` (default 3)
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+from typing import Any
+
+from aeromag_env.cli.bench_envs import _timed
+from aeromag_env.environment import kernels
+
+TIMESTEPS = 49_152
+
+
+def split(repeats: int) -> dict[str, float]:
+    """µs per environment step in ``step_wait``, in the compiled step, and the rest."""
+    from agents import ppo
+
+    hp = ppo.load_hyperparams("nonstationary")
+    wait, compiled = [0.0], [0.0]
+    original = kernels.env_step_batch
+    kernels.env_step_batch = _timed(original, compiled)
+    try:
+        with ppo.training_torch():
+            venv = ppo.make_training_env("nonstationary", hp, seed=0)
+            venv.venv.step_wait = _timed(venv.venv.step_wait, wait)
+            model: Any = ppo.make_ppo(venv, hp, seed=0)
+            time.sleep(2.0)  # the prefetching worker starts up
+            model.learn(int(hp["n_steps"]) * int(hp["n_envs"]))
+            waits, steps = [], []
+            for _ in range(repeats):
+                wait[0] = compiled[0] = 0.0
+                model.learn(TIMESTEPS, reset_num_timesteps=False)
+                waits.append(1e6 * wait[0] / TIMESTEPS)
+                steps.append(1e6 * compiled[0] / TIMESTEPS)
+            venv.close()
+    finally:
+        kernels.env_step_batch = original
+    return {
+        "step_wait_us_per_env_step": statistics.median(waits),
+        "compiled_step_us_per_env_step": statistics.median(steps),
+        "rest_us_per_env_step": statistics.median(w - c for w, c in zip(waits, steps, strict=True)),
+    }
+
+
+if __name__ == "__main__":
+    for name, value in split(int(sys.argv[1]) if len(sys.argv) > 1 else 3).items():
+        print(f"{name:32s} {value:6.1f}")

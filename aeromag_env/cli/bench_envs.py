@@ -37,10 +37,10 @@
   with its range ``ppo_env_share_min`` / ``_max``; the target is at most 15 % with 8
   environments. It is wall time on a shared machine: the prefetching worker simulates flights
   on the other core, and what another process takes of the cores is taken from the variants
-  unequally (the spread of the repeats says how much). It holds all the environment costs
-  PPO's time, also what it costs torch after it (the policy's forward pass after an
-  environment step runs slower than after the zero-cost one's). The flights are simulated
-  afresh, none is replayed (a training run never flies a flight twice).
+  unequally (the spread of the repeats says how much). It counts all the time the
+  environment costs PPO, torch's too (the policy's forward pass runs slower after an
+  environment step than after the zero-cost one's). The flights are simulated afresh, none is
+  replayed (a training run never flies a flight twice).
 """
 
 from __future__ import annotations

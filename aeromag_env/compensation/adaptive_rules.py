@@ -8,7 +8,6 @@ sample (:func:`sage_husa`), and the runaway guard on both (:func:`clamp_scales`)
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from aeromag_env.compensation.fuzzy import zoomed_scale
 from aeromag_env.compensation.kernel_layout import (
@@ -25,6 +24,7 @@ from aeromag_env.compensation.kernel_layout import (
     PAR_ZOOM_R,
 )
 from aeromag_env.compensation.model import FilterMode
+from aeromag_env.numba_cache import njit
 
 
 @njit(cache=True)

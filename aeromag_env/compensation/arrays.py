@@ -16,7 +16,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+
+from aeromag_env.numba_cache import njit
 
 
 class Signals(NamedTuple):

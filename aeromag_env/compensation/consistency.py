@@ -36,7 +36,6 @@ method; the thresholds, and what they were measured against, are in
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from aeromag_env.compensation.kernel_layout import (
     ACC_REF,
@@ -55,6 +54,7 @@ from aeromag_env.compensation.kernel_layout import (
     RUNAWAY_POWER,
     SHIFT_FRACTION,
 )
+from aeromag_env.numba_cache import njit
 
 #: Compiled as :data:`aeromag_env.compensation.kernels.per_sample` (without numba's runtime:
 #: they neither allocate nor copy arrays).

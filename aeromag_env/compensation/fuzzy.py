@@ -44,7 +44,7 @@ counts as very large (``high`` fully active), a negative ratio as 0.
 Zoom levels (eq. 21 discussion): the applied factor is ``s = s_FIS ** b`` with ``b ≥ 0``;
 ``b = 0`` is the plain Kalman filter, ``0 < b < 1`` damps the adaptation, ``b > 1`` magnifies it.
 
-``fis_scale`` and ``zoomed_scale`` are compiled (``numba.njit``), allocation-free and callable
+``fis_scale`` and ``zoomed_scale`` are compiled (numba's ``njit``), allocation-free and callable
 from other compiled code (the filter loop); they do not validate their arguments.
 ``fis_scale_array`` is the validated, vectorised Python entry point and ``fis_scale_reference``
 a plain-numpy implementation that builds the membership arrays explicitly, for tests.
@@ -54,11 +54,11 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
 from aeromag_env.errors import ConfigError
+from aeromag_env.numba_cache import njit
 
 EPSILON_R = 0.05  # tolerance ε of the R (ROR) FIS, paper §4 [-]
 ETA_Q = 0.025  # tolerance η of the Q (QOQ) FIS, paper §4 [-]
@@ -67,7 +67,7 @@ S_MAX = 2.0  # upper end of the output universe [-]
 S_STEP = 0.005  # output grid step [-]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _ramp_down(x: float, a: float, b: float) -> float:
     """1 for x ≤ a, 0 for x ≥ b, linear in between (a < b)."""
     if x <= a:
@@ -77,7 +77,7 @@ def _ramp_down(x: float, a: float, b: float) -> float:
     return (b - x) / (b - a)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _ramp_up(x: float, a: float, b: float) -> float:
     """0 for x ≤ a, 1 for x ≥ b, linear in between (a < b)."""
     if x <= a:
@@ -87,7 +87,7 @@ def _ramp_up(x: float, a: float, b: float) -> float:
     return (x - a) / (b - a)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _triangle(x: float, a: float, m: float, c: float) -> float:
     """Triangle with feet a, c and peak 1 at m (a < m < c)."""
     if x <= a or x >= c:
@@ -97,7 +97,7 @@ def _triangle(x: float, a: float, m: float, c: float) -> float:
     return (c - x) / (c - m)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _firing_strengths(rho: float, tol: float) -> tuple[float, float, float]:
     """Memberships of ρ ≥ 0 (may be +inf) in ``low``, ``ok``, ``high``."""
     low = _ramp_down(rho, 0.5 * (1.0 - tol), 1.0 - tol)
@@ -106,7 +106,7 @@ def _firing_strengths(rho: float, tol: float) -> tuple[float, float, float]:
     return low, ok, high
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _aggregated(
     s: float, low: float, ok: float, high: float, tol: float, s_lo: float, s_hi: float
 ) -> float:
@@ -117,7 +117,7 @@ def _aggregated(
     return max(decrease, keep, increase)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _centroid(low: float, ok: float, high: float, tol: float, s_min: float, s_max: float) -> float:
     """Centroid of the aggregated output membership, piecewise linear on the grid ``1 + k·S_STEP``.
 
@@ -145,7 +145,7 @@ def _centroid(low: float, ok: float, high: float, tol: float, s_min: float, s_ma
     return moment / area
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def fis_scale(ratio: float, tol: float, s_min: float = S_MIN, s_max: float = S_MAX) -> float:
     """Scale factor ``s = FIS(ratio)`` of the paper's three rules (§3.4).
 
@@ -177,7 +177,7 @@ def fis_scale(ratio: float, tol: float, s_min: float = S_MIN, s_max: float = S_M
     return _centroid(low, ok, high, tol, s_min, s_max)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def zoomed_scale(
     ratio: float, tol: float, zoom: float, s_min: float = S_MIN, s_max: float = S_MAX
 ) -> float:
@@ -198,7 +198,7 @@ def zoomed_scale(
     return fis_scale(ratio, tol, s_min, s_max) ** zoom
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _zoomed_many(
     ratios: np.ndarray, tol: float, zoom: float, s_min: float, s_max: float
 ) -> np.ndarray:

@@ -17,7 +17,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numba import njit
 
 from aeromag_env.compensation.arrays import (
     CORE_ARRAYS,
@@ -35,6 +34,7 @@ from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_OUT, INT_
 from aeromag_env.compensation.kernels import advance
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.errors import ConfigError
+from aeromag_env.numba_cache import njit
 from aeromag_env.threads import run_chunks
 
 

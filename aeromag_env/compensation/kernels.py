@@ -34,7 +34,6 @@ Per sample k (normalised state ``z``, ``H_s = H diag(d)``):
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from aeromag_env.compensation.adaptive_rules import adapt, clamp_scales, sage_husa
 from aeromag_env.compensation.arrays import FilterArrays, Packed, named
@@ -59,6 +58,7 @@ from aeromag_env.compensation.kernel_layout import (
 )
 from aeromag_env.compensation.model import FilterMode
 from aeromag_env.compensation.window import window_add
+from aeromag_env.numba_cache import njit
 from aeromag_env.simulation.interference import EDDY_START, INDUCED_START, PERMANENT_START
 
 #: The non-zeros of row i of ``H_s`` in the order they are stored: ``T_p,i`` at 0, ``A_i·`` from

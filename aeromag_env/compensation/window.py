@@ -11,8 +11,6 @@ rounding error, even a negative sum.
 
 from __future__ import annotations
 
-from numba import njit
-
 from aeromag_env.compensation.kernel_layout import (
     ACC_C,
     ACC_REF,
@@ -23,6 +21,7 @@ from aeromag_env.compensation.kernel_layout import (
     INT_WINDOW,
     RESUM_RATIO,
 )
+from aeromag_env.numba_cache import njit
 
 #: Compiled as :data:`aeromag_env.compensation.kernels.per_sample` (no allocation, no copies).
 per_sample = njit(cache=True, _nrt=False)  # type: ignore[call-overload]

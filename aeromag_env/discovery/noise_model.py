@@ -12,8 +12,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from aeromag_env.numba_cache import njit
 from aeromag_env.threads import map_threads
 
 #: An entered group that could absorb less than this share of the coloured noise's variance

@@ -19,7 +19,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from aeromag_env.compensation.arrays import FilterArrays, Packed, named, packed, row
 from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_WINDOW
@@ -52,6 +51,7 @@ from aeromag_env.environment.statistics import (
     turn_rate,
     whiteness,
 )
+from aeromag_env.numba_cache import njit
 from aeromag_env.simulation.interference import INDUCED_START, PERMANENT_START
 from aeromag_env.threads import run_chunks
 

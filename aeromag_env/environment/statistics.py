@@ -13,9 +13,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_POS, INT_WINDOW
+from aeromag_env.numba_cache import njit
 
 
 @njit(cache=True)

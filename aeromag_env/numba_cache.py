@@ -11,15 +11,17 @@ the old update while the single-flight filter ran the new one.)
 
 Importing :func:`njit` from here instead of from numba puts :class:`PackageLocator` in front
 of numba's cache locators: for a function defined in this package it keeps numba's own choice
-(cache folder, file names) and adds to the stamp a digest of every module of the package that
-compiles code (:func:`compiled_sources_digest`), so any change to compiled code recompiles all of
-it. Functions of other packages are left to numba as before.
+(cache folder, file names) and adds to the stamp a digest of the modules that compile code and
+of every module of the package they import (:func:`compiled_sources`: their constants are
+compiled in too), so a change to any of them recompiles all compiled code. Functions of other
+packages are left to numba as before.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import re
 import warnings
 from pathlib import Path
 from typing import Any
@@ -27,9 +29,10 @@ from typing import Any
 from numba import njit
 from numba.core import caching
 
-__all__ = ["MARKER", "PACKAGE", "PackageLocator", "compiled_sources_digest", "install", "njit"]
+__all__ = ["MARKER", "PACKAGE", "PackageLocator", "compiled_sources", "compiled_sources_digest",
+           "install", "njit"]  # fmt: skip
 
-#: How a module that compiles code imports :func:`njit` (the modules in the digest).
+#: How a module that compiles code imports :func:`njit` (the digest starts from these).
 MARKER = b"from aeromag_env.numba_cache import njit"
 #: The folder of this package: the functions defined under it get :class:`PackageLocator`.
 PACKAGE = Path(__file__).resolve().parent
@@ -37,16 +40,50 @@ PACKAGE = Path(__file__).resolve().parent
 
 @functools.cache
 def compiled_sources_digest(root: Path = PACKAGE) -> str:
-    """SHA-256 over the relative path and contents of every ``.py`` file under ``root`` that
-    compiles with :func:`njit` from here (the modules whose code can end up in a compiled
-    function), in path order."""
+    """SHA-256 over the relative path and contents of :func:`compiled_sources` of ``root``,
+    in path order."""
     digest = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        text = path.read_bytes()
-        if MARKER in text:
-            digest.update(path.relative_to(root).as_posix().encode() + b"\0")
-            digest.update(hashlib.sha256(text).digest())
+    for path in sorted(compiled_sources(root)):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0")
+        digest.update(hashlib.sha256(path.read_bytes()).digest())
     return digest.hexdigest()
+
+
+def compiled_sources(root: Path = PACKAGE) -> set[Path]:
+    """The ``.py`` files under ``root`` whose code can end up in a compiled function: those
+    that compile with :func:`njit` from here (:data:`MARKER`) and every module of the package
+    they import, directly or not (numba compiles the constants it reads — layouts, enum
+    values — into the machine code as well)."""
+    todo = [path for path in root.rglob("*.py") if MARKER in path.read_bytes()]
+    found: set[Path] = set()
+    while todo:
+        path = todo.pop()
+        if path not in found:
+            found.add(path)
+            todo.extend(_imported(path, root))
+    return found
+
+
+def _imported(path: Path, root: Path) -> list[Path]:
+    """The files of the package under ``root`` that the module ``path`` imports: absolute
+    imports by the package's name; ``from package.sub import name`` counts ``package.sub``
+    and, if it is one, the module ``package.sub.name``. Read with patterns, not parsed: every
+    process that compiles or loads a kernel runs this (~20 ms for the whole package)."""
+    text = path.read_text(encoding="utf-8")
+    package = re.escape(root.name)
+    names = re.findall(rf"^\s*import\s+({package}(?:\.\w+)*)", text, re.MULTILINE)
+    pattern = rf"^\s*from\s+({package}(?:\.\w+)*)\s+import\s+(\([^)]*\)|[^\n]*)"
+    for module, imported in re.findall(pattern, text, re.MULTILINE):
+        names.append(module)
+        for item in imported.strip("()").split(","):
+            name = item.split("#")[0].split(" as ")[0].strip()
+            if name.isidentifier():
+                names.append(f"{module}.{name}")
+    files = []
+    for name in names:
+        base = root.joinpath(*name.split(".")[1:])
+        files += [f for f in (base.with_suffix(".py"), base / "__init__.py") if f.is_file()]
+    return files
 
 
 class PackageLocator(caching._CacheLocator):

@@ -10,7 +10,13 @@ from pathlib import Path
 
 from aeromag_env.compensation import kalman_batch, kernels
 from aeromag_env.environment import kernels as env_kernels
-from aeromag_env.numba_cache import MARKER, PACKAGE, PackageLocator, compiled_sources_digest
+from aeromag_env.numba_cache import (
+    MARKER,
+    PACKAGE,
+    PackageLocator,
+    compiled_sources,
+    compiled_sources_digest,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -28,19 +34,21 @@ def g():
     return f()
 """
 B = """from aeromag_env.numba_cache import njit
+from pkgx.c import OFFSET
 @njit(cache=True)
 def f():
-    return {value}
+    return {value} + OFFSET
 """
 RUN = "import pkgx.a as a; v = a.g(); print(v, a.g.stats.cache_hits.most_common(1))"
 
 
-def _package(folder: Path, value: int) -> None:
+def _package(folder: Path, value: int, offset: int = 0) -> None:
     pkg = folder / "pkgx"
     pkg.mkdir(exist_ok=True)
     (pkg / "__init__.py").write_text(INIT)
     (pkg / "a.py").write_text(A)
     (pkg / "b.py").write_text(B.format(value=value))
+    (pkg / "c.py").write_text(f"OFFSET = {offset}\n")  # a constant, compiled into f and g
 
 
 def _g(folder: Path, keyed: bool) -> str:
@@ -57,9 +65,10 @@ def _g(folder: Path, keyed: bool) -> str:
 
 
 def test_a_change_to_a_called_module_reaches_the_caller_through_the_cache(tmp_path):
-    """The hazard the module exists for: g's cache entry holds f's code, and numba checks only
-    a.py; keyed on the package's compiled modules, a changed b.py recompiles g. The cache is
-    used at all (a hit on the second run), and without the key numba serves the old f."""
+    """The hazard the module exists for: g's cache entry holds f's code and c's constant, and
+    numba checks only a.py; keyed on the compiled modules and what they import, a changed b.py
+    or c.py recompiles g. The cache is used (a hit on the second run); without the key numba
+    serves the old f."""
     keyed, plain = tmp_path / "keyed", tmp_path / "plain"
     for folder in (keyed, plain):
         folder.mkdir()
@@ -68,6 +77,8 @@ def test_a_change_to_a_called_module_reaches_the_caller_through_the_cache(tmp_pa
     assert _g(keyed, True).startswith("1 [(()")  # loaded from the cache: a hit
     _package(keyed, 2)
     assert _g(keyed, True).startswith("2 ")
+    _package(keyed, 2, offset=10)
+    assert _g(keyed, True).startswith("12 ")
     assert _g(plain, False).startswith("1 ")
     _package(plain, 2)
     assert _g(plain, False).startswith("1 "), "numba now sees f's change itself"
@@ -81,15 +92,32 @@ def test_the_package_kernels_get_the_package_locator():
         assert digest == compiled_sources_digest() and len(digest) == 64
 
 
-def test_the_digest_follows_compiled_modules_only(tmp_path):
+def test_the_digest_follows_compiled_modules_and_their_imports_only(tmp_path):
+    root = tmp_path / "pkgx"
+    root.mkdir()
+    (root / "__init__.py").write_text("")
+    (root / "k.py").write_text(MARKER.decode() + "\nfrom pkgx import layout\nX = 1\n")
+    (root / "layout.py").write_text("from pkgx.sub.deep import (\n    A,  # a comment\n)\n")
+    (root / "sub").mkdir()
+    (root / "sub" / "deep.py").write_text("A = 1\n")
+    (root / "plain.py").write_text("Y = 1\n")
+    assert {p.relative_to(root).as_posix() for p in compiled_sources(root)} == {
+        "__init__.py", "k.py", "layout.py", "sub/deep.py"}  # fmt: skip
     digest = compiled_sources_digest.__wrapped__
-    (tmp_path / "k.py").write_text(MARKER.decode() + "\nX = 1\n")
-    (tmp_path / "plain.py").write_text("Y = 1\n")
-    first = digest(tmp_path)
-    (tmp_path / "plain.py").write_text("Y = 2\n")
-    assert digest(tmp_path) == first
-    (tmp_path / "k.py").write_text(MARKER.decode() + "\nX = 2\n")
-    assert digest(tmp_path) != first
+    first = digest(root)
+    (root / "plain.py").write_text("Y = 2\n")
+    assert digest(root) == first
+    for path in ("k.py", "sub/deep.py"):
+        (root / path).write_text((root / path).read_text() + "Z = 3\n")
+        assert digest(root) != first
+        first = digest(root)
+
+
+def test_the_package_digest_covers_the_layouts_the_kernels_read():
+    names = {p.relative_to(PACKAGE).as_posix() for p in compiled_sources()}
+    assert {"compensation/kernel_layout.py", "environment/spaces.py",
+            "simulation/interference.py", "compensation/model.py"} <= names  # fmt: skip
+    assert "cli/main.py" not in names and "flight/files.py" not in names
 
 
 def test_every_kernel_module_compiles_through_numba_cache():

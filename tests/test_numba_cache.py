@@ -89,7 +89,7 @@ def test_the_package_kernels_get_the_package_locator():
         locator = dispatcher._cache._impl.locator
         assert isinstance(locator, PackageLocator)
         _own, digest = locator.get_source_stamp()
-        assert digest == compiled_sources_digest() and len(digest) == 64
+        assert digest == compiled_sources_digest(locator.root) and len(digest) == 64
 
 
 def test_the_digest_follows_compiled_modules_and_their_imports_only(tmp_path):

@@ -20,7 +20,7 @@ from aeromag_env.numba_cache import (
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# a package of two files: g (in a.py) calls, and numba inlines, f (in b.py)
+# a package: g (in a.py) calls, and numba inlines, f (in b.py), which reads a constant of c.py
 INIT = """import os
 from pathlib import Path
 from aeromag_env.numba_cache import install
@@ -39,7 +39,7 @@ from pkgx.c import OFFSET
 def f():
     return {value} + OFFSET
 """
-RUN = "import pkgx.a as a; v = a.g(); print(v, a.g.stats.cache_hits.most_common(1))"
+RUN = "import pkgx.a as a; print(a.g(), a.g.stats.cache_hits.most_common(1))"
 
 
 def _package(folder: Path, value: int, offset: int = 0) -> None:

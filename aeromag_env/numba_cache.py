@@ -29,8 +29,15 @@ from typing import Any
 from numba import njit
 from numba.core import caching
 
-__all__ = ["MARKER", "PACKAGE", "PackageLocator", "compiled_sources", "compiled_sources_digest",
-           "install", "njit"]  # fmt: skip
+__all__ = [
+    "MARKER",
+    "PACKAGE",
+    "PackageLocator",
+    "compiled_sources",
+    "compiled_sources_digest",
+    "install",
+    "njit",
+]
 
 #: How a module that compiles code imports :func:`njit` (the digest starts from these).
 MARKER = b"from aeromag_env.numba_cache import njit"
@@ -150,8 +157,9 @@ def install(root: Path = PACKAGE) -> type[PackageLocator]:
     for cls in classes:
         if isinstance(cls, type) and issubclass(cls, PackageLocator) and cls.root == root:
             return cls
-    locator = type(f"PackageLocator_{root.name}", (PackageLocator,),
-                   {"root": root, "__module__": __name__})  # fmt: skip
+    locator = type(
+        f"PackageLocator_{root.name}", (PackageLocator,), {"root": root, "__module__": __name__}
+    )
     classes.insert(0, locator)
     return locator
 

@@ -20,8 +20,17 @@ from typing import Any
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.errors import ConfigError
 
-POLICIES = ("constant", "fis", "sage_husa", "ding", "tuned_constant", "oracle", "privileged", "ppo",
-            "general")  # fmt: skip
+POLICIES = (
+    "constant",
+    "fis",
+    "sage_husa",
+    "ding",
+    "tuned_constant",
+    "oracle",
+    "privileged",
+    "ppo",
+    "general",
+)
 #: The shipped PPO policies: trained on ``nonstationary`` (see experiments/train_ppo.py), and the
 #: general one trained across the suite (``aeromag train --scenario suite``).
 DEFAULT_PPO = Path(__file__).with_name("trained") / "ppo_nonstationary.npz"

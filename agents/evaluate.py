@@ -100,8 +100,10 @@ def evaluate_scenarios(
     for scenario in scenarios:
         check_scenario(scenario)
         if scenario in TRAINING_SCENARIOS:
-            raise AeromagError(f"scenario {scenario!r} is for training only; evaluate one of "
-                               f"{', '.join(SCENARIOS)}")  # fmt: skip
+            raise AeromagError(
+                f"scenario {scenario!r} is for training only; evaluate one of "
+                f"{', '.join(SCENARIOS)}"
+            )
     if not seeds:
         raise AeromagError("evaluation needs at least one seed")
     if min(seeds) < TEST_SEED_START:
@@ -133,8 +135,9 @@ def policy_rows(
     a list per figure in seed order. The same flights for every policy: the env settings a
     policy was trained with (PPO's observation layout and action mode) change only the
     interface, not the flight."""
-    env = gym.make("AeroMagCompensation-v0", scenario=scenario,
-                   **{**env_kwargs, **policy_env_kwargs(name)})  # fmt: skip
+    env = gym.make(
+        "AeroMagCompensation-v0", scenario=scenario, **{**env_kwargs, **policy_env_kwargs(name)}
+    )
     policy = make_policy(name, env)
     rows = [run_episode(env, policy, seed) for seed in seeds]
     env.close()
@@ -142,19 +145,28 @@ def policy_rows(
 
 
 def _run_policies(
-    scenarios: Sequence[str], policies: Sequence[str], seeds: Sequence[int],
-    env_kwargs: dict[str, Any], progress: Any, runner: Runner | None,
-) -> dict[str, dict[str, dict[str, np.ndarray]]]:  # fmt: skip
+    scenarios: Sequence[str],
+    policies: Sequence[str],
+    seeds: Sequence[int],
+    env_kwargs: dict[str, Any],
+    progress: Any,
+    runner: Runner | None,
+) -> dict[str, dict[str, dict[str, np.ndarray]]]:
     """Every (scenario, policy, chunk of seeds) as a task of ``runner``; the figures per
     scenario and policy, in seed order."""
     runner = runner or SerialRunner()
     size = len(seeds) if isinstance(runner, SerialRunner) else CHUNK
     chunks = [list(seeds[i : i + size]) for i in range(0, len(seeds), size)]
     keys = [(s, name) for s in scenarios for name in policies]
-    tasks = [Task(f"{s}/{name} seeds {c[0]}–{c[-1]}", policy_rows, (s, name, c, env_kwargs))
-             for s, name in keys for c in chunks]  # fmt: skip
-    outcomes = runner.run(tasks, None if progress is None else lambda o: progress(
-        len(o.value["rmse_nt"]) if o.ok else 0))  # fmt: skip
+    tasks = [
+        Task(f"{s}/{name} seeds {c[0]}–{c[-1]}", policy_rows, (s, name, c, env_kwargs))
+        for s, name in keys
+        for c in chunks
+    ]
+    outcomes = runner.run(
+        tasks,
+        None if progress is None else lambda o: progress(len(o.value["rmse_nt"]) if o.ok else 0),
+    )
     for o in failures(outcomes):  # the first failed task, after the others completed
         if isinstance(o.exception, AeromagError):  # an input error: one line, with its input
             raise type(o.exception)(f"{o.label}: {o.exception}") from None
@@ -162,8 +174,9 @@ def _run_policies(
     per: dict[str, dict[str, dict[str, np.ndarray]]] = {s: {} for s in scenarios}
     for i, (s, name) in enumerate(keys):
         parts = [o.value for o in outcomes[i * len(chunks) : (i + 1) * len(chunks)]]
-        per[s][name] = {k: np.array([v for p in parts for v in p[k]], dtype=float)
-                        for k in parts[0]}  # fmt: skip
+        per[s][name] = {
+            k: np.array([v for p in parts for v in p[k]], dtype=float) for k in parts[0]
+        }
     return per
 
 
@@ -177,15 +190,26 @@ def normalized_scores(per: dict[str, dict[str, np.ndarray]]) -> dict[str, Any] |
         return None
     zero, one = per[SCORE_ZERO]["rmse_nt"], per[SCORE_ONE]["rmse_nt"]
     headroom = zero - one  # paired: same flights
-    anchors: dict[str, Any] = {"zero": SCORE_ZERO, "one": SCORE_ONE,
-                               "headroom_nt_mean": float(headroom.mean()),
-                               "headroom_nt_ci95": ci95(headroom), "note": None}  # fmt: skip
+    anchors: dict[str, Any] = {
+        "zero": SCORE_ZERO,
+        "one": SCORE_ONE,
+        "headroom_nt_mean": float(headroom.mean()),
+        "headroom_nt_ci95": ci95(headroom),
+        "note": None,
+    }
     out: dict[str, Any] = {"anchors": anchors}
     if not anchors["headroom_nt_ci95"][0] > 0:
-        anchors["note"] = (f"no headroom: {SCORE_ONE} is not better than {SCORE_ZERO} beyond "
-                           "the interval on these flights, so no score is defined")  # fmt: skip
-        return {**out, **{name: {"normalized_score": None, "normalized_score_ci95": [None, None]}
-                          for name in per}}  # fmt: skip
+        anchors["note"] = (
+            f"no headroom: {SCORE_ONE} is not better than {SCORE_ZERO} beyond "
+            "the interval on these flights, so no score is defined"
+        )
+        return {
+            **out,
+            **{
+                name: {"normalized_score": None, "normalized_score_ci95": [None, None]}
+                for name in per
+            },
+        }
 
     def score(z: np.ndarray, o: np.ndarray, p: np.ndarray, axis: int = -1) -> np.ndarray:
         z_mean = z.mean(axis=axis)
@@ -195,9 +219,14 @@ def normalized_scores(per: dict[str, dict[str, np.ndarray]]) -> dict[str, Any] |
     for name, v in per.items():
         rmse = v["rmse_nt"]
         boot = stats.bootstrap(
-            (zero, one, rmse), score, paired=True, vectorized=True,
-            n_resamples=BOOTSTRAP_RESAMPLES, method="percentile", rng=0,
-        )  # fmt: skip
+            (zero, one, rmse),
+            score,
+            paired=True,
+            vectorized=True,
+            n_resamples=BOOTSTRAP_RESAMPLES,
+            method="percentile",
+            rng=0,
+        )
         ci = [float(boot.confidence_interval.low), float(boot.confidence_interval.high)]
         out[name] = {"normalized_score": float(score(zero, one, rmse)), "normalized_score_ci95": ci}
     return out

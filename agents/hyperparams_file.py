@@ -138,8 +138,13 @@ def _object(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 
 def _walk(value: Any, where: tuple) -> Iterator[tuple[tuple, Any]]:
     yield where, value
-    items = value.items() if isinstance(value, dict) else enumerate(value) \
-        if isinstance(value, list) else ()  # fmt: skip
+    items = (
+        value.items()
+        if isinstance(value, dict)
+        else enumerate(value)
+        if isinstance(value, list)
+        else ()
+    )
     for key, item in items:
         yield from _walk(item, (*where, key))
 

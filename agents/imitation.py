@@ -79,9 +79,11 @@ class Demonstrations:
 
     @classmethod
     def of(cls, parts: list[tuple], scenarios: list[np.ndarray]) -> Demonstrations:
-        return cls(np.concatenate([p[0] for p in parts]).astype(np.float32),
-                   np.concatenate([p[1] for p in parts]).astype(np.float32),
-                   np.concatenate(scenarios).astype(str))  # fmt: skip
+        return cls(
+            np.concatenate([p[0] for p in parts]).astype(np.float32),
+            np.concatenate([p[1] for p in parts]).astype(np.float32),
+            np.concatenate(scenarios).astype(str),
+        )
 
     def only(self, scenarios: list[str]) -> Demonstrations:
         """The samples flown in one of ``scenarios``."""
@@ -111,16 +113,19 @@ class CloningTerm:
     in place of the old policy's: PPO still improves the return, from near the demonstrations.
     """
 
-    def __init__(self, model: Any, venv: Any, hp: dict[str, Any], demos: Demonstrations,
-                 seed: int) -> None:  # fmt: skip
+    def __init__(
+        self, model: Any, venv: Any, hp: dict[str, Any], demos: Demonstrations, seed: int
+    ) -> None:
         import torch
 
         spec = hp["pretrain"]
         if "bc_scenarios" in spec:
             demos = demos.only(list(spec["bc_scenarios"]))
         if not demos.obs.shape[0]:
-            raise AeromagError(f"pretrain.bc_scenarios {spec.get('bc_scenarios')}: no "
-                               "demonstration was flown in these scenarios")  # fmt: skip
+            raise AeromagError(
+                f"pretrain.bc_scenarios {spec.get('bc_scenarios')}: no "
+                "demonstration was flown in these scenarios"
+            )
         self.model, self.venv, self.demos = model, venv, demos
         self.minibatches, self.batch = int(spec.get("bc_minibatches", 0)), int(hp["batch_size"])
         policy = model.policy
@@ -159,8 +164,9 @@ def _fit(model: Any, venv: Any, hp: dict[str, Any], parts: list[tuple]) -> None:
     import torch
 
     spec = hp["pretrain"]
-    x = torch.as_tensor(venv.normalize_obs(np.concatenate([p[0] for p in parts])),
-                        dtype=torch.float32)  # fmt: skip
+    x = torch.as_tensor(
+        venv.normalize_obs(np.concatenate([p[0] for p in parts])), dtype=torch.float32
+    )
     a = torch.as_tensor(np.concatenate([p[1] for p in parts]), dtype=torch.float32)
     returns = np.concatenate([p[2] for p in parts])
     g = torch.as_tensor(venv.normalize_reward(returns), dtype=torch.float32)
@@ -232,13 +238,15 @@ def _privileged_rollouts(
     from agents.policies import PrivilegedPolicy
 
     n = venv.num_envs
-    envs = [gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"])
-            for _ in range(n)]  # fmt: skip
+    envs = [
+        gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"]) for _ in range(n)
+    ]
     seeds = [seed_stream(rank, n, offset=offset) for rank in range(n)]
     after = teacher_after(EnvConfig(**hp["env_kwargs"]).decision_window)
     floor = hp["pretrain"].get("teacher_r_floor")
-    teachers = [PrivilegedPolicy(env, after=after, cautious_start=True, r_floor=floor)
-                for env in envs]  # fmt: skip
+    teachers = [
+        PrivilegedPolicy(env, after=after, cautious_start=True, r_floor=floor) for env in envs
+    ]
     obs = np.stack([env.reset(seed=next(seeds[i]))[0] for i, env in enumerate(envs)])
     raw_obs, actions, rewards, dones, flown = [], [], [], [], []
     returns = np.zeros(n)

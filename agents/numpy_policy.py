@@ -61,15 +61,22 @@ class NumpyPPOPolicy:
         name = scenario or self.meta.get("scenario", "nominal")
         return gym.make(env_id(name), **{**self.env_kwargs, **overrides})
 
-    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+    def predict(
+        self,
+        obs: np.ndarray,
+        state: State = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, State]:
         """Actions (n_act,) for one observation (n_obs,), or (N, n_act) for (N, n_obs);
         observations far outside the training statistics saturate (clipped after scaling)."""
         x = np.asarray(obs, dtype=np.float64)
         if x.ndim not in (1, 2) or x.shape[-1] != self.n_obs:
-            raise ValueError(f"the PPO policy takes {self.n_obs} observations per environment, "
-                             f"got an array of shape {x.shape}: make the environment with "
-                             "policy.make_env(), or pass it policy.env_kwargs")  # fmt: skip
+            raise ValueError(
+                f"the PPO policy takes {self.n_obs} observations per environment, "
+                f"got an array of shape {x.shape}: make the environment with "
+                "policy.make_env(), or pass it policy.env_kwargs"
+            )
         single = x.ndim == 1
         with np.errstate(over="ignore"):  # a huge observation scales to ±inf, then is clipped
             x = np.clip((np.atleast_2d(x) - self.mean) / self.std, -self.clip, self.clip)

@@ -56,8 +56,13 @@ class ConstantPolicy:
 
     name = "constant"
 
-    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+    def predict(
+        self,
+        obs: np.ndarray,
+        state: State = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, State]:
         batch, single = _batch(obs)
         return _out(np.zeros((batch.shape[0], len(BASE_ACTIONS))), single), state
 
@@ -74,14 +79,26 @@ class FisPolicy:
 
     name = "fis"
 
-    def __init__(self, s_max: float = 2.0, interval: int = 5, epsilon: float = 0.05,
-                 eta: float = 0.025, zoom_r: float = 1.0, zoom_q: float = 1.0) -> None:  # fmt: skip
+    def __init__(
+        self,
+        s_max: float = 2.0,
+        interval: int = 5,
+        epsilon: float = 0.05,
+        eta: float = 0.025,
+        zoom_r: float = 1.0,
+        zoom_q: float = 1.0,
+    ) -> None:
         self.log_s_max = math.log(s_max)
         self.interval, self.eps, self.eta = interval, epsilon, eta
         self.zoom_r, self.zoom_q = zoom_r, zoom_q
 
-    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+    def predict(
+        self,
+        obs: np.ndarray,
+        state: State = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, State]:
         batch, single = _batch(obs)
         steps = _step_counter(state, episode_start, batch.shape[0])
         actions = np.zeros((batch.shape[0], len(BASE_ACTIONS)))
@@ -117,8 +134,13 @@ class ClassicalPolicy:
         self.mode = int(MODE[method])
         self.env = env.unwrapped
 
-    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+    def predict(
+        self,
+        obs: np.ndarray,
+        state: State = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, State]:
         _single_env(obs, self.name)
         self.env.filter.mode = self.mode  # idempotent; the env builds a new filter on reset
         return np.zeros(len(BASE_ACTIONS), np.float32), state
@@ -136,8 +158,13 @@ class TargetScalePolicy:
     def targets(self) -> tuple[float, float]:
         return self.log_q, self.log_r
 
-    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+    def predict(
+        self,
+        obs: np.ndarray,
+        state: State = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, State]:
         _single_env(obs, self.name)
         env = self.env
         log_s_max = math.log(env.config.s_max)
@@ -193,8 +220,15 @@ class InnovationDetectorPolicy:
 
     name = "innovation_detector"
 
-    def __init__(self, config: Any, threshold_nt: float = 20.0, r0_nt2: float | None = None,
-                 log_q: float = 0.0, log_r: float = 2.0, log_qp: float = 10.0) -> None:  # fmt: skip
+    def __init__(
+        self,
+        config: Any,
+        threshold_nt: float = 20.0,
+        r0_nt2: float | None = None,
+        log_q: float = 0.0,
+        log_r: float = 2.0,
+        log_qp: float = 10.0,
+    ) -> None:
         from aeromag_env.compensation.model import FilterConfig
 
         c = config
@@ -214,8 +248,13 @@ class InnovationDetectorPolicy:
         self.quiet[ACT_QP] = quiet_qp
         self.raise_qp = 1.0 if c.qp_gate else _to_action(log_qp, c.absolute_qp_log10)
 
-    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+    def predict(
+        self,
+        obs: np.ndarray,
+        state: State = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, State]:
         batch, single = _batch(obs)
         actions = np.repeat(self.quiet[None, :], batch.shape[0], axis=0)
         actions[batch[:, self.column] > self.log_threshold, ACT_QP] = self.raise_qp
@@ -250,13 +289,21 @@ class PrivilegedPolicy:
     name = "privileged"
     #: The environment layout it acts in.
     ENV_KWARGS: dict[str, Any] = {  # noqa: RUF012 (read-only)
-        "action_mode": "absolute", "split_q": True,
-        "absolute_q_log10": (-10.0, 6.0), "absolute_r_log10": (-2.0, 7.0),
-        "absolute_qp_log10": (-6.0, 10.0), "scale_limit": 1e10,
-    }  # fmt: skip
+        "action_mode": "absolute",
+        "split_q": True,
+        "absolute_q_log10": (-10.0, 6.0),
+        "absolute_r_log10": (-2.0, 7.0),
+        "absolute_qp_log10": (-6.0, 10.0),
+        "scale_limit": 1e10,
+    }
 
-    def __init__(self, env: Any, after: int = 1, cautious_start: bool = False,
-                 r_floor: dict[str, float] | None = None) -> None:  # fmt: skip
+    def __init__(
+        self,
+        env: Any,
+        after: int = 1,
+        cautious_start: bool = False,
+        r_floor: dict[str, float] | None = None,
+    ) -> None:
         self.env = env.unwrapped
         c = self.env.config
         if not (c.split_q and c.action_mode == "absolute"):
@@ -264,8 +311,13 @@ class PrivilegedPolicy:
         self.after, self.cautious_start = after, cautious_start
         self.r_floor = dict(r_floor or {})
 
-    def predict(self, obs: np.ndarray, state: State = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, State]:  # fmt: skip
+    def predict(
+        self,
+        obs: np.ndarray,
+        state: State = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, State]:
         _single_env(obs, self.name)
         env, c = self.env, self.env.config
         ep, k, width = env.episode, env.filter.k, c.decision_window

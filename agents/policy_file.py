@@ -116,8 +116,11 @@ def _check_size(z: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
         try:
             with z.open(info) as f:
                 version = np.lib.format.read_magic(f)
-                read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                        else np.lib.format.read_array_header_2_0)  # fmt: skip
+                read = (
+                    np.lib.format.read_array_header_1_0
+                    if version == (1, 0)
+                    else np.lib.format.read_array_header_2_0
+                )
                 shape, _, dtype = read(f)
         except _READ_ERRORS as e:
             raise _Problem(f"{name} is corrupt or not a .npy array ({e})") from None
@@ -162,8 +165,9 @@ def _check_names(arrays: dict[str, np.ndarray]) -> None:
 
 def _meta(value: np.ndarray) -> dict[str, Any]:
     if value.dtype.kind != "U" or value.shape != ():
-        raise _Problem(f"meta must be JSON text (a 0-d string array), got {value.dtype} "
-                       f"of shape {value.shape}")  # fmt: skip
+        raise _Problem(
+            f"meta must be JSON text (a 0-d string array), got {value.dtype} of shape {value.shape}"
+        )
     try:
         meta = json.loads(str(value), parse_constant=_no_constant)
     except ValueError as e:
@@ -218,8 +222,7 @@ def _layer(arrays: dict[str, np.ndarray], w: str, b: str, width: int, prev: str)
     """Check the layer ``w`` (units, width) and ``b`` (units,); return its units."""
     shape = arrays[w].shape
     if len(shape) != 2 or shape[1] != width or shape[0] < 1:
-        raise _Problem(f"{w} has shape {shape}; expected (units, {width}) ({prev} {width} "
-                       "values)")  # fmt: skip
+        raise _Problem(f"{w} has shape {shape}; expected (units, {width}) ({prev} {width} values)")
     _shape(arrays, b, (shape[0],))
     return int(shape[0])
 

@@ -89,9 +89,13 @@ def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
     if kind == "batched":
         from aeromag_env.environment.sb3 import AeroMagSB3VecEnv
 
-        venv: Any = AeroMagSB3VecEnv(n_envs, scenario=scenario, reset_seeds=streams,
-                                     prefetch=bool(hp.get("prefetch", True)),
-                                     **hp["env_kwargs"])  # fmt: skip
+        venv: Any = AeroMagSB3VecEnv(
+            n_envs,
+            scenario=scenario,
+            reset_seeds=streams,
+            prefetch=bool(hp.get("prefetch", True)),
+            **hp["env_kwargs"],
+        )
     else:
 
         def factory(rank: int) -> Any:
@@ -109,8 +113,13 @@ def normalized(venv: Any, hp: dict[str, Any]) -> Any:
     """``venv`` under the observation (and, by ``hp``, reward) normalisation of training."""
     from stable_baselines3.common.vec_env import VecNormalize
 
-    return VecNormalize(venv, norm_obs=True, norm_reward=bool(hp["normalize_reward"]),
-                        gamma=float(hp["gamma"]), clip_obs=10.0)  # fmt: skip
+    return VecNormalize(
+        venv,
+        norm_obs=True,
+        norm_reward=bool(hp["normalize_reward"]),
+        gamma=float(hp["gamma"]),
+        clip_obs=10.0,
+    )
 
 
 def validate(policy: NumpyPPOPolicy, scenario: str, episodes: int) -> float:
@@ -141,16 +150,28 @@ def train_ppo(
 
 
 def _train_ppo(
-    scenario: str, timesteps: int, seed: int, out: Path, quick: bool, progress: bool,
-    hyperparams: Path, total: bool,
-) -> dict[str, Any]:  # fmt: skip
+    scenario: str,
+    timesteps: int,
+    seed: int,
+    out: Path,
+    quick: bool,
+    progress: bool,
+    hyperparams: Path,
+    total: bool,
+) -> dict[str, Any]:
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
     hp = load_hyperparams(scenario, hyperparams)
     if quick:
-        hp = {**hp, "n_envs": 2, "n_steps": 64, "batch_size": 64, "eval_every": 512,
-              "prefetch": False}  # fmt: skip
+        hp = {
+            **hp,
+            "n_envs": 2,
+            "n_steps": 64,
+            "batch_size": 64,
+            "eval_every": 512,
+            "prefetch": False,
+        }
         if "pretrain" in hp:
             hp["pretrain"] = {**hp["pretrain"], "steps": 256, "epochs": 1}
     venv = make_training_env(scenario, hp, seed)
@@ -160,9 +181,11 @@ def _train_ppo(
             venv = VecNormalize.load(str(stats), venv.venv)
             model = _quiet(PPO.load(str(ckpt), env=venv, device="cpu"))
         except Exception as e:  # a checkpoint of another version, or damaged by hand
-            raise AeromagError(f"cannot resume from the checkpoint in {out} ({type(e).__name__}: "
-                               f"{e}); remove checkpoint.zip and vecnormalize.pkl to start "
-                               "afresh, or choose another --out") from None  # fmt: skip
+            raise AeromagError(
+                f"cannot resume from the checkpoint in {out} ({type(e).__name__}: "
+                f"{e}); remove checkpoint.zip and vecnormalize.pkl to start "
+                "afresh, or choose another --out"
+            ) from None
     else:
         model = make_ppo(venv, hp, seed)
     curve = _load_curve(out)
@@ -251,14 +274,24 @@ def _quiet(model: Any) -> Any:
 
 
 def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
-    keys = ("n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "gae_lambda",
-            "ent_coef", "clip_range")  # fmt: skip
+    keys = (
+        "n_steps",
+        "batch_size",
+        "n_epochs",
+        "learning_rate",
+        "gamma",
+        "gae_lambda",
+        "ent_coef",
+        "clip_range",
+    )
     kwargs = {k: hp[k] for k in keys}
     kwargs["learning_rate"] = _schedule(hp["learning_rate"])
     # SB3's Adam (eps 1e-5) stepping all parameters in one foreach call: the same numbers
     # (tested bitwise), a third less optimizer time per minibatch on the CPU
-    kwargs["policy_kwargs"] = {"net_arch": list(hp["net_arch"]),
-                               "optimizer_kwargs": {"eps": 1e-5, "foreach": True}}  # fmt: skip
+    kwargs["policy_kwargs"] = {
+        "net_arch": list(hp["net_arch"]),
+        "optimizer_kwargs": {"eps": 1e-5, "foreach": True},
+    }
     if "log_std_init" in hp:  # initial exploration noise of the Gaussian policy (SB3 default 0)
         kwargs["policy_kwargs"]["log_std_init"] = float(hp["log_std_init"])
     return kwargs
@@ -302,8 +335,17 @@ def _selection_score(point: dict[str, float]) -> float:
 class _Callback(_callback_base()):  # type: ignore[misc]
     """Progress bar, periodic validation (keeps the best export) and checkpoints."""
 
-    def __init__(self, out: Path, venv: Any, scenario: str, hp: dict[str, Any], seed: int,
-                 curve: list, total: int, progress: bool) -> None:  # fmt: skip
+    def __init__(
+        self,
+        out: Path,
+        venv: Any,
+        scenario: str,
+        hp: dict[str, Any],
+        seed: int,
+        curve: list,
+        total: int,
+        progress: bool,
+    ) -> None:
         super().__init__()
         self.out, self.venv, self.scenario, self.hp, self.seed = out, venv, scenario, hp, seed
         self.curve, self.total, self.progress = curve, total, progress
@@ -350,9 +392,11 @@ class _Callback(_callback_base()):  # type: ignore[misc]
             "hyperparams_version": self.hp["version"],
         }
         candidate = export_policy(self.model, self.venv, self.out / "candidate.npz", meta)
-        point = {"timesteps": int(self.model.num_timesteps),
-                 **self.validator(NumpyPPOPolicy.load(candidate)),
-                 "seconds": time.perf_counter() - self.t0}  # fmt: skip
+        point = {
+            "timesteps": int(self.model.num_timesteps),
+            **self.validator(NumpyPPOPolicy.load(candidate)),
+            "seconds": time.perf_counter() - self.t0,
+        }
         score = _selection_score(point)
         self.curve.append(point)
         if score < self.best:

@@ -114,12 +114,23 @@ def tune_ppo(
         trials = _search(job, space, samples)
         cpus = int(ray.cluster_resources().get("CPU", 1))
     best = _best(trials)
-    summary = {"scenario": scenario, "samples": samples, "timesteps": timesteps, "seed": seed,
-               "quick": quick, "reports_per_trial": job.reports, "metric": METRIC,
-               "validation_episodes": int(job.hp["eval_episodes"]),
-               "space_file": str(space_path), "space": space, "hyperparams": str(hyperparams),
-               "cpus": cpus, "seconds": time.perf_counter() - t0,
-               "best": best, "trials": trials}  # fmt: skip
+    summary = {
+        "scenario": scenario,
+        "samples": samples,
+        "timesteps": timesteps,
+        "seed": seed,
+        "quick": quick,
+        "reports_per_trial": job.reports,
+        "metric": METRIC,
+        "validation_episodes": int(job.hp["eval_episodes"]),
+        "space_file": str(space_path),
+        "space": space,
+        "hyperparams": str(hyperparams),
+        "cpus": cpus,
+        "seconds": time.perf_counter() - t0,
+        "best": best,
+        "trials": trials,
+    }
     entry = {**read_hyperparams(hyperparams)["scenarios"][scenario], **best["config"]}
     _write(out, [space_path, hyperparams], _tuned_table(entry, summary), summary)
     return summary
@@ -149,8 +160,11 @@ def ray_session(address: str | None) -> Iterator[Any]:
         ) from None
     started = False
     if not ray.is_initialized():
-        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
-                                  "logging_level": logging.ERROR}  # fmt: skip
+        kwargs: dict[str, Any] = {
+            "include_dashboard": False,
+            "log_to_driver": False,
+            "logging_level": logging.ERROR,
+        }
         if address is None:  # "local": a new Ray, not another process's found in /tmp/ray
             kwargs["num_cpus"] = cores()
         try:
@@ -176,11 +190,13 @@ def _search(job: TuneJob, space: dict[str, Any], samples: int) -> list[dict[str,
     scheduler = ASHAScheduler(max_t=job.reports, grace_period=GRACE, reduction_factor=REDUCTION)
     with tempfile.TemporaryDirectory(prefix="aeromag-tune-") as storage:
         search = BasicVariantGenerator(random_state=job.seed)
-        config = tune.TuneConfig(metric=METRIC, mode="min", num_samples=samples,
-                                 scheduler=scheduler, search_alg=search)  # fmt: skip
+        config = tune.TuneConfig(
+            metric=METRIC, mode="min", num_samples=samples, scheduler=scheduler, search_alg=search
+        )
         run = tune.RunConfig(name="aeromag-tune", storage_path=storage, verbose=0)
-        tuner = tune.Tuner(trainable, param_space=tune_domains(space), tune_config=config,
-                           run_config=run)  # fmt: skip
+        tuner = tune.Tuner(
+            trainable, param_space=tune_domains(space), tune_config=config, run_config=run
+        )
         with contextlib.redirect_stdout(io.StringIO()):  # Tune's banner prints even at verbose 0
             grid = tuner.fit()
         return [_record(grid[i], list(space), job) for i in range(len(grid))]
@@ -237,9 +253,14 @@ def run_trial(config: dict[str, Any], job: TuneJob) -> None:
                 rmse = _validate(model, venv, hp, job, Path(tmp))
                 best = min(best, rmse)
                 seeds = validation_seeds(int(hp["eval_episodes"]))
-                tune.report({METRIC: rmse, "best_validation_rmse_nt": best,
-                             "timesteps": int(model.num_timesteps),
-                             "validation_seeds": [seeds[0], seeds[-1]]})  # fmt: skip
+                tune.report(
+                    {
+                        METRIC: rmse,
+                        "best_validation_rmse_nt": best,
+                        "timesteps": int(model.num_timesteps),
+                        "validation_seeds": [seeds[0], seeds[-1]],
+                    }
+                )
         finally:
             venv.close()
 
@@ -251,9 +272,13 @@ def _validate(model: Any, venv: Any, hp: dict[str, Any], job: TuneJob, tmp: Path
     from agents.policy_file import export_policy
     from agents.validation import validation_rmse
 
-    meta = {"scenario": job.scenario, "env_kwargs": hp["env_kwargs"], "seed": job.seed,
-            "timesteps": int(model.num_timesteps),
-            "hyperparams_version": hp["version"]}  # fmt: skip
+    meta = {
+        "scenario": job.scenario,
+        "env_kwargs": hp["env_kwargs"],
+        "seed": job.seed,
+        "timesteps": int(model.num_timesteps),
+        "hyperparams_version": hp["version"],
+    }
     policy = NumpyPPOPolicy.load(export_policy(model, venv, tmp / "candidate.npz", meta))
     return float(validation_rmse(policy, job.scenario, int(hp["eval_episodes"])).mean())
 

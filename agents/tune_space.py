@@ -31,8 +31,12 @@ from agents.hyperparams_file import SCHEMA, read_checked, value_problem
 SPACE = Path(__file__).with_name("hyperparams") / "tune_space.json"
 SPACE_SCHEMA = SPACE.with_name("tune_space.schema.json")
 #: The fields of each distribution (besides ``distribution``).
-FIELDS = {"uniform": ("low", "high"), "loguniform": ("low", "high"), "randint": ("low", "high"),
-          "choice": ("values",)}  # fmt: skip
+FIELDS = {
+    "uniform": ("low", "high"),
+    "loguniform": ("low", "high"),
+    "randint": ("low", "high"),
+    "choice": ("values",),
+}
 
 
 def read_space(path: str | Path = SPACE) -> dict[str, dict[str, Any]]:

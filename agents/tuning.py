@@ -23,8 +23,12 @@ LOG10_Q_GRID = tuple(float(v) for v in np.arange(-10.0, 6.01, 1.0))
 LOG10_R_GRID = tuple(float(v) for v in np.arange(-2.0, 6.01, 1.0))
 
 
-def tune_constant(scenario: str, seeds: Sequence[int], log10_q: Sequence[float] = LOG10_Q_GRID,
-                  log10_r: Sequence[float] = LOG10_R_GRID) -> dict[str, Any]:  # fmt: skip
+def tune_constant(
+    scenario: str,
+    seeds: Sequence[int],
+    log10_q: Sequence[float] = LOG10_Q_GRID,
+    log10_r: Sequence[float] = LOG10_R_GRID,
+) -> dict[str, Any]:
     """Grid search of the constant scales minimising the mean episode RMSE on ``seeds``."""
     if max(seeds) >= TRAIN_SEEDS.stop:
         raise AeromagError(f"tuning seeds must be training seeds (< {TRAIN_SEEDS.stop})")

@@ -29,8 +29,9 @@ from agents.evaluate import VALIDATION_SEEDS, run_episode
 SELECT_BY = ("rmse", "ratio_to_privileged", "worst_ratio_to_tuned_constant")
 
 
-def validation_rmse(policy: Any, scenario: str, episodes: int,
-                    env_kwargs: dict[str, Any] | None = None) -> np.ndarray:  # fmt: skip
+def validation_rmse(
+    policy: Any, scenario: str, episodes: int, env_kwargs: dict[str, Any] | None = None
+) -> np.ndarray:
     """Each episode's RMSE on the first ``episodes`` validation seeds [nT]; ``policy`` a
     policy object or a name of :func:`agents.make_policy` (then in ``env_kwargs``)."""
     from agents import make_policy
@@ -81,8 +82,9 @@ class Validator:
         ``validation_score`` (when ``select_by`` is not ``rmse``) and, per scenario, the mean
         ratio to the reference (``validation_ratio``)."""
         each = {s: validation_rmse(policy, s, n) for s, n in self.flights().items()}
-        point: dict[str, Any] = {"validation_rmse_nt": float(np.mean(np.concatenate(list(
-            each.values()))))}  # fmt: skip
+        point: dict[str, Any] = {
+            "validation_rmse_nt": float(np.mean(np.concatenate(list(each.values()))))
+        }
         if self.select_by == "rmse":
             return point
         ratio = {s: float(np.mean(r / self.reference(s))) for s, r in each.items()}

@@ -30,8 +30,17 @@ HYPERPARAMS = Path(__file__).parent / "hyperparams"
 #: Timesteps of the shipped policy's training run (``aeromag train --timesteps``).
 ZOO_TIMESTEPS = 1_500_000
 #: PPO's own settings, copied as they are.
-_PPO_KEYS = ("n_envs", "n_steps", "batch_size", "n_epochs", "learning_rate", "gamma",
-             "gae_lambda", "ent_coef", "clip_range")  # fmt: skip
+_PPO_KEYS = (
+    "n_envs",
+    "n_steps",
+    "batch_size",
+    "n_epochs",
+    "learning_rate",
+    "gamma",
+    "gae_lambda",
+    "ent_coef",
+    "clip_range",
+)
 #: Clip of the normalised observations (as :func:`agents.ppo.normalized`).
 CLIP_OBS = 10.0
 
@@ -42,8 +51,9 @@ def zoo_hyperparams(hyperparams: dict[str, Any]) -> dict[str, dict[str, Any]]:
     for scenario, hp in hyperparams["scenarios"].items():
         entry: dict[str, Any] = {"policy": "MlpPolicy", "n_timesteps": float(ZOO_TIMESTEPS)}
         entry.update({key: hp[key] for key in _PPO_KEYS})
-        entry["normalize"] = (f"dict(norm_obs=True, norm_reward={bool(hp['normalize_reward'])}, "
-                              f"clip_obs={CLIP_OBS})")  # fmt: skip
+        entry["normalize"] = (
+            f"dict(norm_obs=True, norm_reward={bool(hp['normalize_reward'])}, clip_obs={CLIP_OBS})"
+        )
         policy = f"net_arch={list(hp['net_arch'])}, optimizer_kwargs=dict(eps=1e-05)"
         if "log_std_init" in hp:
             policy += f", log_std_init={float(hp['log_std_init'])}"
@@ -59,9 +69,11 @@ def write_zoo_file(source: Path, target: Path) -> Path:
     import yaml
 
     hyperparams = read_hyperparams(source)
-    head = (f"# Made from {source.name} (version {hyperparams['version']}) by "
-            "`python -m agents.zoo`: edit that file, not this one.\n# rl_zoo3 trains PPO "
-            "from scratch: no behaviour-cloning pretraining (agents/zoo.py).\n")  # fmt: skip
+    head = (
+        f"# Made from {source.name} (version {hyperparams['version']}) by "
+        "`python -m agents.zoo`: edit that file, not this one.\n# rl_zoo3 trains PPO "
+        "from scratch: no behaviour-cloning pretraining (agents/zoo.py).\n"
+    )
     body = yaml.safe_dump(zoo_hyperparams(hyperparams), sort_keys=False, default_flow_style=None)
     target.write_text(head + body, encoding="utf-8")
     return target

@@ -54,14 +54,20 @@ def table(runs: Sequence[dict[str, Any]]) -> str:
     """A Markdown table: benchmark, the runs' medians, their ratios, target (met in k of n)."""
     per_run = [{r[0]: r for r in _rows(run["figures"])} for run in runs]
     names = [name for name in per_run[0] if all(name in rows for rows in per_run)]
-    lines = ["| benchmark | median, " + " / ".join(f"run {i + 1}" for i in range(len(runs)))
-             + " | ratio to the reference, same run | target |", "|---|---|---|---|"]  # fmt: skip
+    lines = [
+        "| benchmark | median, "
+        + " / ".join(f"run {i + 1}" for i in range(len(runs)))
+        + " | ratio to the reference, same run | target |",
+        "|---|---|---|---|",
+    ]
     for name in names:
         rows = [rows[name] for rows in per_run]
         target, met = rows[0][3], [r[4] for r in rows]
         verdict = "" if met[0] is None else f"{target}: met in {sum(met)} of {len(met)}"
-        lines.append(f"| {name} | {join_cells([r[1] for r in rows])} | "
-                     f"{join_cells([r[2] for r in rows])} | {verdict} |")  # fmt: skip
+        lines.append(
+            f"| {name} | {join_cells([r[1] for r in rows])} | "
+            f"{join_cells([r[2] for r in rows])} | {verdict} |"
+        )
     return "\n".join(lines)
 
 
@@ -73,11 +79,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(table(runs))
     for i, run in enumerate(runs, 1):
         load, machine = run.get("load_average_1min", {}), run.get("machine", {})
-        print(f"\nrun {i}: {machine.get('processor')}, {machine.get('cpus')} cores, Python "
-              f"{machine.get('python')}, numpy {machine.get('numpy')}, numba "
-              f"{machine.get('numba')}; load average {_two(load.get('before'))} before, "
-              f"{_two(load.get('after'))} after; {run.get('repeats')} repeats "
-              f"({run.get('ppo_repeats')} for PPO)")  # fmt: skip
+        print(
+            f"\nrun {i}: {machine.get('processor')}, {machine.get('cpus')} cores, Python "
+            f"{machine.get('python')}, numpy {machine.get('numpy')}, numba "
+            f"{machine.get('numba')}; load average {_two(load.get('before'))} before, "
+            f"{_two(load.get('after'))} after; {run.get('repeats')} repeats "
+            f"({run.get('ppo_repeats')} for PPO)"
+        )
     return 0
 
 

@@ -52,8 +52,10 @@ def run(seeds: Sequence[int], duration_s: float) -> dict[str, dict[str, list[flo
 
 def table(values: dict[str, dict[str, list[float]]], n: int, duration_s: float) -> str:
     """Markdown table: mean [95 % t-interval] over seeds."""
-    head = ("| method | RMSE vs truth, 2nd half [nT] | IR (2nd half) | FOM, last box [nT] "
-            "| residual std [nT] | divergences |\n|---|---|---|---|---|---|\n")  # fmt: skip
+    head = (
+        "| method | RMSE vs truth, 2nd half [nT] | IR (2nd half) | FOM, last box [nT] "
+        "| residual std [nT] | divergences |\n|---|---|---|---|---|---|\n"
+    )
     rows = []
     for method, vals in values.items():
         cells = [_mean_ci(vals[k]) for k in METRICS[:4]] + [str(int(sum(vals["divergences"])))]
@@ -82,8 +84,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = Path(args.out)
     text = table(values, len(seeds), duration)
     write_text(out / "table.md", text)
-    write_text(out / "results.json", json.dumps({"duration_s": duration, "seeds": list(seeds),
-                                                 "values": values}, indent=2))  # fmt: skip
+    write_text(
+        out / "results.json",
+        json.dumps({"duration_s": duration, "seeds": list(seeds), "values": values}, indent=2),
+    )
     print(text)
     return 0
 

@@ -36,8 +36,10 @@ FLIGHTS = (
 def run(spec: tuple[str, int, str | None, float | None]) -> dict[str, Any]:
     kind, seed, effect, snr = spec
     if kind == "nominal":  # its external variation across the main field is the true effect
-        cfg = with_overrides(preset("nominal"), {"trajectory.pattern": "calibration+survey",
-                                                 "trajectory.duration_s": 2100.0})  # fmt: skip
+        cfg = with_overrides(
+            preset("nominal"),
+            {"trajectory.pattern": "calibration+survey", "trajectory.duration_s": 2100.0},
+        )
         truth = ["external_field_variation"]
     else:
         noise = COLOURED_NOISE[seed % len(COLOURED_NOISE)] if kind == "coloured" else None
@@ -46,12 +48,16 @@ def run(spec: tuple[str, int, str | None, float | None]) -> dict[str, Any]:
         truth = [effect] if effect else []
     report = discover(simulate_flight(cfg, seed)).report
     joint = [
-        {"family": fam, "lr_per_dof": t["lr_statistic"] / t["dof"], "passes_holm":
-         t["p_value"] < step["holm_threshold"], "true": fam.split("[")[0] in truth}
+        {
+            "family": fam,
+            "lr_per_dof": t["lr_statistic"] / t["dof"],
+            "passes_holm": t["p_value"] < step["holm_threshold"],
+            "true": fam.split("[")[0] in truth,
+        }
         for step in report["selection"]["steps"]
         for fam, t in step["tests"].items()
         if t.get("test") == "joint noise model"
-    ]  # fmt: skip
+    ]
     return {"kind": kind, "seed": seed, "effect": effect, "snr": snr, "joint": joint}
 
 
@@ -61,13 +67,23 @@ def main() -> None:
     args = ap.parse_args()
     with Pool(args.jobs) as pool:
         rows = pool.map(run, FLIGHTS, chunksize=1)
-    spurious = sorted(t["lr_per_dof"] for r in rows if r["kind"] in ("null", "coloured")
-                      for t in r["joint"] if t["passes_holm"])  # fmt: skip
+    spurious = sorted(
+        t["lr_per_dof"]
+        for r in rows
+        if r["kind"] in ("null", "coloured")
+        for t in r["joint"]
+        if t["passes_holm"]
+    )
     nulls = sum(r["kind"] in ("null", "coloured") for r in rows)
-    print(f"null flights: {nulls}; spurious slow groups passing Holm, LR/dof: "
-          + ", ".join(f"{v:.1f}" for v in spurious))  # fmt: skip
-    true = [max((t["lr_per_dof"] for t in r["joint"] if t["true"]), default=float("nan"))
-            for r in rows if r["kind"] in ("single", "nominal")]  # fmt: skip
+    print(
+        f"null flights: {nulls}; spurious slow groups passing Holm, LR/dof: "
+        + ", ".join(f"{v:.1f}" for v in spurious)
+    )
+    true = [
+        max((t["lr_per_dof"] for t in r["joint"] if t["true"]), default=float("nan"))
+        for r in rows
+        if r["kind"] in ("single", "nominal")
+    ]
     print(f"weak true effects: {len(true)}; their LR/dof: {min(true):.1f}–{max(true):.1f}")
 
 

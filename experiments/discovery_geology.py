@@ -27,8 +27,10 @@ def _with_ground(cfg: SimulationConfig, rms_nt: float) -> SimulationConfig:
 
 
 def _named(report: dict[str, Any]) -> str:
-    found = [f"{e['name']}" + (f" ({e['channel']})" if e["channel"] else "")
-             for e in report["missing_effects"]]  # fmt: skip
+    found = [
+        f"{e['name']}" + (f" ({e['channel']})" if e["channel"] else "")
+        for e in report["missing_effects"]
+    ]
     return ", ".join(found) or "–"
 
 
@@ -38,8 +40,10 @@ def plain_flights() -> list[str]:
         for seed in range(91_000, 91_006):
             rep = discover(simulate_flight(_with_ground(base_config(1800.0), rms), seed)).report
             gap, caveat = rep["gap"], "yes" if rep["caveats"] else "no"
-            rows.append(f"| {rms:g} | {seed} | {_named(rep)} | {gap['rms_before_nt']:.2f} → "
-                        f"{gap['rms_after_nt']:.2f} | {caveat} |")  # fmt: skip
+            rows.append(
+                f"| {rms:g} | {seed} | {_named(rep)} | {gap['rms_before_nt']:.2f} → "
+                f"{gap['rms_after_nt']:.2f} | {caveat} |"
+            )
     return rows
 
 

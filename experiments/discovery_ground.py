@@ -69,12 +69,18 @@ def _run_low(job: tuple[str, int, float]) -> list[str]:
 
 
 def low_table() -> list[str]:
-    jobs = [(name, 98_000 + k, rms) for rms in EFFECT_GROUND_NT for name in LOW_EFFECTS
-            for k in range(4)]  # fmt: skip
+    jobs = [
+        (name, 98_000 + k, rms)
+        for rms in EFFECT_GROUND_NT
+        for name in LOW_EFFECTS
+        for k in range(4)
+    ]
     with ProcessPoolExecutor(2) as pool:
         rows = list(pool.map(_run_low, jobs))
-    head = ["| hidden (SNR 2), lines at 150 m | seed | ground [nT] | named | held-out gap [nT] |",
-            "|---|---|---|---|---|"]  # fmt: skip
+    head = [
+        "| hidden (SNR 2), lines at 150 m | seed | ground [nT] | named | held-out gap [nT] |",
+        "|---|---|---|---|---|",
+    ]
     return head + [f"| {' | '.join(r)} |" for r in rows]
 
 
@@ -90,10 +96,16 @@ def _run(job: tuple[str, int, float, float]) -> dict[str, Any]:
     out: dict[str, Any] = {"name": name, "seed": seed, "ground_nt": rms_nt}
     for mode in MODES:
         rep = discover(flight, ground=mode).report
-        absorbed = {c["name"] for c in rep["candidates"] if c["verdict"] == "absorbed"
-                    and "ground" in str(c.get("absorbed_by"))}  # fmt: skip
-        out[mode] = {"named": [e["name"] for e in rep["missing_effects"]],
-                     "gap": rep["gap"]["rms_before_nt"], "absorbed": sorted(absorbed)}  # fmt: skip
+        absorbed = {
+            c["name"]
+            for c in rep["candidates"]
+            if c["verdict"] == "absorbed" and "ground" in str(c.get("absorbed_by"))
+        }
+        out[mode] = {
+            "named": [e["name"] for e in rep["missing_effects"]],
+            "gap": rep["gap"]["rms_before_nt"],
+            "absorbed": sorted(absorbed),
+        }
     return out
 
 
@@ -104,8 +116,11 @@ def _interval(k: int, n: int) -> str:
 
 
 def plain_table(rows: list[dict[str, Any]]) -> list[str]:
-    out = ["| ground [nT] | flights naming anything: ignore | separate | median held-out gap "
-           "[nT]: ignore | separate |", "|---|---|---|---|---|"]  # fmt: skip
+    out = [
+        "| ground [nT] | flights naming anything: ignore | separate | median held-out gap "
+        "[nT]: ignore | separate |",
+        "|---|---|---|---|---|",
+    ]
     for rms in PLAIN_GROUND_NT:
         sub = [r for r in rows if r["name"] == "plain" and r["ground_nt"] == rms]
         cells = [_interval(sum(bool(r[m]["named"]) for r in sub), len(sub)) for m in MODES]
@@ -115,24 +130,35 @@ def plain_table(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def effect_table(rows: list[dict[str, Any]]) -> list[str]:
-    out = ["| effect (SNR 2) | ground [nT] | found: ignore | separate | separate: absorbed by "
-           "the ground (said so) |", "|---|---|---|---|---|"]  # fmt: skip
+    out = [
+        "| effect (SNR 2) | ground [nT] | found: ignore | separate | separate: absorbed by "
+        "the ground (said so) |",
+        "|---|---|---|---|---|",
+    ]
     for name in SINGLE:
         for rms in EFFECT_GROUND_NT:
             sub = [r for r in rows if r["name"] == name and r["ground_nt"] == rms]
             found = [sum(name in r[m]["named"] for r in sub) for m in MODES]
             said = sum(name in r["separate"]["absorbed"] for r in sub)
-            out.append(f"| `{name}` | {rms:g} | {found[0]}/{len(sub)} | {found[1]}/{len(sub)} | "
-                       f"{said}/{len(sub)} |")  # fmt: skip
+            out.append(
+                f"| `{name}` | {rms:g} | {found[0]}/{len(sub)} | {found[1]}/{len(sub)} | "
+                f"{said}/{len(sub)} |"
+            )
     return out
 
 
 def jobs() -> list[tuple[str, int, float, float]]:
-    plain = [("plain", 96_000 + 100 * k + i, rms, 0.0)
-             for k, rms in enumerate(PLAIN_GROUND_NT) for i in range(N_PLAIN)]  # fmt: skip
-    effects = [(name, 97_000 + 1000 * g + 10 * e + i, rms, 2.0)
-               for g, rms in enumerate(EFFECT_GROUND_NT) for e, name in enumerate(SINGLE)
-               for i in range(N_EFFECT)]  # fmt: skip
+    plain = [
+        ("plain", 96_000 + 100 * k + i, rms, 0.0)
+        for k, rms in enumerate(PLAIN_GROUND_NT)
+        for i in range(N_PLAIN)
+    ]
+    effects = [
+        (name, 97_000 + 1000 * g + 10 * e + i, rms, 2.0)
+        for g, rms in enumerate(EFFECT_GROUND_NT)
+        for e, name in enumerate(SINGLE)
+        for i in range(N_EFFECT)
+    ]
     return plain + effects
 
 

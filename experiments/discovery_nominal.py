@@ -60,12 +60,15 @@ def unmodelled_external(flight: Flight) -> np.ndarray:
 
 def run(case: tuple[str, int, float]) -> dict[str, Any]:
     name, seed, duration = case
-    cfg = with_overrides(preset(name), {"trajectory.pattern": "calibration+survey",
-                                        "trajectory.duration_s": duration})  # fmt: skip
+    cfg = with_overrides(
+        preset(name),
+        {"trajectory.pattern": "calibration+survey", "trajectory.duration_s": duration},
+    )
     flight = simulate_flight(cfg, seed)
     t_b = flight.vector("truth_earth")
-    span = BaseSpan(base_columns(t_b, time_derivative(t_b, flight.tt, "central")),
-                    np.ones(flight.n, bool))  # fmt: skip
+    span = BaseSpan(
+        base_columns(t_b, time_derivative(t_b, flight.tt, "central")), np.ones(flight.n, bool)
+    )
     extra = unmodelled_external(flight)
     rms = float(np.sqrt(np.mean(span.perp(extra[:, :, None]) ** 2)))
     sigma = math.hypot(cfg.fluxgate_noise.white_std_nt, cfg.fluxgate_noise.fogm_std_nt)
@@ -76,13 +79,17 @@ def run(case: tuple[str, int, float]) -> dict[str, Any]:
         return {"preset": name, "seed": seed, "duration_s": duration, "error": str(exc)}
     named = [e["name"] for e in found["missing_effects"]]
     return {
-        "preset": name, "seed": seed, "duration_s": duration,
-        "identifiable_rms_nt": rms, "snr": rms / sigma if sigma > 0 else math.inf,
-        "named": named, "seconds": time.perf_counter() - start,
+        "preset": name,
+        "seed": seed,
+        "duration_s": duration,
+        "identifiable_rms_nt": rms,
+        "snr": rms / sigma if sigma > 0 else math.inf,
+        "named": named,
+        "seconds": time.perf_counter() - start,
         "false_alarm": any(n != PRESENT_IN_NOMINAL or name != "nominal" for n in named),
         "gap_before_nt": found["gap"]["rms_before_nt"],
         "gap_after_nt": found["gap"]["rms_after_nt"],
-    }  # fmt: skip
+    }
 
 
 def summary(rows: list[dict[str, Any]]) -> str:
@@ -95,13 +102,15 @@ def summary(rows: list[dict[str, Any]]) -> str:
         f"false alarms (an effect the flight does not carry): {k}/{len(ok)} = "
         f"{k / max(len(ok), 1):.0%} (95 % CI {lo:.0%}–{hi:.0%})",
         f"any effect named: {sum(bool(r['named']) for r in ok)}/{len(ok)}",
-    ]  # fmt: skip
+    ]
     nominal = [r for r in ok if r["preset"] == "nominal"]
     for lo_snr, hi_snr in ((0.0, 1.0), (1.0, 2.0), (2.0, math.inf)):
         cell = [r for r in nominal if lo_snr <= r["snr"] < hi_snr]
         hits = sum(PRESENT_IN_NOMINAL in r["named"] for r in cell)
-        lines.append(f"nominal, external across the main field at SNR {lo_snr:g}–{hi_snr:g}: "
-                     f"named {hits}/{len(cell)}")  # fmt: skip
+        lines.append(
+            f"nominal, external across the main field at SNR {lo_snr:g}–{hi_snr:g}: "
+            f"named {hits}/{len(cell)}"
+        )
     secs = [r["seconds"] / r["duration_s"] * 3600.0 for r in ok]
     lines.append(
         f"discover: median {np.median(secs):.1f} s per flight-hour (workflow only, no figures)"
@@ -115,8 +124,10 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("docs/discovery"))
     args = ap.parse_args()
-    cases = [(PRESETS[i % len(PRESETS)], SEED0 + i, DURATIONS_S[(i // len(PRESETS)) % 3])
-             for i in range(args.flights)]  # fmt: skip
+    cases = [
+        (PRESETS[i % len(PRESETS)], SEED0 + i, DURATIONS_S[(i // len(PRESETS)) % 3])
+        for i in range(args.flights)
+    ]
     with Pool(args.jobs) as pool:
         rows = pool.map(run, cases, chunksize=1)
     args.out.mkdir(parents=True, exist_ok=True)

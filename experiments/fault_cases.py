@@ -58,30 +58,64 @@ RUNNERS = {
     "lsq": _compensate("lsq", POSITION + FLUX),
     "kf": _compensate("kf", POSITION + FLUX),
     "discover": Runner(
-        ("discover", "IN", "--out", "OUT", "--quiet"), "@/in.h5", "@/out",
+        ("discover", "IN", "--out", "OUT", "--quiet"),
+        "@/in.h5",
+        "@/out",
         ("report.json", "report.md", "model_config.json", "residual.png", "diagnostics.png"),
-        frozenset(POSITION + FLUX), "in480",
+        frozenset(POSITION + FLUX),
+        "in480",
     ),
-    "convert": Runner(("convert", "IN", "OUT"), "@/in.h5", "@/out/conv.h5", None,
-                      frozenset({"tt"}), "in"),
-    "replay": Runner(("simulate", "--replay", "IN", "--out", "OUT", "--quiet"), "@/in.h5",
-                     "@/out/sim.h5", None, frozenset(POSITION), "in"),
-    "simulate": Runner(("simulate", "--duration-s", "60", "--out", "OUT", "--quiet"), "",
-                       "@/out/sim.h5", None, frozenset(), ""),
+    "convert": Runner(
+        ("convert", "IN", "OUT"), "@/in.h5", "@/out/conv.h5", None, frozenset({"tt"}), "in"
+    ),
+    "replay": Runner(
+        ("simulate", "--replay", "IN", "--out", "OUT", "--quiet"),
+        "@/in.h5",
+        "@/out/sim.h5",
+        None,
+        frozenset(POSITION),
+        "in",
+    ),
+    "simulate": Runner(
+        ("simulate", "--duration-s", "60", "--out", "OUT", "--quiet"),
+        "",
+        "@/out/sim.h5",
+        None,
+        frozenset(),
+        "",
+    ),
     "evaluate": Runner(
         ("evaluate", "--policies", "IN", "--episodes", "2", "--out", "OUT", "--quiet"),
-        "constant", "@/out", ("results.json", "evaluation.png"), frozenset(), "policy",
+        "constant",
+        "@/out",
+        ("results.json", "evaluation.png"),
+        frozenset(),
+        "policy",
     ),
     "train": Runner(
-        ("train", "--quick", "--timesteps", "256", "--hyperparams", "IN", "--out", "OUT",
-         "--quiet"), str(SHIPPED["hyperparams"]), "@/out", ("policy.npz", "training.json"),
-        frozenset(), "hyperparams",
+        (
+            "train",
+            "--quick",
+            "--timesteps",
+            "256",
+            "--hyperparams",
+            "IN",
+            "--out",
+            "OUT",
+            "--quiet",
+        ),
+        str(SHIPPED["hyperparams"]),
+        "@/out",
+        ("policy.npz", "training.json"),
+        frozenset(),
+        "hyperparams",
     ),
     "demo": Runner(("demo", "--out", "OUT"), "", "@/out", (), frozenset(), ""),
     "bench": Runner(("bench", "--quick", "--out", "OUT"), "", "@/out", (), frozenset(), ""),
-    "reproduce-paper": Runner(("reproduce-paper", "--quick", "--out", "OUT"), "", "@/out", (),
-                              frozenset(), ""),
-}  # fmt: skip
+    "reproduce-paper": Runner(
+        ("reproduce-paper", "--quick", "--out", "OUT"), "", "@/out", (), frozenset(), ""
+    ),
+}
 FLIGHT_RUNNERS = ("info", "tl", "lsq", "convert", "replay")
 
 
@@ -252,8 +286,12 @@ def _set(lo: int, hi: int | None, value: float, x: np.ndarray) -> np.ndarray:
 def _retype(kind: str, x: np.ndarray) -> np.ndarray:
     if kind == "string":
         return np.array([f"v{v:.3f}" for v in x])
-    return {"complex": lambda: x + 1j, "bool": lambda: x > np.median(x),
-            "2d": lambda: np.column_stack([x, x]), "short": lambda: x[:-7]}[kind]()  # fmt: skip
+    return {
+        "complex": lambda: x + 1j,
+        "bool": lambda: x > np.median(x),
+        "2d": lambda: np.column_stack([x, x]),
+        "short": lambda: x[:-7],
+    }[kind]()
 
 
 def _truncated(fmt: str, fraction: float) -> bytes:
@@ -281,8 +319,9 @@ def _grid(
             expect = needed if RUNNERS[runner].needs.intersection(fields) else other
             expect = expect.get(runner, expect["*"]) if isinstance(expect, dict) else expect
             ops, swap = _input(runner, f"in.{fmt}"), {"IN": f"@/in.{fmt}"}
-            yield _case(cls, f"{name}/{fmt}", runner, expect, ops, swap, about=about[0],
-                        fault=fault)  # fmt: skip
+            yield _case(
+                cls, f"{name}/{fmt}", runner, expect, ops, swap, about=about[0], fault=fault
+            )
 
 
 def file_cases() -> Iterator[Case]:
@@ -292,11 +331,14 @@ def file_cases() -> Iterator[Case]:
     for fmt in FORMATS:
         faults: dict[str, Callable[[], bytes]] = {
             **{f"truncated_{f:g}": partial(_truncated, fmt, f) for f in (0.05, 0.5, 0.97)},
-            "random_bytes": lambda: noise, "empty": bytes, "blank_lines": lambda: b"\n \n",
-            "png": lambda: b"\x89PNG\r\n\x1a\n" + noise[:512], "zeros": lambda: bytes(2048),
+            "random_bytes": lambda: noise,
+            "empty": bytes,
+            "blank_lines": lambda: b"\n \n",
+            "png": lambda: b"\x89PNG\r\n\x1a\n" + noise[:512],
+            "zeros": lambda: bytes(2048),
             "json": lambda: b'{"tt": [0, 0.1, 0.2], "lat": [45, 45, 45]}\n',
             **{f"{o}_content": partial(clean_bytes, o) for o in FORMATS if o != fmt},
-        }  # fmt: skip
+        }
         if fmt == "csv":
             faults["latin1_name"] = lambda: clean_bytes("csv").replace(b"diurnal", b"diurn\xe9")
         for fault, make in faults.items():
@@ -304,8 +346,16 @@ def file_cases() -> Iterator[Case]:
             expect = BAD if text_cut or fault == "latin1_name" else "refused"
             expect, about = ("warned", "suffix") if fault.endswith("_content") else (expect, "")
             for runner in FLIGHT_RUNNERS:
-                yield _case("file", f"{fault}/{fmt}", runner, expect, (f"data:in.{fmt}",),
-                            {"IN": f"@/in.{fmt}"}, about=about, make=make)  # fmt: skip
+                yield _case(
+                    "file",
+                    f"{fault}/{fmt}",
+                    runner,
+                    expect,
+                    (f"data:in.{fmt}",),
+                    {"IN": f"@/in.{fmt}"},
+                    about=about,
+                    make=make,
+                )
 
 
 def field_cases() -> Iterator[Case]:
@@ -315,21 +365,36 @@ def field_cases() -> Iterator[Case]:
     yield from _grid("missing", missing, FLIGHT_RUNNERS, FORMATS)
     some = {k: missing[k] for k in ("lat", "ins_yaw", "flux_a_z")}
     yield from _grid("missing", some, ("discover",))
-    twins = {"TIME": "tt", "LAT": "lat", "ins_azim": "ins_yaw", "UNCOMPMAG1": "mag_1_uc",
-             "FLUXA_X": "flux_a_x"}  # fmt: skip
+    twins = {
+        "TIME": "tt",
+        "LAT": "lat",
+        "ins_azim": "ins_yaw",
+        "UNCOMPMAG1": "mag_1_uc",
+        "FLUXA_X": "flux_a_x",
+    }
     beside = {
-        f"{a}+{n}": (lambda f, _, a=a, n=n: [*f.items(), (a, f[n] * 1.01 + 1.0)], (n,), "warned",
-                     "warned") for a, n in twins.items()
-    }  # fmt: skip
+        f"{a}+{n}": (
+            lambda f, _, a=a, n=n: [*f.items(), (a, f[n] * 1.01 + 1.0)],
+            (n,),
+            "warned",
+            "warned",
+        )
+        for a, n in twins.items()
+    }
     yield from _grid("duplicated", beside, FLIGHT_RUNNERS, ("h5", "csv", "mat"))
     yield from _grid("duplicated", _text_twins(), ("info", "lsq", "convert"), ("csv", "xyz"))
     for fmt in FORMATS:
         kinds = ("string", "complex", "bool", *(("2d", "short") if fmt in ("h5", "mat") else ()))
         faults = {
-            f"{nm}_{kind}": (_change(partial(_retype, kind), nm),
-                             CHANNELS if kind == "short" else (nm,), "refused", BAD)
-            for kind in kinds for nm in ("tt", "lat", "ins_roll", "flux_a_x", "mag_1_uc")
-        }  # fmt: skip
+            f"{nm}_{kind}": (
+                _change(partial(_retype, kind), nm),
+                CHANNELS if kind == "short" else (nm,),
+                "refused",
+                BAD,
+            )
+            for kind in kinds
+            for nm in ("tt", "lat", "ins_roll", "flux_a_x", "mag_1_uc")
+        }
         runners = FLIGHT_RUNNERS if fmt == "h5" else ("info", "lsq")
         yield from _grid("mistyped", faults, runners, (fmt,))
 
@@ -344,8 +409,10 @@ def _text_twins() -> dict[str, tuple]:
     def twice(f: dict, _: dict) -> list:
         return [*f.items(), ("lat", f["lat"] + 0.5)]
 
-    return {"ROLL+roll": (roll, ("ins_roll",), "warned", "warned"),
-            "lat_twice": (twice, ("lat",), BAD, BAD)}  # fmt: skip
+    return {
+        "ROLL+roll": (roll, ("ins_roll",), "warned", "warned"),
+        "lat_twice": (twice, ("lat",), BAD, BAD),
+    }
 
 
 def unit_cases() -> Iterator[Case]:
@@ -363,10 +430,14 @@ def unit_cases() -> Iterator[Case]:
         "alt_feet_alone": (_change(lambda z: z * 3.28084, "alt"), ("alt",), OK, OK),
         "flux_microtesla": (_change(lambda b: b / 1e3, *FLUX), FLUX, "refused", BAD),
         "flux_tesla": (_change(lambda b: b * 1e-9, *FLUX), FLUX, "refused", BAD),
-        "scalar_microtesla": (_change(lambda b: b / 1e3, "mag_1_uc"), ("mag_1_uc",), "refused",
-                              BAD),
+        "scalar_microtesla": (
+            _change(lambda b: b / 1e3, "mag_1_uc"),
+            ("mag_1_uc",),
+            "refused",
+            BAD,
+        ),
         "year_two_digits": (_change(lambda y: y - 2000.0, "year"), ("date",), "refused", OK),
-    }  # fmt: skip
+    }
     runners = ("info", "tl", "lsq", "kf", "convert", "replay")
     yield from _grid("mis-unit", faults, runners)
     again = {k: faults[k] for k in ("attitude_radians", "time_ms")}
@@ -376,16 +447,24 @@ def unit_cases() -> Iterator[Case]:
 def nonfinite_cases() -> Iterator[Case]:
     """NaN and ±inf bursts, a channel all NaN, a 1e6 nT spike, in each channel (``tt``: always
     refused; an all-NaN channel: refused when needed)."""
-    kinds = {"nan_burst": ((300, 350, np.nan), (*FLIGHT_RUNNERS, "kf")),
-             "inf_burst": ((600, 610, np.inf), ("info", "lsq", "kf", "convert")),
-             "neg_inf": ((900, 901, -np.inf), ("tl", "lsq")),
-             "all_nan": ((0, None, np.nan), ("info", "tl", "lsq", "replay"))}  # fmt: skip
+    kinds = {
+        "nan_burst": ((300, 350, np.nan), (*FLIGHT_RUNNERS, "kf")),
+        "inf_burst": ((600, 610, np.inf), ("info", "lsq", "kf", "convert")),
+        "neg_inf": ((900, 901, -np.inf), ("tl", "lsq")),
+        "all_nan": ((0, None, np.nan), ("info", "tl", "lsq", "replay")),
+    }
     for kind, (args, runners) in kinds.items():
         needed = "refused" if kind == "all_nan" else "warned"
         flown = {"replay": "refused", "*": needed}  # a replay cannot fly through a hole
-        faults = {f"{nm}_{kind}": (_change(partial(_set, *args), nm), (nm,),
-                                   flown if nm in POSITION else needed, "warned")
-                  for nm in ("tt", "lat", "lon", "alt", *CHANNELS[5:])}  # fmt: skip
+        faults = {
+            f"{nm}_{kind}": (
+                _change(partial(_set, *args), nm),
+                (nm,),
+                flown if nm in POSITION else needed,
+                "warned",
+            )
+            for nm in ("tt", "lat", "lon", "alt", *CHANNELS[5:])
+        }
         faults[f"tt_{kind}"] = (*faults[f"tt_{kind}"][:2], "refused", "refused")
         year = _change(partial(_set, *args), "year")  # the date's source once the attribute goes
         faults[f"year_{kind}"] = (year, ("date",), needed, BAD if kind == "all_nan" else "warned")
@@ -395,6 +474,8 @@ def nonfinite_cases() -> Iterator[Case]:
         ("nan_burst", (300, 350, np.nan), ("info", "lsq"), ("csv", "xyz", "mat")),
     ):
         names = ("flux_a_y", "mag_1_uc") if kind == "spike_1e6" else ("ins_pitch", "flux_a_x")
-        faults = {f"{nm}_{kind}": (_change(partial(_set, lo, hi, value), nm), (nm,), "warned",
-                                   "warned") for nm in names}  # fmt: skip
+        faults = {
+            f"{nm}_{kind}": (_change(partial(_set, lo, hi, value), nm), (nm,), "warned", "warned")
+            for nm in names
+        }
         yield from _grid("NaN/inf", faults, runners, formats)

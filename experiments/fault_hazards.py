@@ -53,19 +53,21 @@ def _output_hazards(runner: str) -> list[tuple[str, tuple[str, ...], str, tuple[
             ("out_links_to_input", ("link:o.h5>in.h5",), "@/o.h5", ()),
             ("out_hard_links_input", ("hard:o.h5>in.h5",), "@/o.h5", ()),
         ]
-    return found  # fmt: skip
+    return found
 
 
 def path_cases() -> Iterator[Case]:
     """Inputs missing, a folder, a (dangling) link, /dev/null, oddly named; outputs under a
     file, read-only, empty, a file for a folder and the reverse, another suffix, an input or a
     link to one; an input named like an output; old outputs replaced."""
-    inputs = {"input_missing": ((), "@/nope.h5", "refused"),
-              "input_dev_null": ((), "/dev/null", "refused"),
-              "input_a_folder": (("dir:in.h5",), "@/in.h5", "refused"),
-              "input_dangling_link": (("link:in.h5>gone.h5",), "@/in.h5", "refused"),
-              "input_a_link": (("in:real.h5", "link:in.h5>real.h5"), "@/in.h5", OK),
-              "input_odd_name": (("in:ä b;c'.h5",), "@/ä b;c'.h5", OK)}  # fmt: skip
+    inputs = {
+        "input_missing": ((), "@/nope.h5", "refused"),
+        "input_dev_null": ((), "/dev/null", "refused"),
+        "input_a_folder": (("dir:in.h5",), "@/in.h5", "refused"),
+        "input_dangling_link": (("link:in.h5>gone.h5",), "@/in.h5", "refused"),
+        "input_a_link": (("in:real.h5", "link:in.h5>real.h5"), "@/in.h5", OK),
+        "input_odd_name": (("in:ä b;c'.h5",), "@/ä b;c'.h5", OK),
+    }
     for name, (ops, path, expect) in inputs.items():
         for runner in FLIGHT_RUNNERS:
             yield _case("paths", name, runner, expect, ops, {"IN": path})
@@ -92,34 +94,50 @@ def path_cases() -> Iterator[Case]:
 #: Numeric options (``{}``: the value): the values of :data:`VALUES` not refused and what they
 #: get (None: a valid value not run, the work of a heavy command).
 OPTIONS = (
-    ("simulate", "--seed={}", {"0": OK}), ("simulate", "--duration-s={}", {}),
+    ("simulate", "--seed={}", {"0": OK}),
+    ("simulate", "--duration-s={}", {}),
     ("tl", "--tl-trim={}", {"0": OK}),
     ("tl", "--tl-ridge={}", {"0": OK, "1e-300": OK, "1e300": "any"}),
     ("tl", "--tl-bandpass {} 0.9", {"0": OK, "1e-300": "refused"}),  # cannot be designed
     ("tl", "--tl-bandpass 0.1 {}", {"1e300": BAD}),
     ("kf", "--r-std-nt={}", {"1e-300": "any", "1e300": BAD}),
     ("lsq", "--calibration-window 10 {}", {"inf": "any", "1e300": "any"}),
-    ("lsq", "--segment=0:{}", {"1e300": "any"}), ("lsq", "--line={}", {}),
-    ("lsq", "--calibration-line={}", {}), ("info", "--segment=0:{}", {"1e300": "any"}),
+    ("lsq", "--segment=0:{}", {"1e300": "any"}),
+    ("lsq", "--line={}", {}),
+    ("lsq", "--calibration-line={}", {}),
+    ("info", "--segment=0:{}", {"1e300": "any"}),
     ("info", "--line={}", {}),
     ("discover", "--calibration-window 0 {}", {"inf": "any", "1e300": "any"}),
-    ("evaluate", "--episodes={}", {}), ("evaluate", "--seed-start={}", {}),
-    ("train", "--timesteps={}", {}), ("train", "--seed={}", {"0": None}),
-    ("demo", "--seed={}", {"0": None}), ("reproduce-paper", "--seed={}", {"0": None}),
-)  # fmt: skip
+    ("evaluate", "--episodes={}", {}),
+    ("evaluate", "--seed-start={}", {}),
+    ("train", "--timesteps={}", {}),
+    ("train", "--seed={}", {"0": None}),
+    ("demo", "--seed={}", {"0": None}),
+    ("reproduce-paper", "--seed={}", {"0": None}),
+)
 #: Other option values and what they get.
 WORDS = (
-    ("lsq", "--flux flux_b", "refused"), ("lsq", "--flux ''", "refused"),
-    ("tl", "--scalar mag_9_uc", "refused"), ("lsq", "--mount sideways", "refused"),
-    ("lsq", "--method bogus", "refused"), ("tl", "--tl-trim 100000", "refused"),
-    ("tl", "--tl-bandpass 0.1 0.2 0.3", "refused"), ("tl", "--tl-bandpass none", OK),
-    ("lsq", "--segment 30:90", OK), ("lsq", "--line 1", OK), ("lsq", "--calibration-line", "any"),
-    ("evaluate", "--scenario bogus", "refused"), ("evaluate", "--scenario ''", "refused"),
-    ("evaluate", "--scenario nonstationary_dense", "refused"), ("evaluate", "--episodes 1", OK),
-    ("evaluate", "--policies nope", "refused"), ("evaluate", "--policies ,", "refused"),
-    ("simulate", "--preset bogus", "refused"), ("simulate", "--pattern spiral", "refused"),
+    ("lsq", "--flux flux_b", "refused"),
+    ("lsq", "--flux ''", "refused"),
+    ("tl", "--scalar mag_9_uc", "refused"),
+    ("lsq", "--mount sideways", "refused"),
+    ("lsq", "--method bogus", "refused"),
+    ("tl", "--tl-trim 100000", "refused"),
+    ("tl", "--tl-bandpass 0.1 0.2 0.3", "refused"),
+    ("tl", "--tl-bandpass none", OK),
+    ("lsq", "--segment 30:90", OK),
+    ("lsq", "--line 1", OK),
+    ("lsq", "--calibration-line", "any"),
+    ("evaluate", "--scenario bogus", "refused"),
+    ("evaluate", "--scenario ''", "refused"),
+    ("evaluate", "--scenario nonstationary_dense", "refused"),
+    ("evaluate", "--episodes 1", OK),
+    ("evaluate", "--policies nope", "refused"),
+    ("evaluate", "--policies ,", "refused"),
+    ("simulate", "--preset bogus", "refused"),
+    ("simulate", "--pattern spiral", "refused"),
     ("train", "--scenario bogus", "refused"),
-)  # fmt: skip
+)
 
 
 def value_cases() -> Iterator[Case]:
@@ -158,12 +176,19 @@ def hostile_cases() -> Iterator[Case]:
         "config": b'{"preset": "custom"}',
         "mount": b'{"flux_a": {"roll_deg": 0, "pitch_deg": 0, "yaw_deg": 90}}',
     }
-    wrong = {"hyperparams": json.dumps(hp).encode(), "policy": _policy_with_nan(),
-             "config": b'{"trajectory": {"duration_s": -5}}',
-             "mount": b'{"flux_a": {"rotation": [[2, 0, 0], [0, 1, 0], [0, 0, 1]]}}'}  # fmt: skip
+    wrong = {
+        "hyperparams": json.dumps(hp).encode(),
+        "policy": _policy_with_nan(),
+        "config": b'{"trajectory": {"duration_s": -5}}',
+        "mount": b'{"flux_a": {"rotation": [[2, 0, 0], [0, 1, 0], [0, 0, 1]]}}',
+    }
     noise = np.random.default_rng(21).bytes(2048)
-    for target, runner in (("hyperparams", "train"), ("policy", "evaluate"), ("mount", "lsq"),
-                           ("config", "simulate")):  # fmt: skip
+    for target, runner in (
+        ("hyperparams", "train"),
+        ("policy", "evaluate"),
+        ("mount", "lsq"),
+        ("config", "simulate"),
+    ):
         name = f"bad.{'npz' if target == 'policy' else 'json'}"
         if target in ("hyperparams", "policy"):  # the runner's input
             swap, extra = {"IN": ("ppo:@/" if target == "policy" else "@/") + name}, ()
@@ -180,18 +205,39 @@ def hostile_cases() -> Iterator[Case]:
         }
         for fault, data in contents.items():
             ops = (*_input(runner), f"data:{name}")
-            yield _case("hostile files", f"{target}_{fault}", runner, "refused", ops, swap, extra,
-                        make=lambda data=data: data)  # fmt: skip
+            yield _case(
+                "hostile files",
+                f"{target}_{fault}",
+                runner,
+                "refused",
+                ops,
+                swap,
+                extra,
+                make=lambda data=data: data,
+            )
         for fault, ops in (("a_folder", (f"dir:{name}",)), ("missing", ())):
-            yield _case("hostile files", f"{target}_{fault}", runner, "refused",
-                        (*_input(runner), *ops), swap, extra)  # fmt: skip
+            yield _case(
+                "hostile files",
+                f"{target}_{fault}",
+                runner,
+                "refused",
+                (*_input(runner), *ops),
+                swap,
+                extra,
+            )
 
 
 def clean_cases() -> Iterator[Case]:
     """Each command on the clean flight in each format; simulate, evaluate and train."""
     for runner in ("info", "tl", "lsq", "kf", "convert", "replay", "discover"):
         for fmt in ("h5",) if runner == "discover" else FORMATS:
-            yield _case("clean", f"clean/{fmt}", runner, OK, _input(runner, f"in.{fmt}"),
-                        {"IN": f"@/in.{fmt}"})  # fmt: skip
+            yield _case(
+                "clean",
+                f"clean/{fmt}",
+                runner,
+                OK,
+                _input(runner, f"in.{fmt}"),
+                {"IN": f"@/in.{fmt}"},
+            )
     for runner in ("simulate", "evaluate", "train"):
         yield _case("clean", "clean", runner, OK)

@@ -61,10 +61,17 @@ from experiments.fault_hazards import (
 OUTCOMES = ("refused", "warned", "clean")
 #: Failure kinds; the first five have their own columns in the table.
 FAILURES = (
-    "traceback", "internal error", "silent wrong result", "input modified", "partial output set",
-    "hang", "accepted, should be refused", "refused a usable input", "stderr not clean",
+    "traceback",
+    "internal error",
+    "silent wrong result",
+    "input modified",
+    "partial output set",
+    "hang",
+    "accepted, should be refused",
+    "refused a usable input",
+    "stderr not clean",
     "work started before refusing",
-)  # fmt: skip
+)
 TIME_LIMIT_S = 120.0
 
 # ---------------------------------------------------------------------------------------------
@@ -73,8 +80,16 @@ TIME_LIMIT_S = 120.0
 
 def generate() -> list[Case]:
     """Every case, class by class."""
-    classes = (file_cases, field_cases, unit_cases, nonfinite_cases, path_cases, value_cases,
-               hostile_cases, clean_cases)  # fmt: skip
+    classes = (
+        file_cases,
+        field_cases,
+        unit_cases,
+        nonfinite_cases,
+        path_cases,
+        value_cases,
+        hostile_cases,
+        clean_cases,
+    )
     return [case for make in classes for case in make()]
 
 
@@ -225,8 +240,11 @@ def check(
         outcome = "warned"
     allowed = OUTCOMES if case.expect == "any" else case.expect.split("|")
     if outcome in OUTCOMES and outcome not in allowed:
-        kind = {"clean": "silent wrong result", "warned": "accepted, should be refused",
-                "refused": "refused a usable input"}[outcome]  # fmt: skip
+        kind = {
+            "clean": "silent wrong result",
+            "warned": "accepted, should be refused",
+            "refused": "refused a usable input",
+        }[outcome]
         fails.append((kind, f"expected {case.expect}: {_last(err) or _last(out)}"))
     if outcome == "clean" and re.search(r"\b(nan|inf)\b", out, re.IGNORECASE):
         fails.append(("silent wrong result", f"non-finite number printed: {_last(out, 'nan')}"))
@@ -290,8 +308,10 @@ def table(results: list[Result]) -> str:
     """The README table "What bad input gets": per class, the cases, their outcomes (of those
     without a failure) and the cases with each failure."""
     main, counted = FAILURES[:5], ("refused, one-line error", "accepted with a warning", "clean")
-    rows = ["| fault class | cases | " + " | ".join((*counted, *main)) + " | other failures |",
-            "|---|" + "---:|" * (len(counted) + len(main) + 2)]  # fmt: skip
+    rows = [
+        "| fault class | cases | " + " | ".join((*counted, *main)) + " | other failures |",
+        "|---|" + "---:|" * (len(counted) + len(main) + 2),
+    ]
     for cls in [*dict.fromkeys(r.case.fault_class for r in results), "all"]:
         rs = [r for r in results if cls in ("all", r.case.fault_class)]
         kinds = [{k for k, _ in r.failures} for r in rs]
@@ -311,8 +331,10 @@ def failure_groups(results: list[Result]) -> str:
     lines = []
     for (kind, command), found in sorted(groups.items(), key=lambda g: -len(g[1])):
         r, detail = found[0]
-        lines.append(f"* {kind}, {command}: {len(found)} case(s); e.g. {r.case.id}: `aeromag "
-                     f"{' '.join(r.case.argv)}` → exit {r.code}: {detail}")  # fmt: skip
+        lines.append(
+            f"* {kind}, {command}: {len(found)} case(s); e.g. {r.case.id}: `aeromag "
+            f"{' '.join(r.case.argv)}` → exit {r.code}: {detail}"
+        )
         lines.append("  " + ", ".join(x.case.id for x, _ in found))
     return "\n".join(lines)
 

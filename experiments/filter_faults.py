@@ -75,8 +75,10 @@ def main() -> int:
             counters = "–" if rejected is None else f"{rejected} / {res.divergences}"
             cells.append(f"{rmse:.3g} ({counters})")
         print(f"| {name} | " + " | ".join(cells) + " |")
-    print(f"\nRMS error of the estimate over the second half [nT] (outliers rejected / "
-          f"divergences); {DURATION_S:.0f}-s nominal flight, seed {SEED}")  # fmt: skip
+    print(
+        f"\nRMS error of the estimate over the second half [nT] (outliers rejected / "
+        f"divergences); {DURATION_S:.0f}-s nominal flight, seed {SEED}"
+    )
     return 0
 
 

@@ -71,11 +71,22 @@ def duration_power(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Detection rate of the ``duration`` cases per SNR, effect and duration [s], and the decoy
     channels named on those flights."""
     dur = [r for r in rows if r["kind"] == "duration"]
-    power = {str(snr): {nm: {str(int(d)): _rate([detected(r) for r in dur
-                                                 if r["effects"] == [nm] and r["snr"] == snr
-                                                 and r["duration_s"] == d])
-                             for d in DURATIONS_S} for nm in SINGLE}
-             for snr in DURATION_SNRS}  # fmt: skip
+    power = {
+        str(snr): {
+            nm: {
+                str(int(d)): _rate(
+                    [
+                        detected(r)
+                        for r in dur
+                        if r["effects"] == [nm] and r["snr"] == snr and r["duration_s"] == d
+                    ]
+                )
+                for d in DURATIONS_S
+            }
+            for nm in SINGLE
+        }
+        for snr in DURATION_SNRS
+    }
     return {
         "detection": "the effect with its channel among the named ones (as `power`)",
         "power": power,
@@ -100,9 +111,13 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "median_shrink": float(np.median([r["shrink"] for r in sub])),
             "shrink_at_least_2": _rate([r["shrink"] >= 2 for r in sub]),
         }
-    power = {nm: {str(s): _rate([detected(r) for r in singles
-                                 if r["effects"] == [nm] and r["snr"] == s])
-                  for s in SNRS} for nm in SINGLE}  # fmt: skip
+    power = {
+        nm: {
+            str(s): _rate([detected(r) for r in singles if r["effects"] == [nm] and r["snr"] == s])
+            for s in SNRS
+        }
+        for nm in SINGLE
+    }
     labels = [*SINGLE, "nothing"]
     confusion = {t: Counter() for t in [*SINGLE, "null"]}
     for r in singles + nulls:
@@ -220,8 +235,15 @@ def figures(s: dict[str, Any], out: Path) -> None:
     for i in range(len(rows)):
         for j in range(len(cols)):
             if m[i, j]:
-                ax.text(j, i, f"{int(m[i, j])}", ha="center", va="center", fontsize=8,
-                        color="white" if frac[i, j] > 0.5 else "black")  # fmt: skip
+                ax.text(
+                    j,
+                    i,
+                    f"{int(m[i, j])}",
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                    color="white" if frac[i, j] > 0.5 else "black",
+                )
     ax.set_xticks(range(len(cols)), cols, rotation=40, ha="right", fontsize=8)
     ax.set_yticks(range(len(rows)), rows, fontsize=8)
     ax.set_xlabel("named by aeromag discover")

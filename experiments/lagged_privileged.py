@@ -38,8 +38,13 @@ class LatePrivileged(PrivilegedPolicy):
 
     name = "privileged_late"
 
-    def predict(self, obs: np.ndarray, state: Any = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, Any]:  # fmt: skip
+    def predict(
+        self,
+        obs: np.ndarray,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
         action, state = super().predict(obs, state, episode_start, deterministic)
         k, width = self.env.filter.k, self.env.config.decision_window
         if k >= width:  # the first window keeps the cautious start
@@ -48,8 +53,9 @@ class LatePrivileged(PrivilegedPolicy):
         return action, state
 
 
-def _fly(policy_class: type, scenario: str, window: int, episodes: int,
-         floor: float | None = None) -> float:  # fmt: skip
+def _fly(
+    policy_class: type, scenario: str, window: int, episodes: int, floor: float | None = None
+) -> float:
     """Mean RMSE [nT] of ``policy_class`` (a privileged kind) over the validation flights, with
     R held at or above ``10^floor R(0)`` when ``floor`` is given."""
     kwargs = dict(PrivilegedPolicy.ENV_KWARGS, extras=True, decision_window=window)
@@ -73,19 +79,36 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
         parser.error(f"--floors {args.floors!r}: comma-separated numbers, e.g. 1,2")
     tuned = float(np.mean(validation_rmse("tuned_constant", args.scenario, args.episodes, {})))
     print(f"{args.scenario}, {args.episodes} validation flights; tuned_constant {tuned:.3g} nT\n")
-    heads = ["K [samples]", "privileged [nT]", "privileged one window late [nT]",
-             "late − tuned [nT]", *(f"late, R ≥ 10^{f:g} R(0) [nT]" for f in floors)]  # fmt: skip
+    heads = [
+        "K [samples]",
+        "privileged [nT]",
+        "privileged one window late [nT]",
+        "late − tuned [nT]",
+        *(f"late, R ≥ 10^{f:g} R(0) [nT]" for f in floors),
+    ]
     print("| " + " | ".join(heads) + " |\n" + "|---" * len(heads) + "|")
     rows = []
     for window in (int(w) for w in args.windows.split(",")):
         now = _fly(PrivilegedPolicy, args.scenario, window, args.episodes)
         late = _fly(LatePrivileged, args.scenario, window, args.episodes)
         held = {f: _fly(LatePrivileged, args.scenario, window, args.episodes, f) for f in floors}
-        cells = [str(window), f"{now:.3g}", f"{late:.3g}", f"{late - tuned:+.2g}",
-                 *(f"{v:.3g}" for v in held.values())]  # fmt: skip
+        cells = [
+            str(window),
+            f"{now:.3g}",
+            f"{late:.3g}",
+            f"{late - tuned:+.2g}",
+            *(f"{v:.3g}" for v in held.values()),
+        ]
         print("| " + " | ".join(cells) + " |")
-        rows.append({"window": window, "privileged": now, "late": late, "tuned": tuned,
-                     "late_floored": held})  # fmt: skip
+        rows.append(
+            {
+                "window": window,
+                "privileged": now,
+                "late": late,
+                "tuned": tuned,
+                "late_floored": held,
+            }
+        )
     return rows
 
 

@@ -33,11 +33,24 @@ from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
 
 #: Our names → the Geosoft column names of an SGL-style delivery (the alias table reverses it).
-GEOSOFT = {"tt": "TIME", "line": "LINE", "lat": "LAT", "lon": "LONG", "alt": "UTM-Z",
-           "year": "YEAR", "doy": "DOY", "ins_roll": "ROLL", "ins_pitch": "PITCH",
-           "ins_yaw": "AZIMUTH", "flux_a_x": "FLUXA_X", "flux_a_y": "FLUXA_Y",
-           "flux_a_z": "FLUXA_Z", "mag_1_uc": "UNCOMPMAG1", "mag_1_c": "COMPMAG1",
-           "diurnal": "DIURNAL"}  # fmt: skip
+GEOSOFT = {
+    "tt": "TIME",
+    "line": "LINE",
+    "lat": "LAT",
+    "lon": "LONG",
+    "alt": "UTM-Z",
+    "year": "YEAR",
+    "doy": "DOY",
+    "ins_roll": "ROLL",
+    "ins_pitch": "PITCH",
+    "ins_yaw": "AZIMUTH",
+    "flux_a_x": "FLUXA_X",
+    "flux_a_y": "FLUXA_Y",
+    "flux_a_z": "FLUXA_Z",
+    "mag_1_uc": "UNCOMPMAG1",
+    "mag_1_c": "COMPMAG1",
+    "diurnal": "DIURNAL",
+}
 #: Sensor axes = body right, down, forward: m_sensor = AXIS_SWAP @ m_body.
 AXIS_SWAP = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 SEED = 11
@@ -75,10 +88,17 @@ def walkthrough(out: Path) -> dict[str, object]:
     write_flight(raw_flight(), raw)
     steps = {
         "info": ["info", str(raw)],
-        "tl": ["compensate", str(raw), "--method", "tl", "--calibration-line",
-               "--out", str(out / "tl")],
+        "tl": [
+            "compensate",
+            str(raw),
+            "--method",
+            "tl",
+            "--calibration-line",
+            "--out",
+            str(out / "tl"),
+        ],
         "kf": ["compensate", str(raw), "--method", "kf", "--out", str(out / "kf")],
-    }  # fmt: skip
+    }
     printed = {}
     for name, argv in steps.items():
         code, text = run(argv)

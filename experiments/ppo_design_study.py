@@ -54,8 +54,9 @@ class PrivilegedSchedule:
         self.env = env.unwrapped
         self.q_low, self.q_high, self.hold_s, self.r_off = q_low, q_high, hold_s, r_off
 
-    def predict(self, obs: Any, state: Any = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, Any]:  # fmt: skip
+    def predict(
+        self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True
+    ) -> tuple[np.ndarray, Any]:
         e = self.env
         k = min(e.filter.k, e.episode.n - 1)
         jumps = np.abs(np.diff(e.episode.truth_interf, axis=0)).max(axis=1) > 5.0
@@ -75,8 +76,9 @@ def _mean_rmse(env: Any, policy: Any) -> float:
 
 
 def headroom() -> None:
-    env = gym.make("AeroMagCompensation-v0", scenario="nonstationary", extras=True,
-                   action_mode="absolute")  # fmt: skip
+    env = gym.make(
+        "AeroMagCompensation-v0", scenario="nonstationary", extras=True, action_mode="absolute"
+    )
     base = gym.make("AeroMagCompensation-v0", scenario="nonstationary")
     print(f"fis {_mean_rmse(base, make_policy('fis', base)):.3f} nT")
     for args in [(-10, 4, 30, 0), (-10, 8, 10, 0), (-10, 9, 5, 0), (-10, 8, 10, -1)]:
@@ -115,8 +117,11 @@ def privileged_split(
 
 
 #: Absolute-action ranges of the detector schedules (ppo.json's since version 2).
-RANGES = {"absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
-          "absolute_qp_log10": (-2.0, 10.0)}  # fmt: skip
+RANGES = {
+    "absolute_q_log10": (-4.0, 4.0),
+    "absolute_r_log10": (-1.0, 3.0),
+    "absolute_qp_log10": (-2.0, 10.0),
+}
 #: The detector schedules' environment: split Q, absolute actions, innovation observations.
 DETECTOR_ENV = {"extras": True, "action_mode": "absolute", "split_q": True, **RANGES}
 
@@ -124,8 +129,11 @@ DETECTOR_ENV = {"extras": True, "action_mode": "absolute", "split_q": True, **RA
 def _absolute_action(log_q: float, log_r: float, log_qp: np.ndarray) -> np.ndarray:
     """The actions (N, 3) that set the scales log10 Q, R, T_p's Q within :data:`RANGES`."""
     (q_lo, q_hi), (r_lo, r_hi), (p_lo, p_hi) = RANGES.values()
-    a = [2 * (log_q - q_lo) / (q_hi - q_lo) - 1, 2 * (log_r - r_lo) / (r_hi - r_lo) - 1,
-         2 * (log_qp - p_lo) / (p_hi - p_lo) - 1]  # fmt: skip
+    a = [
+        2 * (log_q - q_lo) / (q_hi - q_lo) - 1,
+        2 * (log_r - r_lo) / (r_hi - r_lo) - 1,
+        2 * (log_qp - p_lo) / (p_hi - p_lo) - 1,
+    ]
     return np.stack([np.broadcast_to(v, log_qp.shape) for v in a], 1).astype(np.float32)
 
 
@@ -187,8 +195,11 @@ def detector(seeds: Sequence[int] = SEEDS) -> None:
         rmse = _run_batched({**base, "step_statistic": True}, seeds, held(threshold, 3))
         print(f"detector, log10 change statistic > {threshold}: {rmse:.3f} nT")
     for nt in (15.0, 20.0, 25.0):
-        rmse = _run_batched({**base, "innovation_power": True, "scale_limit": 1e10}, seeds,
-                            _mean_innovation_rule(nt, r0))  # fmt: skip
+        rmse = _run_batched(
+            {**base, "innovation_power": True, "scale_limit": 1e10},
+            seeds,
+            _mean_innovation_rule(nt, r0),
+        )
         print(f"detector, |mean innovation| over the last window > {nt:g} nT: {rmse:.3f} nT")
     rmse = _run_batched({**base, "innovation_power": True}, seeds, _mean_innovation_rule(20.0, r0))
     print(f"detector, |mean innovation| > 20 nT, T_p's Q at the default limit 10^8: {rmse:.3f} nT")
@@ -216,9 +227,12 @@ def shift(policy_path: str, seeds: Sequence[int]) -> None:
 
     for scenario in ("nonstationary", "nonstationary_dense"):
         cfg = {**policy.env_kwargs, "scenario": scenario}
-        rows = {"20 nT rule": rule, "policy": learned,
-                "policy's T_p, rule's Q and R": lambda o: mixed(o, True),
-                "rule's T_p, policy's Q and R": lambda o: mixed(o, False)}  # fmt: skip
+        rows = {
+            "20 nT rule": rule,
+            "policy": learned,
+            "policy's T_p, rule's Q and R": lambda o: mixed(o, True),
+            "rule's T_p, policy's Q and R": lambda o: mixed(o, False),
+        }
         for name, act in rows.items():
             print(f"{scenario}, {name}: {_run_batched(cfg, seeds, act):.3f} nT", flush=True)
 
@@ -240,8 +254,9 @@ def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: 
     venv = make_training_env("nonstationary", hp, seed=0)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", **_ppo_kwargs(hp))
     model.learn(steps)
-    path = export_policy(model, venv, __import__("pathlib").Path("results/ppo_trial.npz"),
-                         {"env_kwargs": env_kwargs})  # fmt: skip
+    path = export_policy(
+        model, venv, __import__("pathlib").Path("results/ppo_trial.npz"), {"env_kwargs": env_kwargs}
+    )
     policy = NumpyPPOPolicy.load(path)
     env = gym.make("AeroMagCompensation-v0", scenario="nonstationary", **env_kwargs)
     base = gym.make("AeroMagCompensation-v0", scenario="nonstationary")

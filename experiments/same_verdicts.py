@@ -31,27 +31,36 @@ def compare(old: list[dict[str, Any]], new: list[dict[str, Any]]) -> dict[str, A
             continue
         compared += 1
         if sorted(map(tuple, ref["named"])) != sorted(map(tuple, row["named"])):
-            differ.append({"kind": row["kind"], "seed": row["seed"],
-                           "was": ref["named"], "now": row["named"]})  # fmt: skip
+            differ.append(
+                {"kind": row["kind"], "seed": row["seed"], "was": ref["named"], "now": row["named"]}
+            )
         for key in ("gap_before_nt", "gap_after_nt"):
             worst = max(worst, abs(row[key] - ref[key]) / max(abs(ref[key]), 1e-12))
-    return {"compared": compared, "unmatched": len(new) - compared, "differ": differ,
-            "max_relative_gap_change": worst}  # fmt: skip
+    return {
+        "compared": compared,
+        "unmatched": len(new) - compared,
+        "differ": differ,
+        "max_relative_gap_change": worst,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 2:
-        print("usage: python -m experiments.same_verdicts OLD/results.json NEW/results.json",
-              file=sys.stderr)  # fmt: skip
+        print(
+            "usage: python -m experiments.same_verdicts OLD/results.json NEW/results.json",
+            file=sys.stderr,
+        )
         return 2
     old, new = (json.loads(Path(a).read_text()) for a in args)
     out = compare(old, new)
     for d in out["differ"]:
         print(f"{d['kind']} seed {d['seed']}: {d['was']} -> {d['now']}")
-    print(f"{out['compared']} cases compared ({out['unmatched']} unmatched): "
-          f"{len(out['differ'])} name different effects; held-out gaps change by at most "
-          f"{out['max_relative_gap_change']:.1e} (relative)")  # fmt: skip
+    print(
+        f"{out['compared']} cases compared ({out['unmatched']} unmatched): "
+        f"{len(out['differ'])} name different effects; held-out gaps change by at most "
+        f"{out['max_relative_gap_change']:.1e} (relative)"
+    )
     return 1 if out["differ"] else 0
 
 

@@ -66,8 +66,14 @@ def scenario_lines(scenario: str, results: dict, names: list[str]) -> list[str]:
     base = results["policies"]
     anchors = ", ".join(f"{b} {base[b]['rmse_nt_mean']:.3g} nT" for b in BASELINES)
     rmse = np.array([base[n]["rmse_nt_mean"] for n in names])
-    spread = (f"mean over seeds {rmse.mean():.3g} nT, SD {rmse.std(ddof=1):.2g} nT (min "
-              f"{rmse.min():.3g}, max {rmse.max():.3g})") if len(names) > 1 else ""  # fmt: skip
+    spread = (
+        (
+            f"mean over seeds {rmse.mean():.3g} nT, SD {rmse.std(ddof=1):.2g} nT (min "
+            f"{rmse.min():.3g}, max {rmse.max():.3g})"
+        )
+        if len(names) > 1
+        else ""
+    )
     heading = f"{scenario}: {len(results['seeds'])} test flights; {anchors}"
     return [heading, "", HEADER, *seed_rows(results, names), "", spread, ""]
 
@@ -80,8 +86,9 @@ def _bootstrap_low(diff: np.ndarray) -> float:
         return -np.inf
     if np.ptp(diff) == 0:  # every resample has the same mean
         return float(diff[0])
-    boot = stats.bootstrap((diff,), np.mean, n_resamples=BOOTSTRAP_RESAMPLES,
-                           method="percentile", rng=0)  # fmt: skip
+    boot = stats.bootstrap(
+        (diff,), np.mean, n_resamples=BOOTSTRAP_RESAMPLES, method="percentile", rng=0
+    )
     return float(boot.confidence_interval.low)
 
 
@@ -92,27 +99,34 @@ def general_lines(everything: dict, names: list[str]) -> list[str]:
     the per-flight differences), and besides those the scenarios where only a percentile
     bootstrap of the same differences says so (heavy-tailed differences: a few bad flights)."""
     fis = np.mean([r["policies"]["fis"]["rmse_nt_mean"] for r in everything.values()])
-    rows = ["| training seed | mean RMSE over scenarios [nT] | lower than fis's mean | worse than "
-            "tuned_constant beyond the paired 95 % CI | beyond a bootstrap CI only |",
-            "|---|---|---|---|---|"]  # fmt: skip
+    rows = [
+        "| training seed | mean RMSE over scenarios [nT] | lower than fis's mean | worse than "
+        "tuned_constant beyond the paired 95 % CI | beyond a bootstrap CI only |",
+        "|---|---|---|---|---|",
+    ]
     gains = []
     for k, name in enumerate(names):
         mean = np.mean([r["policies"][name]["rmse_nt_mean"] for r in everything.values()])
         gains.append(1.0 - mean / fis)
         worse, boot_only = [], []
         for sc, r in everything.items():
-            diff = np.subtract(r["policies"][name]["rmse_nt"],
-                               r["policies"]["tuned_constant"]["rmse_nt"])  # fmt: skip
+            diff = np.subtract(
+                r["policies"][name]["rmse_nt"], r["policies"]["tuned_constant"]["rmse_nt"]
+            )
             if ci95(diff)[0] > 0:
                 worse.append(f"{sc} (+{diff.mean():.2g} nT)")
             elif _bootstrap_low(diff) > 0:
                 boot_only.append(f"{sc} (+{diff.mean():.2g} nT)")
-        rows.append(f"| {k} | {mean:.3g} | {100 * gains[-1]:.0f} % | {', '.join(worse) or 'none'}"
-                    f" | {', '.join(boot_only) or 'none'} |")  # fmt: skip
+        rows.append(
+            f"| {k} | {mean:.3g} | {100 * gains[-1]:.0f} % | {', '.join(worse) or 'none'}"
+            f" | {', '.join(boot_only) or 'none'} |"
+        )
     over = f"fis's mean over the {len(everything)} scenarios: {fis:.3g} nT"
     if len(gains) > 1:
-        over += (f"; lower than it by {100 * np.mean(gains):.0f} % on the mean over seeds "
-                 f"(SD {100 * np.std(gains, ddof=1):.1f} points)")  # fmt: skip
+        over += (
+            f"; lower than it by {100 * np.mean(gains):.0f} % on the mean over seeds "
+            f"(SD {100 * np.std(gains, ddof=1):.1f} points)"
+        )
     return [*rows, "", over]
 
 
@@ -122,15 +136,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--scenarios", default="nonstationary")
     parser.add_argument("--episodes", type=int, default=30)
     parser.add_argument("--out", default="results/seed_table")
-    parser.add_argument("--ray", nargs="?", const="local", metavar="ADDRESS",
-                        help="evaluate on Ray (as aeromag evaluate --ray)")  # fmt: skip
+    parser.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        metavar="ADDRESS",
+        help="evaluate on Ray (as aeromag evaluate --ray)",
+    )
     args = parser.parse_args(argv)
     names = [f"ppo:{p}" for p in args.policies]
     seeds = list(range(TEST_SEED_START, TEST_SEED_START + args.episodes))
     lines, scores, skipped = [], [], []
     with runner(args.ray) as tasks:  # every scenario × policy × flights at once
-        everything = evaluate_scenarios(args.scenarios.split(","), [*BASELINES, *names], seeds,
-                                        runner=tasks)  # fmt: skip
+        everything = evaluate_scenarios(
+            args.scenarios.split(","), [*BASELINES, *names], seeds, runner=tasks
+        )
     for scenario, results in everything.items():
         lines += scenario_lines(scenario, results, names)
         anchors = results.get("normalized_score")
@@ -141,8 +161,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if scores:
         point, (lo, hi) = iqm_interval(np.array(scores).T)
         what = f"{len(names)} seed(s) × {len(scores)} scenario(s)"
-        lines.append(f"IQM of the normalized score over {what}: {point:.2f} [{lo:.2f}, {hi:.2f}]"
-                     " (stratified bootstrap)")  # fmt: skip
+        lines.append(
+            f"IQM of the normalized score over {what}: {point:.2f} [{lo:.2f}, {hi:.2f}]"
+            " (stratified bootstrap)"
+        )
     if skipped:
         lines.append(f"no headroom, left out of the IQM: {', '.join(skipped)}")
     if len(everything) > 1:

@@ -70,8 +70,12 @@ def _learning_curve(training: Path, path: Path) -> None:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
     ax.plot([c["timesteps"] for c in curve], [c["validation_rmse_nt"] for c in curve], "o-")
-    ax.set(xlabel="environment steps", ylabel=f"validation RMSE [nT] ({flights} flights)",
-           title="PPO on nonstationary: learning curve", yscale="log")  # fmt: skip
+    ax.set(
+        xlabel="environment steps",
+        ylabel=f"validation RMSE [nT] ({flights} flights)",
+        title="PPO on nonstationary: learning curve",
+        yscale="log",
+    )
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

@@ -30,8 +30,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         table[scenario] = tune_constant(scenario, range(args.seeds))
         row = table[scenario]
         took = time.perf_counter() - t0
-        print(f"{scenario}: log10 Q ×{row['log10_q']:+.1f}, log10 R ×{row['log10_r']:+.1f}, "
-              f"RMSE {row['rmse_nt']:.3g} nT ({took:.0f} s)", flush=True)  # fmt: skip
+        print(
+            f"{scenario}: log10 Q ×{row['log10_q']:+.1f}, log10 R ×{row['log10_r']:+.1f}, "
+            f"RMSE {row['rmse_nt']:.3g} nT ({took:.0f} s)",
+            flush=True,
+        )
     write_text(TABLE, json.dumps(table, indent=2, sort_keys=True) + "\n")
     print(f"wrote {TABLE}")
     return 0

@@ -78,16 +78,33 @@ def test_evaluate_results_layout_and_seed_ranges(tmp_path):
         evaluate("nominal", ["fis"], [5])
     res = evaluate("nominal", ["constant", "fis"], [100_000, 100_001, 100_002])
     row = res["policies"]["constant"]
-    assert {"rmse_nt_mean", "rmse_nt_ci95", "reward_mean", "divergences", "log_ror_abs_median",
-            "diff_vs_fis_nt_mean", "diff_vs_fis_ci95"} <= set(row)  # fmt: skip
+    assert {
+        "rmse_nt_mean",
+        "rmse_nt_ci95",
+        "reward_mean",
+        "divergences",
+        "log_ror_abs_median",
+        "diff_vs_fis_nt_mean",
+        "diff_vs_fis_ci95",
+    } <= set(row)
     assert res["policies"]["fis"]["diff_vs_fis_nt_mean"] == 0.0
     lo, hi = row["rmse_nt_ci95"]
     assert lo <= row["rmse_nt_mean"] <= hi
 
 
 def test_evaluate_cli(tmp_path, capsys):
-    args = ["evaluate", "--scenario", "paper", "--policies", "constant,fis", "--episodes", "2",
-            "--out", str(tmp_path), "--quiet"]  # fmt: skip
+    args = [
+        "evaluate",
+        "--scenario",
+        "paper",
+        "--policies",
+        "constant,fis",
+        "--episodes",
+        "2",
+        "--out",
+        str(tmp_path),
+        "--quiet",
+    ]
     assert main(args) == 0
     res = json.loads((tmp_path / "results.json").read_text())
     assert res["seeds"] == [100_000, 100_001]
@@ -103,9 +120,15 @@ def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation(
     from aeromag_env.environment.spaces import ACT_QP, observation_index
     from agents.policies import InnovationDetectorPolicy
 
-    kw = {"extras": True, "innovation_power": True, "split_q": True, "action_mode": "absolute",
-          "absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
-          "absolute_qp_log10": (-2.0, 10.0)}  # fmt: skip
+    kw = {
+        "extras": True,
+        "innovation_power": True,
+        "split_q": True,
+        "action_mode": "absolute",
+        "absolute_q_log10": (-4.0, 4.0),
+        "absolute_r_log10": (-1.0, 3.0),
+        "absolute_qp_log10": (-2.0, 10.0),
+    }
     tr_r0 = 3 * 1.5**2  # nT², the default R(0)
     obs = np.zeros((3, 10), np.float32)
     column = observation_index(EnvConfig(**kw), "log_mean_innovation_power")
@@ -129,8 +152,9 @@ def test_the_privileged_policy_acts_on_the_true_noise_and_the_steps():
 
     with pytest.raises(ConfigError, match="privileged needs split_q"):
         PrivilegedPolicy(_env())
-    env = gym.make("AeroMagCompensation-v0", scenario="nonstationary",
-                   **policy_env_kwargs("privileged"))  # fmt: skip
+    env = gym.make(
+        "AeroMagCompensation-v0", scenario="nonstationary", **policy_env_kwargs("privileged")
+    )
     obs, _ = env.reset(seed=100_000)
     policy, inner = make_policy("privileged", env), env.unwrapped
     steps, raised = inner.episode.step_samples, []
@@ -159,8 +183,9 @@ def test_the_privileged_floor_on_r_holds_on_its_scenarios_only():
     from agents.policies import PrivilegedPolicy
 
     for scenario, floor in (("noise_bursts", 2.0), ("degradation", None)):
-        env = gym.make("AeroMagCompensation-v0", scenario=scenario,
-                       **policy_env_kwargs("privileged"))  # fmt: skip
+        env = gym.make(
+            "AeroMagCompensation-v0", scenario=scenario, **policy_env_kwargs("privileged")
+        )
         obs, _ = env.reset(seed=100_000)
         plain = PrivilegedPolicy(env)
         floored = PrivilegedPolicy(env, r_floor={"noise_bursts": 2.0})

@@ -145,8 +145,12 @@ def test_a_kill_during_the_renames_is_completed_by_the_next_run(tmp_path: Path) 
 
 
 def test_stale_temporaries_of_dead_writers_are_removed_and_live_ones_kept(tmp_path: Path) -> None:
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                          capture_output=True, text=True, check=True)  # fmt: skip
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     pid = int(dead.stdout)
     stale_file = tmp_path / f".x.json.tmp-{pid}-abc"
     stale_stage = tmp_path / f"{STAGE_PREFIX}{pid}-abc"
@@ -167,8 +171,12 @@ def test_stale_temporaries_of_dead_writers_are_removed_and_live_ones_kept(tmp_pa
 
 def _start(argv: list[str], cwd: Path) -> subprocess.Popen:
     code = "import sys; from aeromag_env.cli.main import main; sys.exit(main(sys.argv[1:]))"
-    return subprocess.Popen([sys.executable, "-c", code, *argv], cwd=cwd,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    return subprocess.Popen(
+        [sys.executable, "-c", code, *argv],
+        cwd=cwd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
 
 
 def _timed_run(argv: list[str], cwd: Path) -> float:
@@ -213,8 +221,9 @@ def test_kill_9_during_compensate_leaves_the_old_set_or_the_new_one(
         assert now in (old, new) or _is_new_run(out), f"mixed set after a kill at {fraction}"
         seen.add("old" if now == old else "new")
         if now != old:  # back to the old set for the next kill
-            assert main(["compensate", str(short_flight), "--method", "lsq", "--out",
-                         str(out)]) == 0  # fmt: skip
+            assert (
+                main(["compensate", str(short_flight), "--method", "lsq", "--out", str(out)]) == 0
+            )
     assert "old" in seen  # a kill before the end must have hit the work, not the commit
 
 
@@ -241,9 +250,14 @@ def test_kill_9_during_simulate_leaves_the_old_file_or_the_new_one(tmp_path: Pat
     assert [p.name for p in tmp_path.iterdir()] == ["sim.h5"]
 
 
-@pytest.mark.parametrize(("command", "name"), [("compensate", "compensation.png"),
-                                               ("compensate", "report.json"),
-                                               ("discover", "residual.png")])  # fmt: skip
+@pytest.mark.parametrize(
+    ("command", "name"),
+    [
+        ("compensate", "compensation.png"),
+        ("compensate", "report.json"),
+        ("discover", "residual.png"),
+    ],
+)
 def test_a_flight_file_named_like_an_output_in_out_is_refused_and_kept(
     tmp_path: Path, short_flight: Path, command: str, name: str, capsys: pytest.CaptureFixture
 ) -> None:

@@ -14,60 +14,99 @@ def test_filter_figures_are_positive_rates(nominal_box):
     t_b, td = earth_model(nominal_box)
     y = nominal_box.vector("flux_a") - t_b
     figures = bench_filters(y[:200], t_b[:200], td[:200], repeats=1)
-    assert set(figures) == {"filter_compiled_samples_per_s", "filter_batched_samples_per_s",
-                            "filter_numpy_samples_per_s", "filterpy_samples_per_s"}  # fmt: skip
+    assert set(figures) == {
+        "filter_compiled_samples_per_s",
+        "filter_batched_samples_per_s",
+        "filter_numpy_samples_per_s",
+        "filterpy_samples_per_s",
+    }
     assert all(v is not None and v > 0 for v in figures.values())
 
 
 #: A bench.json's figures, made up: the table's arithmetic, not speed.
 FIGURES = {
-    "simulate_s_per_flight_hour": 0.05, "simulate_direct_igrf_s_per_flight_hour": 1.0,
-    "filter_compiled_samples_per_s": 1.6e6, "filter_batched_samples_per_s": 3e6,
-    "filter_numpy_samples_per_s": 8e3, "filterpy_samples_per_s": 5e4,
-    "env_single_steps_per_s": 5e4, "env_numpy_reference_steps_per_s": 800.0,
-    "env_batched_steps_per_s": 2e5, "env_reset_s": 0.03,
-    **{f"{prefix}_{variant}_{what}": value
-       for prefix in ("ppo", "ppo64")
-       for variant, rate in (("batched", 6e3), ("batched_no_prefetch", 5.5e3),
-                             ("dummyvec", 5e3))
-       for what, value in (("steps_per_s", rate), ("env_time_share", 0.4))},
-    "ppo_n_envs": 8, "ppo64_n_envs": 64, "discover_s_per_flight_hour": 5.0,
-    "compensate_10h_peak_mb": 600.0, "compensate_baseline_mb": 40.0,
-}  # fmt: skip
+    "simulate_s_per_flight_hour": 0.05,
+    "simulate_direct_igrf_s_per_flight_hour": 1.0,
+    "filter_compiled_samples_per_s": 1.6e6,
+    "filter_batched_samples_per_s": 3e6,
+    "filter_numpy_samples_per_s": 8e3,
+    "filterpy_samples_per_s": 5e4,
+    "env_single_steps_per_s": 5e4,
+    "env_numpy_reference_steps_per_s": 800.0,
+    "env_batched_steps_per_s": 2e5,
+    "env_reset_s": 0.03,
+    **{
+        f"{prefix}_{variant}_{what}": value
+        for prefix in ("ppo", "ppo64")
+        for variant, rate in (("batched", 6e3), ("batched_no_prefetch", 5.5e3), ("dummyvec", 5e3))
+        for what, value in (("steps_per_s", rate), ("env_time_share", 0.4))
+    },
+    "ppo_n_envs": 8,
+    "ppo64_n_envs": 64,
+    "discover_s_per_flight_hour": 5.0,
+    "compensate_10h_peak_mb": 600.0,
+    "compensate_baseline_mb": 40.0,
+}
 
 
 def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
     figures = {
-        **FIGURES, "filterpy_samples_per_s": None, "discover_s_per_flight_hour": None,
-        "ppo64_free_steps_per_s": 1e4, "ppo64_free_env_time_share": 0.0,
-        "ppo64_batched_ratio_min": 1.1, "ppo64_batched_ratio_max": 1.3,
-    }  # fmt: skip
+        **FIGURES,
+        "filterpy_samples_per_s": None,
+        "discover_s_per_flight_hour": None,
+        "ppo64_free_steps_per_s": 1e4,
+        "ppo64_free_env_time_share": 0.0,
+        "ppo64_batched_ratio_min": 1.1,
+        "ppo64_batched_ratio_max": 1.3,
+    }
     rows = {r[0]: r for r in _rows(figures)}
     assert rows["filter, compiled, 1 flight"][2:] == ("n/a", "≥ 30× filterpy", None)
     assert rows["env steps, 64 envs batched, K = 10"][2] == "4.0× 1 env"
     assert rows["PPO learn, batched + prefetch, 8 envs"][2:] == (
-        "1.20× DummyVecEnv (env: 40% of the time)", "≥ 1.5× DummyVecEnv", False)  # fmt: skip
+        "1.20× DummyVecEnv (env: 40% of the time)",
+        "≥ 1.5× DummyVecEnv",
+        False,
+    )
     assert rows["PPO learn, DummyVecEnv, 64 envs"][2:] == (
-        "1.00× DummyVecEnv (env: 40% of the time)", "", None)  # fmt: skip
+        "1.00× DummyVecEnv (env: 40% of the time)",
+        "",
+        None,
+    )
     assert rows["PPO learn, batched + prefetch, 64 envs"][2] == (
-        "1.20× DummyVecEnv (repeats 1.10–1.30; env: 40% of the time)")  # fmt: skip
+        "1.20× DummyVecEnv (repeats 1.10–1.30; env: 40% of the time)"
+    )
     assert rows["PPO learn, zero-cost env, 64 envs"][2] == (
-        "2.00× DummyVecEnv (PPO alone: the most any env allows)")  # fmt: skip
+        "2.00× DummyVecEnv (PPO alone: the most any env allows)"
+    )
     assert "PPO learn, zero-cost env, 8 envs" not in rows  # older bench.json: not measured
     assert rows["discover 1 flight-hour"][1:] == ("n/a", "n/a", "≤ 5 s", None)
     assert {r[0]: r for r in _rows(FIGURES)}["discover 1 flight-hour"][1:] == (
-        "5.00 s", "720× real time", "≤ 5 s", True)  # fmt: skip
+        "5.00 s",
+        "720× real time",
+        "≤ 5 s",
+        True,
+    )
     assert rows["compensate 10-hour flight, peak RSS"][4] is True
     assert np.isfinite(peak_rss_mb()) and peak_rss_mb() > 0
 
 
 def test_env_share_rows_carry_the_target_at_8_envs_only():
     shares = {"": 0.12, "_min": 0.1, "_max": 0.17}
-    figures = {**FIGURES, **{f"{prefix}_env_share{end}": value for prefix in ("ppo", "ppo64")
-                             for end, value in shares.items()}}  # fmt: skip
+    figures = {
+        **FIGURES,
+        **{
+            f"{prefix}_env_share{end}": value
+            for prefix in ("ppo", "ppo64")
+            for end, value in shares.items()
+        },
+    }
     rows = {r[0]: r for r in _rows(figures)}
     assert rows["PPO learn, the env's share, 8 envs"][1:] == (
-        "12.0%", "1 − batched/zero-cost, paired repeats 10.0–17.0%", "≤ 15%", True)  # fmt: skip
+        "12.0%",
+        "1 − batched/zero-cost, paired repeats 10.0–17.0%",
+        "≤ 15%",
+        True,
+    )
     assert rows["PPO learn, the env's share, 64 envs"][3:] == ("", None)
     assert "PPO learn, the env's share, 8 envs" not in {r[0] for r in _rows(FIGURES)}
 
@@ -133,21 +172,33 @@ def test_bench_only_discover_measures_the_workflow_alone(tmp_path, capsys):
 
 
 def test_extra_time_row_splits_the_batched_runs_extra_time_by_part():
-    per_step = {"env": (40.0, 2.0), "forward": (60.0, 50.0), "update": (100.0, 101.0),
-                "rest": (30.0, 27.0)}  # fmt: skip
+    per_step = {
+        "env": (40.0, 2.0),
+        "forward": (60.0, 50.0),
+        "update": (100.0, 101.0),
+        "rest": (30.0, 27.0),
+    }
     rates = {
         "ppo_free_steps_per_s": 1e6 / 180.0,
         "ppo_batched_steps_per_s": 1e6 / 230.0,
         "ppo_free_env_time_share": 0.01,
     }
-    figures = {**FIGURES, **rates,
-               **{f"ppo_{variant}_{part}_us_per_step": values[i]
-                  for part, values in per_step.items()
-                  for i, variant in enumerate(("batched", "free"))}}  # fmt: skip
+    figures = {
+        **FIGURES,
+        **rates,
+        **{
+            f"ppo_{variant}_{part}_us_per_step": values[i]
+            for part, values in per_step.items()
+            for i, variant in enumerate(("batched", "free"))
+        },
+    }
     rows = {r[0]: r for r in _rows(figures)}
     assert rows["PPO learn, batched + prefetch beyond zero-cost, 8 envs"][1:] == (
-        "50 µs per env step", "environments 38; policy forward 10; updates -1; rest 3 µs more",
-        "", None)  # fmt: skip
+        "50 µs per env step",
+        "environments 38; policy forward 10; updates -1; rest 3 µs more",
+        "",
+        None,
+    )
     assert "PPO learn, batched + prefetch beyond zero-cost, 64 envs" not in rows  # not measured
 
 
@@ -172,8 +223,11 @@ def test_interleaved_takes_turns_a_rollout_at_a_time_and_restarts_the_totals_eac
     models = {name: _FakeModel(name, log, running[name]) for name in "abc"}
     seconds, parts = _interleaved(models, running, timesteps=250, repeats=2, rollout=100)
     turns = [log[i : i + 3] for i in range(0, len(log), 3)]
-    assert [[name for name, _ in turn] for turn in turns[:3]] == [list("abc"), list("bca"),
-                                                                  list("cab")]  # fmt: skip
+    assert [[name for name, _ in turn] for turn in turns[:3]] == [
+        list("abc"),
+        list("bca"),
+        list("cab"),
+    ]
     assert [steps for _, steps in turns[2]] == [50, 50, 50]  # the last, partial rollout
     assert sum(steps for name, steps in log if name == "a") == 2 * 250
     assert parts["b"]["env"] == [3.0, 3.0] and parts["b"]["forward"] == [1.5, 1.5]

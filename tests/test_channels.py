@@ -55,8 +55,11 @@ def test_a_clean_file_uses_the_first_channel_of_each_kind(base: Flight) -> None:
 
 def test_an_all_nan_flux_a_falls_back_to_flux_b_and_says_why(base: Flight) -> None:
     """SGL Flt1002: flux_a is all NaN, flux_b holds the data."""
-    flight = _with(base, **_flux(base, "flux_b", base.vector("flux_a")),
-                   **_flux(base, "flux_a", np.full((base.n, 3), np.nan)))  # fmt: skip
+    flight = _with(
+        base,
+        **_flux(base, "flux_b", base.vector("flux_a")),
+        **_flux(base, "flux_a", np.full((base.n, 3), np.nan)),
+    )
     ch = choose_channels(flight, require=("fluxgate",))
     assert ch.fluxgate.name == "flux_b"
     assert "passed over flux_a: all non-finite" in ch.fluxgate.reason
@@ -64,8 +67,11 @@ def test_an_all_nan_flux_a_falls_back_to_flux_b_and_says_why(base: Flight) -> No
 
 
 def test_a_missing_flux_a_uses_the_fluxgate_there_is_without_a_warning(base: Flight) -> None:
-    flight = _with(base, **_flux(base, "flux_c", base.vector("flux_a")),
-                   **dict.fromkeys(vector_names("flux_a")))  # fmt: skip
+    flight = _with(
+        base,
+        **_flux(base, "flux_c", base.vector("flux_a")),
+        **dict.fromkeys(vector_names("flux_a")),
+    )
     ch = choose_channels(flight)
     assert ch.fluxgate.name == "flux_c" and ch.warnings == ()
 
@@ -73,9 +79,12 @@ def test_a_missing_flux_a_uses_the_fluxgate_there_is_without_a_warning(base: Fli
 def test_a_fluxgate_in_microtesla_and_one_full_of_spikes_are_passed_over(base: Flight) -> None:
     spiky = base.vector("flux_a").copy()
     spiky[560:860:25, 1] += 5_000.0  # 12 single spikes of 5000 nT on the straight leg (> 0.1 %)
-    flight = _with(base, **_flux(base, "flux_a", base.vector("flux_a") / 1000.0),
-                   **_flux(base, "flux_b", spiky),
-                   **_flux(base, "flux_c", base.vector("flux_a")))  # fmt: skip
+    flight = _with(
+        base,
+        **_flux(base, "flux_a", base.vector("flux_a") / 1000.0),
+        **_flux(base, "flux_b", spiky),
+        **_flux(base, "flux_c", base.vector("flux_a")),
+    )
     ch = choose_channels(flight)
     assert ch.fluxgate.name == "flux_c"
     assert "flux_a: flux_a_x/y/z looks like µT" in ch.fluxgate.reason
@@ -163,9 +172,12 @@ def test_compensate_falls_back_to_flux_b_and_reports_it(
 ) -> None:
     """SGL-like: flux_a empty, flux_b the data; utm_z 300 m off alt."""
     f = simulated("nominal", 0)
-    flight = _with(f, **_flux(f, "flux_b", f.vector("flux_a")),
-                   **_flux(f, "flux_a", np.full((f.n, 3), np.nan)),
-                   utm_z=f["alt"] + 300.0)  # fmt: skip
+    flight = _with(
+        f,
+        **_flux(f, "flux_b", f.vector("flux_a")),
+        **_flux(f, "flux_a", np.full((f.n, 3), np.nan)),
+        utm_z=f["alt"] + 300.0,
+    )
     path = write_flight(flight, tmp_path / "nan_flux_a.h5")
     assert main(["compensate", str(path), "--method", "lsq", "--out", str(tmp_path / "o")]) == 0
     err = capsys.readouterr().err.splitlines()
@@ -186,7 +198,17 @@ def test_compensate_with_an_unknown_fluxgate_is_a_one_line_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     path = write_flight(turning_flight(), tmp_path / "f.h5")
-    code = main(["compensate", str(path), "--method", "lsq", "--flux", "flux_z",
-                 "--out", str(tmp_path / "o")])  # fmt: skip
+    code = main(
+        [
+            "compensate",
+            str(path),
+            "--method",
+            "lsq",
+            "--flux",
+            "flux_z",
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "fluxgates present: flux_a" in err

@@ -62,7 +62,11 @@ def test_duration_cases_fly_their_duration_with_a_survey_after_the_box() -> None
     cases = suite_cases(n_duration=1)
     durations = [c for c in cases if c.kind == "duration"]
     assert len(durations) == 7 * 3 * 4 and {c.duration_s for c in durations} == {
-        1200.0, 1800.0, 2700.0, 3600.0}  # fmt: skip
+        1200.0,
+        1800.0,
+        2700.0,
+        3600.0,
+    }
     assert min(c.seed for c in durations) == 70_000
     assert len({c.seed for c in cases}) == len(cases)
 
@@ -137,9 +141,14 @@ def test_null_flight_names_nothing_and_reports_diagnostics(null_flight: Flight) 
 
 
 @pytest.mark.parametrize(
-    ("name", "seed"), [("onboard_current", 20_900), ("altitude_gradient", 20_901),
-                       ("sensor_lag", 20_902), ("external_field_variation", 20_903)]
-)  # fmt: skip
+    ("name", "seed"),
+    [
+        ("onboard_current", 20_900),
+        ("altitude_gradient", 20_901),
+        ("sensor_lag", 20_902),
+        ("external_field_variation", 20_903),
+    ],
+)
 def test_hidden_effect_at_snr_4_is_named_with_its_channel_and_the_gap_shrinks(
     name: str, seed: int
 ) -> None:
@@ -171,8 +180,11 @@ def test_fast_groups_cannot_absorb_slow_sensor_noise_but_the_external_splines_ca
     are not (about 40 %)."""
     data = prepare(null_flight, "flux_a", None)
     ctx = data.ctx
-    fast = [g for nm in ("eddy_time_constant", "sensor_lag")
-            for g in (EFFECTS[nm].groups(ctx)[0][i] for i in (0, -1))]  # fmt: skip
+    fast = [
+        g
+        for nm in ("eddy_time_constant", "sensor_lag")
+        for g in (EFFECTS[nm].groups(ctx)[0][i] for i in (0, -1))
+    ]
     splines = EFFECTS["external_field_variation"].groups(ctx)[0][0]
     base = base_columns(ctx.t_b, ctx.tdot_b)
     prob = WhitenedProblem(data, [base] + [g.columns for g in (*fast, splines)])
@@ -188,8 +200,10 @@ def test_fast_groups_cannot_absorb_slow_sensor_noise_but_the_external_splines_ca
         xp = (x - q0 @ (q0.T @ x)) / np.linalg.norm(x, axis=0)
         u, sv, _ = np.linalg.svd(xp, full_matrices=False)
         u = u[:, sv > 1e-6]
-        ref = [fogm_quadratic(np.ascontiguousarray(u[i * m : (i + 1) * m]), prob.gap, 600.0).sum()
-               / m for i in range(3)]  # fmt: skip
+        ref = [
+            fogm_quadratic(np.ascontiguousarray(u[i * m : (i + 1) * m]), prob.gap, 600.0).sum() / m
+            for i in range(3)
+        ]
         np.testing.assert_allclose(got, ref, rtol=1e-8, atol=1e-12)
 
 
@@ -290,8 +304,21 @@ def test_cli_discover_writes_the_report_and_a_model_that_re_simulates_the_gap(
     cfg, _ = build_case(Case("single", 20_910, ("onboard_current",), 4.0))
     src = tmp_path / "flight.h5"
     (tmp_path / "cfg.json").write_text(to_json(cfg))
-    assert main(["simulate", "--config", str(tmp_path / "cfg.json"), "--seed", "20910",
-                 "--out", str(src), "--quiet"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "simulate",
+                "--config",
+                str(tmp_path / "cfg.json"),
+                "--seed",
+                "20910",
+                "--out",
+                str(src),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     out = tmp_path / "disc"
     assert main(["discover", str(src), "--out", str(out), "--quiet"]) == 0
     rep = json.loads((out / "report.json").read_text())
@@ -304,12 +331,27 @@ def test_cli_discover_writes_the_report_and_a_model_that_re_simulates_the_gap(
         assert (out / f).stat().st_size > 0
     # the augmented model, noise-free, replayed over the measured flight: same held-out gap
     model = from_json(SimulationConfig, (out / "model_config.json").read_text())
-    quiet = dataclasses.replace(model, fluxgate_noise=dataclasses.replace(
-        model.fluxgate_noise, white_std_nt=0.0, fogm_std_nt=0.0))  # fmt: skip
+    quiet = dataclasses.replace(
+        model,
+        fluxgate_noise=dataclasses.replace(model.fluxgate_noise, white_std_nt=0.0, fogm_std_nt=0.0),
+    )
     (tmp_path / "quiet.json").write_text(to_json(quiet))
     sim = tmp_path / "resim.h5"
-    assert main(["simulate", "--config", str(tmp_path / "quiet.json"), "--replay", str(src),
-                 "--out", str(sim), "--quiet"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "simulate",
+                "--config",
+                str(tmp_path / "quiet.json"),
+                "--replay",
+                str(src),
+                "--out",
+                str(sim),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     measured, resim = read_flight(src), read_flight(sim)
     prep = prepare(measured, "flux_a", None)
     diff = (measured.vector("flux_a") - resim.vector("flux_a"))[prep.held_out]
@@ -321,8 +363,18 @@ def test_cli_discover_bad_input_exits_2_without_traceback(tmp_path: Path, capsys
     flight = simulate_flight(base_config(600.0), 3)
     src = tmp_path / "short.h5"
     write_flight(flight, src)
-    code = main(["discover", str(src), "--out", str(tmp_path / "o"), "--calibration-window",
-                 "0", "60", "--quiet"])  # fmt: skip
+    code = main(
+        [
+            "discover",
+            str(src),
+            "--out",
+            str(tmp_path / "o"),
+            "--calibration-window",
+            "0",
+            "60",
+            "--quiet",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
@@ -367,8 +419,12 @@ def test_the_joint_fit_raises_the_likelihood_and_recovers_the_noise(null_flight:
 def test_a_noise_free_flight_is_at_the_resolution_floor_and_names_nothing() -> None:
     """Without sensor noise the base model fits to rounding errors (1e-12 nT); tests on those
     named three effects. Below 1 pT nothing is tested."""
-    cfg = dataclasses.replace(base_config(1500.0), fluxgate_noise=dataclasses.replace(
-        base_config().fluxgate_noise, white_std_nt=0.0, fogm_std_nt=0.0))  # fmt: skip
+    cfg = dataclasses.replace(
+        base_config(1500.0),
+        fluxgate_noise=dataclasses.replace(
+            base_config().fluxgate_noise, white_std_nt=0.0, fogm_std_nt=0.0
+        ),
+    )
     report = discover(simulate_flight(cfg, 3)).report
     assert report["missing_effects"] == []
     step = report["selection"]["steps"][0]

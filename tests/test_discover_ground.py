@@ -132,8 +132,9 @@ def test_over_ground_nothing_is_named_and_the_gap_no_longer_measures_geology(
     assert "isotropic part of A" in sep["ground"]["base_model"]
 
 
-@pytest.mark.parametrize(("seed", "name"), [(92_003, "induced_second_order"),
-                                            (92_006, "sensor_lag")])  # fmt: skip
+@pytest.mark.parametrize(
+    ("seed", "name"), [(92_003, "induced_second_order"), (92_006, "sensor_lag")]
+)
 def test_a_fast_effect_over_ground_is_named_only_with_the_ground_separated(
     seed: int, name: str
 ) -> None:
@@ -162,8 +163,9 @@ def test_the_base_model_reads_only_the_traceless_part_of_a_off_ground(
     assert np.allclose(read[[1, 9, 17]].sum(), 0) and np.array_equal(as_fitted(beta, None), beta)
     assert np.allclose(np.delete(read - beta, [1, 9, 17]), 0)
     plain = simulate_flight(base_config(1800.0), 91_002)
-    a_sep = np.array(discover(ground_flight, ground="separate").report["base_model"]
-                     ["coefficients"]["induced"]).reshape(3, 3)  # fmt: skip
+    a_sep = np.array(
+        discover(ground_flight, ground="separate").report["base_model"]["coefficients"]["induced"]
+    ).reshape(3, 3)
     a_plain = np.array(discover(plain).report["base_model"]["coefficients"]["induced"])
     a_plain = a_plain.reshape(3, 3) - np.trace(a_plain.reshape(3, 3)) / 3 * np.eye(3)
     assert np.abs(a_sep - a_plain).max() < 3e-4
@@ -178,9 +180,14 @@ def test_runs_too_short_for_the_ground_are_dropped(ground_flight: Flight) -> Non
     assert not calibration[1300:1330].any() and usable[1290:1340].all()
     calibration[1300:1330] = True
     usable[1500] = False
-    ref = ground_reference(ground_flight, data.ctx.c_nb, data.y,
-                           base_columns(data.ctx.t_b, data.ctx.tdot_b), usable,
-                           calibration)  # fmt: skip
+    ref = ground_reference(
+        ground_flight,
+        data.ctx.c_nb,
+        data.y,
+        base_columns(data.ctx.t_b, data.ctx.tdot_b),
+        usable,
+        calibration,
+    )
     assert [d.tolist() for d in ref.dropped] == [list(range(1300, 1330))]
     starts = {int(r.idx[0]): int(r.idx[-1]) for r in ref.runs}
     assert starts[1330] == 1799 and 1299 in starts.values()
@@ -219,7 +226,19 @@ def test_ground_mode_is_validated_and_reaches_the_cli(
     fleet = tmp_path / "fleet"
     fleet.mkdir()
     path.rename(fleet / "ground.h5")
-    assert main(["discover", str(fleet), "--out", str(tmp_path / "f"), "--ground", "separate",
-                 "--quiet"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "discover",
+                str(fleet),
+                "--out",
+                str(tmp_path / "f"),
+                "--ground",
+                "separate",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     one = json.loads((tmp_path / "f" / "ground" / "report.json").read_text())
     assert one["ground"]["mode"] == "separate" and one["report_version"] == 4

@@ -190,8 +190,9 @@ def test_cached_bases_are_forgotten_when_a_freed_index_is_reused(flight: Flight)
     assert j == 2
     fresh = WhitenedProblem(data, [base, lags[0].columns, lags[-1].columns])
     fresh.set_noise(prob.noise)  # type: ignore[arg-type]
-    np.testing.assert_allclose(prob.absorbable_share([0], 2, taus),
-                               fresh.absorbable_share([0], 2, taus), rtol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(
+        prob.absorbable_share([0], 2, taus), fresh.absorbable_share([0], 2, taus), rtol=1e-9
+    )
     assert not np.allclose(prob.absorbable_share([0], 2, taus), spline_share)
 
 

@@ -244,8 +244,9 @@ def test_dense_training_variant_adds_steps_to_the_same_flight():
         np.testing.assert_array_equal(dense.noise_var, sparse.noise_var)
         np.testing.assert_array_equal(dense.t_b, sparse.t_b)
         # the fluxgate minus the truth is the same sensor error in both
-        np.testing.assert_allclose(dense.y - dense.truth_interf, sparse.y - sparse.truth_interf,
-                                   atol=1e-9)  # fmt: skip
+        np.testing.assert_allclose(
+            dense.y - dense.truth_interf, sparse.y - sparse.truth_interf, atol=1e-9
+        )
         # the truths differ by steps only: piecewise constant, changing at the dense flight's
         # steps (the sparse flight's step times are the first of them: the same draws)
         moves = np.abs(np.diff(dense.truth_interf - sparse.truth_interf, axis=0)).max(axis=1)
@@ -283,8 +284,14 @@ def test_split_q_scales_the_permanent_block_on_its_own():
 def test_qp_gate_sets_the_permanent_q_to_either_end_of_its_range():
     """With ``qp_gate`` the sign of a_qp alone picks T_p's Q: the range's top (10^10 here) or
     its bottom (10^-2); a_q and a_r act as without the gate."""
-    kw = {"scenario": "nonstationary", "extras": True, "action_mode": "absolute",
-          "split_q": True, "absolute_qp_log10": (-2.0, 10.0), "scale_limit": 1e10}  # fmt: skip
+    kw = {
+        "scenario": "nonstationary",
+        "extras": True,
+        "action_mode": "absolute",
+        "split_q": True,
+        "absolute_qp_log10": (-2.0, 10.0),
+        "scale_limit": 1e10,
+    }
     env = _make(qp_gate=True, **kw)
     env.reset(seed=100_000)
     q0 = env.unwrapped.filter.qd.copy()
@@ -422,8 +429,14 @@ def test_recent_samples_sets_the_window_of_the_recent_statistics():
     """With ``recent_samples`` the step statistic (and the recent ROR and mean innovation power)
     cover that many samples instead of the decision window: at K = 5 with 10 recent samples the
     statistic is the formula over the last 10 innovations; a bad value is a config error."""
-    env = _make(scenario="nonstationary", extras=True, step_statistic=True, split_q=True,
-                decision_window=5, recent_samples=10)  # fmt: skip
+    env = _make(
+        scenario="nonstationary",
+        extras=True,
+        step_statistic=True,
+        split_q=True,
+        decision_window=5,
+        recent_samples=10,
+    )
     obs, r = _flown_window(env, steps=120)
     recent, before = r[-10:], r[:-10]
     expect = 10 * np.sum((recent.mean(0) - before.mean(0)) ** 2) / np.sum(before.var(0, ddof=1))
@@ -468,9 +481,13 @@ def test_spaces_lay_out_the_observations_and_actions_as_documented():
     assert observation_names(paper) == ("log_ror", "log_qoq")
     assert action_names(paper) == ("a_q", "a_r")
     full = EnvConfig(
-        extras=True, split_q=True, innovation_power=True, step_statistic=True, turn_rate=True,
+        extras=True,
+        split_q=True,
+        innovation_power=True,
+        step_statistic=True,
+        turn_rate=True,
         innovation_bias=True,
-    )  # fmt: skip
+    )
     assert observation_names(full) == OBSERVATIONS and len(OBSERVATIONS) == 13
     assert action_names(full) == ("a_q", "a_r", "a_qp")
     detector = EnvConfig(extras=True, split_q=True, innovation_power=True)

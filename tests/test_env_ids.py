@@ -66,10 +66,18 @@ def test_the_vector_env_truncates_alike(mode):
     """``gym.make_vec(id, max_episode_steps=5)``: bitwise the sync vector env of
     ``gym.make(id, max_episode_steps=5)`` over three or four episodes, totals in the final infos."""
     kw = {"num_envs": 3, "duration_s": 30.0, "max_episode_steps": 5}
-    ours = gym.make_vec("AeroMag/Misspecified-v0", vectorization_mode="vector_entry_point",
-                        autoreset_mode=mode, **kw)  # fmt: skip
-    sync = gym.make_vec("AeroMag/Misspecified-v0", vectorization_mode="sync",
-                        vector_kwargs={"autoreset_mode": mode}, **kw)  # fmt: skip
+    ours = gym.make_vec(
+        "AeroMag/Misspecified-v0",
+        vectorization_mode="vector_entry_point",
+        autoreset_mode=mode,
+        **kw,
+    )
+    sync = gym.make_vec(
+        "AeroMag/Misspecified-v0",
+        vectorization_mode="sync",
+        vector_kwargs={"autoreset_mode": mode},
+        **kw,
+    )
     assert isinstance(ours, AeroMagCompensationVecEnv) and ours.max_episode_steps == 5
     _assert_identical(ours.reset(seed=100_000), sync.reset(seed=100_000))
     rng, cuts = np.random.default_rng(0), 0
@@ -105,8 +113,12 @@ def test_stable_baselines3_makes_it_by_id():
     from stable_baselines3.common.env_util import make_vec_env
 
     check_env(gym.make("AeroMag/Nonstationary-v0", duration_s=20.0).unwrapped)
-    vec = make_vec_env("AeroMag/Nonstationary-v0", n_envs=2, seed=100_000,
-                       env_kwargs={"duration_s": 20.0, "extras": True})  # fmt: skip
+    vec = make_vec_env(
+        "AeroMag/Nonstationary-v0",
+        n_envs=2,
+        seed=100_000,
+        env_kwargs={"duration_s": 20.0, "extras": True},
+    )
     obs = vec.reset()
     assert obs.shape == (2, 7)
     _, _, dones, infos = vec.step(np.zeros((2, 2), np.float32))
@@ -157,8 +169,13 @@ def test_the_vector_env_renders_each_environment_as_the_single_env_does():
     pytest.importorskip("matplotlib")
     from aeromag_env.environment.render import render_panels
 
-    vec = gym.make_vec("AeroMag/Nominal-v0", num_envs=2, vectorization_mode="vector_entry_point",
-                       render_mode="rgb_array", duration_s=20.0)  # fmt: skip
+    vec = gym.make_vec(
+        "AeroMag/Nominal-v0",
+        num_envs=2,
+        vectorization_mode="vector_entry_point",
+        render_mode="rgb_array",
+        duration_s=20.0,
+    )
     single = gym.make("AeroMag/Nominal-v0", duration_s=20.0).unwrapped
     vec.reset(seed=5)
     single.reset(seed=6)  # environment 1 of the vector env is seeded 5 + 1
@@ -170,17 +187,23 @@ def test_the_vector_env_renders_each_environment_as_the_single_env_does():
     assert len(frames) == 2 and all(f.dtype == np.uint8 and f.ndim == 3 for f in frames)
     k, f = single.filter.k, single.filter
     err = single.episode.truth_interf[:k] - f.est[:k]
-    expected = render_panels("nominal", np.arange(k), "sample", err, f.ror[:k], f.qoq[:k],
-                             f.q_scale[:k], f.r_scale[:k])  # fmt: skip
+    expected = render_panels(
+        "nominal", np.arange(k), "sample", err, f.ror[:k], f.qoq[:k], f.q_scale[:k], f.r_scale[:k]
+    )
     np.testing.assert_array_equal(frames[1], expected)
     assert not np.array_equal(frames[0], frames[1])
-    quiet = gym.make_vec("AeroMag/Nominal-v0", num_envs=2, vectorization_mode="vector_entry_point",
-                         duration_s=20.0)  # fmt: skip
+    quiet = gym.make_vec(
+        "AeroMag/Nominal-v0", num_envs=2, vectorization_mode="vector_entry_point", duration_s=20.0
+    )
     quiet.reset(seed=5)
     assert quiet.render() is None
     with pytest.raises(ValueError, match="render_mode must be None or 'rgb_array'"):
-        gym.make_vec("AeroMag/Nominal-v0", num_envs=2, vectorization_mode="vector_entry_point",
-                     render_mode="human")  # fmt: skip
+        gym.make_vec(
+            "AeroMag/Nominal-v0",
+            num_envs=2,
+            vectorization_mode="vector_entry_point",
+            render_mode="human",
+        )
 
 
 def test_stable_baselines3_tiles_the_frames():

@@ -29,8 +29,12 @@ def test_design_study_rule_sets_the_scales_it_states():
 
     from experiments.ppo_design_study import DETECTOR_ENV, _mean_innovation_rule
 
-    cfg = {**DETECTOR_ENV, "scenario": "nonstationary", "innovation_power": True,
-           "scale_limit": 1e10}  # fmt: skip
+    cfg = {
+        **DETECTOR_ENV,
+        "scenario": "nonstationary",
+        "innovation_power": True,
+        "scale_limit": 1e10,
+    }
     env = gym.make("AeroMagCompensation-v0", config=cfg)
     obs, _ = env.reset(seed=100_000)
     rule = _mean_innovation_rule(20.0, 1.5**2)
@@ -66,8 +70,13 @@ def test_own_flight_file_walkthrough(tmp_path):
 
     result = walkthrough(tmp_path)
     info = result["printed"]["info"]["printed"]
-    for words in ("1 time gap(s)", "mag_1_uc: 1 spike(s)", "ins_pitch: 3 of",
-                  "119.9° from the body axes", "UNCOMPMAG1 → mag_1_uc"):  # fmt: skip
+    for words in (
+        "1 time gap(s)",
+        "mag_1_uc: 1 spike(s)",
+        "ins_pitch: 3 of",
+        "119.9° from the body axes",
+        "UNCOMPMAG1 → mag_1_uc",
+    ):
         assert words in info, words
     tl, kf = result["reports"]["tl"], result["reports"]["kf"]
     assert all(step["exit"] == 0 for step in result["printed"].values())
@@ -85,8 +94,11 @@ def test_fault_effects_table(capsys):
     from experiments.fault_effects import main as fault_effects
 
     assert fault_effects(["--methods", "tl,kf"]) == 0
-    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| tl")
-            or line.startswith("| kf")]  # fmt: skip
+    rows = [
+        line
+        for line in capsys.readouterr().out.splitlines()
+        if line.startswith("| tl") or line.startswith("| kf")
+    ]
     for row in rows:
         rmse = [float(c.split()[0]) for c in row.strip("|").split("|")[1:]]
         assert max(rmse) < 1.10 * rmse[0], row
@@ -119,8 +131,15 @@ def test_seed_table_checks_a_policy_across_scenarios(tmp_path):
     from experiments.fault_cases import SHIPPED
     from experiments.seed_table import main as seed_table
 
-    argv = [str(SHIPPED["policy"]), "--scenarios", "paper,nonstationary", "--episodes", "4",
-            "--out", str(tmp_path)]  # fmt: skip
+    argv = [
+        str(SHIPPED["policy"]),
+        "--scenarios",
+        "paper,nonstationary",
+        "--episodes",
+        "4",
+        "--out",
+        str(tmp_path),
+    ]
     assert seed_table(argv) == 0
     table = (tmp_path / "table.md").read_text()
     row = next(line for line in table.splitlines() if line.startswith("| 0 | ") and "%" in line)
@@ -146,10 +165,18 @@ def _suite_row(kind, effect=None, snr=None, named=(), duration_s=1800.0, decoys=
     """A hand-made row of ``experiments.hidden_effects`` (the fields ``summarise`` reads)."""
     truth = [[effect, None]] if effect else []
     named = [list(t) for t in named]
-    return {"kind": kind, "effects": [effect] if effect else [], "snr": snr,
-            "duration_s": duration_s, "named": named, "truth": truth,
-            "exact": named == truth, "absorbed_named": [], "decoy_named": list(decoys),
-            "shrink": 3.0}  # fmt: skip
+    return {
+        "kind": kind,
+        "effects": [effect] if effect else [],
+        "snr": snr,
+        "duration_s": duration_s,
+        "named": named,
+        "truth": truth,
+        "exact": named == truth,
+        "absorbed_named": [],
+        "decoy_named": list(decoys),
+        "shrink": 3.0,
+    }
 
 
 def test_hidden_effects_counts_power_against_duration_apart_from_the_snr_claims():
@@ -199,8 +226,13 @@ def test_same_verdicts_flags_a_changed_named_list_and_counts_unmatched(tmp_path,
     from experiments.same_verdicts import main as same_verdicts
 
     def row(seed, named, gap=1.0):
-        return {"kind": "single", "seed": seed, "named": named,
-                "gap_before_nt": 2.0, "gap_after_nt": gap}  # fmt: skip
+        return {
+            "kind": "single",
+            "seed": seed,
+            "named": named,
+            "gap_before_nt": 2.0,
+            "gap_after_nt": gap,
+        }
 
     old = [row(1, [["a", None], ["b", "ch"]]), row(2, [])]
     same = [row(1, [["b", "ch"], ["a", None]], gap=1.0 + 1e-9), row(2, []), row(3, [["a", None]])]
@@ -235,8 +267,9 @@ def test_lagged_privileged_with_a_floor_on_r_keeps_a_late_burst_out(capsys):
     held at R ≥ 10² R(0) it loses far less (the teacher the general policy's cloning follows)."""
     from experiments.lagged_privileged import main as lagged
 
-    rows = lagged(["--scenario", "noise_bursts", "--windows", "10", "--episodes", "2",
-                   "--floors", "2"])  # fmt: skip
+    rows = lagged(
+        ["--scenario", "noise_bursts", "--windows", "10", "--episodes", "2", "--floors", "2"]
+    )
     assert rows[0]["late_floored"][2.0] < rows[0]["late"] - 0.5
     out = capsys.readouterr().out
     assert "late, R ≥ 10^2 R(0)" in out and out.count("|---") == 5

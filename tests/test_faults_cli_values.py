@@ -109,8 +109,12 @@ def test_info_errors_go_to_stderr(tmp_path, capsys):
 @pytest.mark.parametrize("value", ["0.05", "0.1", "0", "-5", "nan", "inf", "-inf", "1e9", "1e300"])
 def test_simulate_duration_out_of_range(tmp_path, capsys, value):
     out = tmp_path / "x.h5"
-    _refused(["simulate", f"--duration-s={value}", "--out", str(out), "--quiet"], capsys,
-             "duration_s must be > 0", "0.2 to 1e+07 s at 10 Hz")  # fmt: skip
+    _refused(
+        ["simulate", f"--duration-s={value}", "--out", str(out), "--quiet"],
+        capsys,
+        "duration_s must be > 0",
+        "0.2 to 1e+07 s at 10 Hz",
+    )
     assert not out.exists()
 
 
@@ -137,16 +141,31 @@ def test_simulate_refuses_a_flight_larger_than_the_memory(tmp_path, capsys, monk
 
 @pytest.mark.parametrize("value", ["1e-300", "0", "-1", "nan", "inf", "-inf", "1e300", "2e5"])
 def test_compensate_r_std_out_of_range(flight_file, tmp_path, capsys, value):
-    argv = ["compensate", str(flight_file), "--method", "kf", "--out", str(tmp_path / "o"),
-            f"--r-std-nt={value}"]  # fmt: skip
+    argv = [
+        "compensate",
+        str(flight_file),
+        "--method",
+        "kf",
+        "--out",
+        str(tmp_path / "o"),
+        f"--r-std-nt={value}",
+    ]
     _refused(argv, capsys, "--r-std-nt must be in [0.001, 100000] nT")
     assert not (tmp_path / "o").exists()
 
 
 @pytest.mark.parametrize("value", ["1e-3", "1e5"])
 def test_compensate_r_std_at_the_bounds_runs(flight_file, tmp_path, capsys, value):
-    argv = ["compensate", str(flight_file), "--method", "kf", "--out", str(tmp_path / "o"),
-            "--r-std-nt", value]  # fmt: skip
+    argv = [
+        "compensate",
+        str(flight_file),
+        "--method",
+        "kf",
+        "--out",
+        str(tmp_path / "o"),
+        "--r-std-nt",
+        value,
+    ]
     assert _run(argv, capsys)[0] == 0
 
 
@@ -164,7 +183,7 @@ def test_compensate_r_std_at_the_bounds_runs(flight_file, tmp_path, capsys, valu
         (["--method", "kf", "--calibration-window", "nan", "50"], ("finite times T0 < T1 [s]",)),
         (["--method", "kf", "--calibration-window", "0", "inf"], ("finite times T0 < T1 [s]",)),
     ],
-)  # fmt: skip
+)
 def test_compensate_bad_values(flight_file, tmp_path, capsys, extra, words):
     _refused(["compensate", str(flight_file), "--out", str(tmp_path / "o"), *extra], capsys, *words)
     assert not (tmp_path / "o").exists()
@@ -179,8 +198,16 @@ def test_compensate_tl_at_the_limits_runs(flight_file, tmp_path, capsys, extra):
 
 
 def test_discover_calibration_window_nan(flight_file, tmp_path, capsys):
-    argv = ["discover", str(flight_file), "--out", str(tmp_path / "d"), "--quiet",
-            "--calibration-window", "nan", "60"]  # fmt: skip
+    argv = [
+        "discover",
+        str(flight_file),
+        "--out",
+        str(tmp_path / "d"),
+        "--quiet",
+        "--calibration-window",
+        "nan",
+        "60",
+    ]
     _refused(argv, capsys, "--calibration-window needs finite times T0 < T1 [s]")
 
 
@@ -188,14 +215,19 @@ def test_discover_calibration_window_nan(flight_file, tmp_path, capsys):
 def test_a_flight_too_short_for_the_method_is_refused(tmp_path, capsys, method):
     path = write_flight(simulated(trajectory__duration_s=0.5), tmp_path / "five.h5")
     need = "at least 59 samples" if method == "tl" else f"at least {MIN_VECTOR_SAMPLES} samples"
-    _refused(["compensate", str(path), "--method", method, "--out", str(tmp_path / "o")],
-             capsys, need, "this one has 5")  # fmt: skip
+    _refused(
+        ["compensate", str(path), "--method", method, "--out", str(tmp_path / "o")],
+        capsys,
+        need,
+        "this one has 5",
+    )
 
 
 def test_the_shortest_flight_a_filter_accepts_runs(tmp_path, capsys):
     path = write_flight(simulated(trajectory__duration_s=2.8), tmp_path / "short.h5")
-    code, _, err = _run(["compensate", str(path), "--method", "kf", "--out", str(tmp_path / "o")],
-                        capsys)  # fmt: skip
+    code, _, err = _run(
+        ["compensate", str(path), "--method", "kf", "--out", str(tmp_path / "o")], capsys
+    )
     assert code == 0, err
 
 
@@ -222,11 +254,16 @@ SEED_START = "--seed-start must be in [100000, 4294967276]"  # with the default 
 
 @pytest.mark.parametrize(
     ("option", "value", "words"),
-    [("--episodes", "0", EPISODES), ("--episodes", "-3", EPISODES),
-     ("--episodes", "10001", EPISODES), ("--episodes", str(10**12), EPISODES),
-     ("--seed-start", "-5", SEED_START), ("--seed-start", "5", SEED_START),
-     ("--seed-start", str(2**32), SEED_START)],
-)  # fmt: skip
+    [
+        ("--episodes", "0", EPISODES),
+        ("--episodes", "-3", EPISODES),
+        ("--episodes", "10001", EPISODES),
+        ("--episodes", str(10**12), EPISODES),
+        ("--seed-start", "-5", SEED_START),
+        ("--seed-start", "5", SEED_START),
+        ("--seed-start", str(2**32), SEED_START),
+    ],
+)
 def test_evaluate_episodes_and_seeds_out_of_range(tmp_path, capsys, option, value, words):
     argv = ["evaluate", "--out", str(tmp_path / "e"), "--quiet", f"{option}={value}"]
     _refused(argv, capsys, words)
@@ -236,8 +273,12 @@ def test_evaluate_episodes_and_seeds_out_of_range(tmp_path, capsys, option, valu
 @pytest.mark.parametrize("value", ["0", "-1", str(10**9 + 1), str(10**11)])
 def test_train_timesteps_out_of_range(tmp_path, capsys, value):
     out = tmp_path / "t"
-    _refused(["train", "--out", str(out), "--quick", "--quiet", "--timesteps", value], capsys,
-             "--timesteps must be in [1, 1e+09] environment steps", "days of CPU time")  # fmt: skip
+    _refused(
+        ["train", "--out", str(out), "--quick", "--quiet", "--timesteps", value],
+        capsys,
+        "--timesteps must be in [1, 1e+09] environment steps",
+        "days of CPU time",
+    )
     assert not out.exists()
 
 
@@ -327,8 +368,15 @@ def test_hyperparameters_of_absurd_size_are_refused(tmp_path, change, pretrain, 
 
 
 def test_hyperparameters_at_the_upper_bounds_are_accepted(tmp_path):
-    change = {"n_envs": 256, "n_steps": 16384, "batch_size": 65536, "n_epochs": 100,
-              "net_arch": [1024] * 8, "eval_every": 10**9, "eval_episodes": 10_000}  # fmt: skip
+    change = {
+        "n_envs": 256,
+        "n_steps": 16384,
+        "batch_size": 65536,
+        "n_epochs": 100,
+        "net_arch": [1024] * 8,
+        "eval_every": 10**9,
+        "eval_episodes": 10_000,
+    }
     hp = load_hyperparams("nonstationary", _hp_file(tmp_path, change))
     assert {k: hp[k] for k in change} == change
 
@@ -344,14 +392,19 @@ def test_replay_prints_the_readers_warnings_and_refuses_non_finite_positions(
     noisy = {**flight.fields, "flux_a_x": flight["flux_a_x"].copy()}
     noisy["flux_a_x"][100:150] = np.nan
     path = write_flight(type(flight)(noisy, dict(flight.attrs)), tmp_path / "nan_flux.h5")
-    code, _, err = _run(["simulate", "--replay", str(path), "--quiet", "--out",
-                         str(tmp_path / "sim.h5")], capsys)  # fmt: skip
+    code, _, err = _run(
+        ["simulate", "--replay", str(path), "--quiet", "--out", str(tmp_path / "sim.h5")], capsys
+    )
     assert code == 0 and "aeromag simulate: warning:" in err and "flux_a_x" in err, err
     holed = {**flight.fields, "lat": flight["lat"].copy()}
     holed["lat"][10:20] = np.nan
     path = write_flight(type(flight)(holed, dict(flight.attrs)), tmp_path / "nan_lat.h5")
-    _refused(["simulate", "--replay", str(path), "--out", str(tmp_path / "sim2.h5")], capsys,
-             "cannot replay", "lat has 10 non-finite")  # fmt: skip
+    _refused(
+        ["simulate", "--replay", str(path), "--out", str(tmp_path / "sim2.h5")],
+        capsys,
+        "cannot replay",
+        "lat has 10 non-finite",
+    )
     assert not (tmp_path / "sim2.h5").exists()
 
 
@@ -360,16 +413,28 @@ def test_a_configuration_that_is_not_text_is_one_line(
 ) -> None:
     config = tmp_path / "config.json"
     config.write_bytes(np.random.default_rng(0).bytes(256))
-    _refused(["simulate", "--config", str(config), "--out", str(tmp_path / "s.h5")], capsys,
-             "not UTF-8")  # fmt: skip
+    _refused(
+        ["simulate", "--config", str(config), "--out", str(tmp_path / "s.h5")], capsys, "not UTF-8"
+    )
 
 
-@pytest.mark.parametrize("command", [["compensate", "FILE", "--method", "lsq"], ["demo"],
-                                     ["evaluate"], ["bench"], ["reproduce-paper"]])  # fmt: skip
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["compensate", "FILE", "--method", "lsq"],
+        ["demo"],
+        ["evaluate"],
+        ["bench"],
+        ["reproduce-paper"],
+    ],
+)
 def test_an_empty_out_is_refused_not_the_current_folder(
-    command: list[str], flight_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    command: list[str],
+    flight_file: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
     monkeypatch: pytest.MonkeyPatch,
-) -> None:  # fmt: skip
+) -> None:
     monkeypatch.chdir(tmp_path)
     argv = [str(flight_file) if a == "FILE" else a for a in command]
     _refused([*argv, "--out", ""], capsys, "--out is empty")
@@ -379,8 +444,19 @@ def test_an_empty_out_is_refused_not_the_current_folder(
 def test_one_episode_gives_strict_json_and_says_why_there_is_no_interval(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    code, out, _ = _run(["evaluate", "--episodes", "1", "--policies", "constant,fis", "--quiet",
-                         "--out", str(tmp_path)], capsys)  # fmt: skip
+    code, out, _ = _run(
+        [
+            "evaluate",
+            "--episodes",
+            "1",
+            "--policies",
+            "constant,fis",
+            "--quiet",
+            "--out",
+            str(tmp_path),
+        ],
+        capsys,
+    )
     assert code == 0 and "[n/a]" in out and "nan" not in out.lower()
     text = (tmp_path / "results.json").read_text()
     json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in results.json"))
@@ -396,5 +472,18 @@ def test_info_on_a_segment_holding_the_whole_flight(
 def test_a_band_edge_too_low_to_design_is_refused(
     flight_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    _refused(["compensate", str(flight_file), "--method", "tl", "--tl-bandpass", "1e-300", "0.9",
-              "--out", str(tmp_path)], capsys, "band edge 1e-300 Hz")  # fmt: skip
+    _refused(
+        [
+            "compensate",
+            str(flight_file),
+            "--method",
+            "tl",
+            "--tl-bandpass",
+            "1e-300",
+            "0.9",
+            "--out",
+            str(tmp_path),
+        ],
+        capsys,
+        "band edge 1e-300 Hz",
+    )

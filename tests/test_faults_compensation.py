@@ -136,9 +136,13 @@ def test_the_gap_is_reported_and_the_flight_split_there(box: Flight) -> None:
 
 @pytest.mark.parametrize(
     ("fault", "method", "channel"),
-    [("spike_scalar", "tl", "mag_1_uc"), ("spike_flux", "tl", "flux_a"),
-     ("spike_flux", "lsq", "flux_a"), ("spike_flux", "kf", "flux_a")],
-)  # fmt: skip
+    [
+        ("spike_scalar", "tl", "mag_1_uc"),
+        ("spike_flux", "tl", "flux_a"),
+        ("spike_flux", "lsq", "flux_a"),
+        ("spike_flux", "kf", "flux_a"),
+    ],
+)
 def test_a_spike_is_reported_and_its_output_is_nan_there_only(
     box: Flight, fault: str, method: str, channel: str
 ) -> None:
@@ -217,8 +221,11 @@ def test_rate_restarts_at_a_gap_and_at_missing_samples() -> None:
 def test_runs_and_segment_helpers() -> None:
     ok = np.array([1, 1, 0, 1, 1, 1, 1, 0, 1, 1], bool)
     assert runs(ok, [slice(0, 5), slice(5, 10)]) == [
-        slice(0, 2), slice(3, 5), slice(5, 7), slice(8, 10)
-    ]  # fmt: skip
+        slice(0, 2),
+        slice(3, 5),
+        slice(5, 7),
+        slice(8, 10),
+    ]
     assert within([slice(0, 4), slice(4, 10)], 3, 8) == [slice(0, 1), slice(1, 5)]
 
 

@@ -96,7 +96,7 @@ CONFIG_FAULTS: list[tuple[str, object, str]] = [
     ("split_q", "yes", "true or false"),
     ("innovation_power", 1, "true or false"),
     ("qp_gate", None, "true or false"),
-]  # fmt: skip
+]
 IDS = [f"{f}={v!r}" for f, v, _ in CONFIG_FAULTS]
 
 
@@ -128,13 +128,25 @@ def test_nan_divergence_penalty_no_longer_reaches_the_rewards():
 
 @pytest.mark.parametrize(
     "field,value",
-    [("decision_window", 1), ("decision_window", 10**6), ("s_max", 1.0000001), ("s_max", 1e308),
-     ("reward_scale_nt", 1e-3), ("reward_scale_nt", 1e6), ("divergence_penalty", 0.0),
-     ("divergence_penalty", -1e6), ("score_from", 0.0), ("score_from", 0.999),
-     ("scale_limit", 1.0000001), ("scale_limit", 1e100), ("duration_s", 1.0),
-     ("duration_s", 86_400.0), ("absolute_q_log10", (-100.0, 100.0)),
-     ("absolute_r_log10", [-1, 3])],
-)  # fmt: skip
+    [
+        ("decision_window", 1),
+        ("decision_window", 10**6),
+        ("s_max", 1.0000001),
+        ("s_max", 1e308),
+        ("reward_scale_nt", 1e-3),
+        ("reward_scale_nt", 1e6),
+        ("divergence_penalty", 0.0),
+        ("divergence_penalty", -1e6),
+        ("score_from", 0.0),
+        ("score_from", 0.999),
+        ("scale_limit", 1.0000001),
+        ("scale_limit", 1e100),
+        ("duration_s", 1.0),
+        ("duration_s", 86_400.0),
+        ("absolute_q_log10", (-100.0, 100.0)),
+        ("absolute_r_log10", [-1, 3]),
+    ],
+)
 def test_values_at_the_bounds_are_accepted(field, value):
     cfg = from_dict(EnvConfig, {field: value})
     assert np.all(np.isfinite(parameters(cfg)))
@@ -182,9 +194,17 @@ def test_complex_actions_never_reach_the_environments():
 
 
 @pytest.mark.parametrize(
-    "action", [[1e308, -1e308], [-1e308, 1e308], [1.0, -1.0], [3.4e38, 0.0], [1, 0],
-               np.array([65504.0, -65504.0], np.float16), np.array([-1.0, 1.0], np.float32)],
-)  # fmt: skip
+    "action",
+    [
+        [1e308, -1e308],
+        [-1e308, 1e308],
+        [1.0, -1.0],
+        [3.4e38, 0.0],
+        [1, 0],
+        np.array([65504.0, -65504.0], np.float16),
+        np.array([-1.0, 1.0], np.float32),
+    ],
+)
 def test_huge_finite_actions_are_clipped(action):
     a = check_actions(action, size=2)
     assert a.dtype == np.float64 and np.all(np.isfinite(a))
@@ -224,8 +244,18 @@ def test_evaluate_refuses_a_training_only_scenario(tmp_path, capsys):
     with pytest.raises(AeromagError, match=r"nonstationary_dense.*training only") as info:
         evaluate("nonstationary_dense", ["constant"], [100_000])
     _one_line(info.value)
-    args = ["evaluate", "--scenario", "nonstationary_dense", "--policies", "constant",
-            "--episodes", "1", "--out", str(tmp_path / "out"), "--quiet"]  # fmt: skip
+    args = [
+        "evaluate",
+        "--scenario",
+        "nonstationary_dense",
+        "--policies",
+        "constant",
+        "--episodes",
+        "1",
+        "--out",
+        str(tmp_path / "out"),
+        "--quiet",
+    ]
     assert main(args) == 2
     err = capsys.readouterr().err.strip()
     assert "training only" in err and err.count("\n") == 0
@@ -271,7 +301,7 @@ HOSTILE = (
     | st.complex_numbers(allow_nan=True)
     | st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=3)
     | st.tuples(st.floats(-1e3, 1e3), st.floats(-1e3, 1e3))
-)  # fmt: skip
+)
 FIELDS = sorted(EnvConfig.__dataclass_fields__)
 
 
@@ -291,10 +321,11 @@ def test_any_value_for_any_config_field(field, value):
 
 
 ACTION_ARRAYS = hnp.arrays(
-    dtype=st.sampled_from([np.float16, np.float32, np.float64, np.int8, np.int64, np.uint8,
-                           np.complex128, np.bool_]),
+    dtype=st.sampled_from(
+        [np.float16, np.float32, np.float64, np.int8, np.int64, np.uint8, np.complex128, np.bool_]
+    ),
     shape=hnp.array_shapes(min_dims=0, max_dims=2, max_side=3),
-)  # fmt: skip
+)
 
 
 @pytest.fixture(scope="module")
@@ -326,8 +357,12 @@ def test_window_statistics_after_a_huge_r_swing():
     from a negative sum, or ~1e-80 from a residual) until the next lap's re-sum; they are now
     summed afresh when the term leaving carried nearly all of a sum. Found by the soak (seeded:
     env 3, step 9; NaN from step 9 before)."""
-    config = {"scenario": "calibration_then_survey", "action_mode": "absolute",
-              "absolute_r_log10": (-100.0, 100.0), "scale_limit": 1e100}  # fmt: skip
+    config = {
+        "scenario": "calibration_then_survey",
+        "action_mode": "absolute",
+        "absolute_r_log10": (-100.0, 100.0),
+        "scale_limit": 1e100,
+    }
     rng = np.random.default_rng(20)
     with mock.patch.object(vec_env, "simulate", _FlightPool()):
         env = AeroMagCompensationVecEnv(32, **config)
@@ -373,20 +408,53 @@ def test_the_window_sums_hold_terms_100_decades_apart(seed):
 
 SOAK_CONFIGS = [
     {"scenario": "nominal"},
-    {"scenario": "nonstationary", "extras": True, "split_q": True, "innovation_power": True,
-     "step_statistic": True, "action_mode": "absolute", "qp_gate": True, "scale_limit": 1e10,
-     "absolute_q_log10": (-4.0, 4.0), "absolute_r_log10": (-1.0, 3.0),
-     "absolute_qp_log10": (-2.0, 10.0)},
-    {"scenario": "misspecified", "extras": True, "split_q": True, "s_max": 1e3,
-     "scale_limit": 1e100},
-    {"scenario": "paper", "decision_window": 1, "reward_form": "squared",
-     "reward_scale_nt": 1e-3, "divergence_penalty": -1e6, "duration_s": 300.0},
+    {
+        "scenario": "nonstationary",
+        "extras": True,
+        "split_q": True,
+        "innovation_power": True,
+        "step_statistic": True,
+        "action_mode": "absolute",
+        "qp_gate": True,
+        "scale_limit": 1e10,
+        "absolute_q_log10": (-4.0, 4.0),
+        "absolute_r_log10": (-1.0, 3.0),
+        "absolute_qp_log10": (-2.0, 10.0),
+    },
+    {
+        "scenario": "misspecified",
+        "extras": True,
+        "split_q": True,
+        "s_max": 1e3,
+        "scale_limit": 1e100,
+    },
+    {
+        "scenario": "paper",
+        "decision_window": 1,
+        "reward_form": "squared",
+        "reward_scale_nt": 1e-3,
+        "divergence_penalty": -1e6,
+        "duration_s": 300.0,
+    },
     # R within the default ±3 decades: see test_window_statistics_after_a_huge_r_swing
-    {"scenario": "calibration_then_survey", "action_mode": "absolute", "extras": True,
-     "absolute_q_log10": (-100.0, 100.0), "reward_form": "linear", "scale_limit": 1e100},
-    {"scenario": "nonstationary_dense", "decision_window": 50, "extras": True,
-     "innovation_power": True, "split_q": True, "score_from": 0.0, "duration_s": 600.0},
-]  # fmt: skip
+    {
+        "scenario": "calibration_then_survey",
+        "action_mode": "absolute",
+        "extras": True,
+        "absolute_q_log10": (-100.0, 100.0),
+        "reward_form": "linear",
+        "scale_limit": 1e100,
+    },
+    {
+        "scenario": "nonstationary_dense",
+        "decision_window": 50,
+        "extras": True,
+        "innovation_power": True,
+        "split_q": True,
+        "score_from": 0.0,
+        "duration_s": 600.0,
+    },
+]
 EXTREMES = np.array([1e308, -1e308, 1.0, -1.0, 0.0, 3.4e38, -3.4e38, 1.0000001, -1.0000001])
 
 
@@ -411,8 +479,16 @@ def _actions(kind: str, t: int, shape: tuple[int, int], rng: np.random.Generator
     return rng.choice([-1.0, 1.0], shape) * 10.0 ** rng.uniform(0, 308, shape)  # "flips"
 
 
-KINDS = ("random", "extreme", "bang_bang", "bang_bang_bounds", "alternating", "max_q_min_r",
-         "min_q_max_r", "flips")  # fmt: skip
+KINDS = (
+    "random",
+    "extreme",
+    "bang_bang",
+    "bang_bang_bounds",
+    "alternating",
+    "max_q_min_r",
+    "min_q_max_r",
+    "flips",
+)
 
 
 def _assert_finite(obs: np.ndarray, rewards: np.ndarray, infos: dict, where: str) -> None:

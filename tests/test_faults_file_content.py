@@ -58,8 +58,10 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str,
 
 
 def _compensate(path: Path, method: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
-    code, _, err = _run(["compensate", str(path), "--method", method, "--out",
-                         str(path.parent / f"out_{method}")], capsys)  # fmt: skip
+    code, _, err = _run(
+        ["compensate", str(path), "--method", method, "--out", str(path.parent / f"out_{method}")],
+        capsys,
+    )
     return code, err
 
 
@@ -270,8 +272,10 @@ def test_info_and_lsq_on_an_inf_attitude_burst_print_no_runtime_warning(tmp_path
     f = _short()
     f.fields["ins_roll"][600:610] = np.inf
     path = write_flight(f, tmp_path / "in.h5")
-    for argv in (["info", str(path)], ["compensate", str(path), "--method", "lsq", "--out",
-                                      str(tmp_path / "o")]):  # fmt: skip
+    for argv in (
+        ["info", str(path)],
+        ["compensate", str(path), "--method", "lsq", "--out", str(tmp_path / "o")],
+    ):
         code, _, err = _run(argv, capsys)
         assert code == 0 and "RuntimeWarning" not in err, err
 
@@ -342,14 +346,16 @@ def test_a_replay_warns_of_a_file_in_the_wrong_units(tmp_path, capsys, fault):
     if fault == "alt_feet":
         f.fields["utm_z"], f.fields["alt"] = f["alt"].copy(), f["alt"] * 3.28084
     path = write_flight(f, tmp_path / "in.h5")
-    code, _, err = _run(["simulate", "--replay", str(path), "--out", str(tmp_path / "s.h5"),
-                         "--quiet"], capsys)  # fmt: skip
+    code, _, err = _run(
+        ["simulate", "--replay", str(path), "--out", str(tmp_path / "s.h5"), "--quiet"], capsys
+    )
     assert code == 0
     expected = {"tt_ms": "ground speed", "radians": "IGRF-14", "alt_feet": "alt looks like feet"}
     assert expected[fault] in err and "aeromag simulate: warning:" in err, err
     clean = write_flight(_short(), tmp_path / "clean.h5")
-    code, _, err = _run(["simulate", "--replay", str(clean), "--out", str(tmp_path / "c.h5"),
-                         "--quiet"], capsys)  # fmt: skip
+    code, _, err = _run(
+        ["simulate", "--replay", str(clean), "--out", str(tmp_path / "c.h5"), "--quiet"], capsys
+    )
     assert code == 0 and "warning" not in err, err
 
 
@@ -369,8 +375,9 @@ def test_an_applied_mount_says_what_the_truth_rmse_includes(tmp_path, capsys):
     lines = {}
     for name, fields in (("aligned", dict(f.fields)), ("turned", turned)):
         path = write_flight(Flight(fields, dict(f.attrs)), tmp_path / f"{name}.h5")
-        code, out, _ = _run(["compensate", str(path), "--method", "lsq", "--out",
-                             str(tmp_path / name)], capsys)  # fmt: skip
+        code, out, _ = _run(
+            ["compensate", str(path), "--method", "lsq", "--out", str(tmp_path / name)], capsys
+        )
         assert code == 0
         lines[name] = out
     assert MOUNT_RMSE_NOTE in lines["turned"] and MOUNT_RMSE_NOTE not in lines["aligned"]

@@ -236,8 +236,14 @@ def test_hostile_actions_on_clean_flights_are_never_rejected():
     """The configuration whose actions swing Q and R by 10^±3 per step within 10^±100: an
     earlier gate (against the last lap only) rejected clean samples there after the actions had
     made one lap's innovations tiny; the window's own innovations now count too."""
-    config = {"scenario": "misspecified", "extras": True, "split_q": True, "s_max": 1e3,
-              "scale_limit": 1e100, "duration_s": 60.0}  # fmt: skip
+    config = {
+        "scenario": "misspecified",
+        "extras": True,
+        "split_q": True,
+        "s_max": 1e3,
+        "scale_limit": 1e100,
+        "duration_s": 60.0,
+    }
     vec = AeroMagCompensationVecEnv(16, **config)
     vec.reset(seed=21)
     rng, ended_episodes = np.random.default_rng(21), 0

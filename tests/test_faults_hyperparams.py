@@ -82,16 +82,40 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
     ("version_zero", _top(lambda d: {**d, "version": 0}), r"version.*≥ 1"),
     ("unknown_top_key", _top(lambda d: {**d, "scenario": {}}), "'scenario' was unexpected"),
     ("scenarios_a_list", _top(lambda d: {**d, "scenarios": []}), "scenarios.*object"),
-    ("scenarios_empty", _top(lambda d: {**d, "scenarios": {}}),
-     "no PPO hyperparameters for 'nonstationary'"),
-    ("unknown_scenario", _top(lambda d: {**d, "scenarios": {**d["scenarios"], "windy": HP}}),
-     "windy"),
-    ("scenario_a_list", _top(lambda d: {**d, "scenarios": {"nonstationary": [1]}}),
-     "nonstationary.*object"),
-    *[(f"missing_{k}", _hp_del(k), f"'{k}' is a required property")
-      for k in ("n_envs", "n_steps", "batch_size", "n_epochs", "learning_rate", "gamma",
-                "gae_lambda", "ent_coef", "clip_range", "net_arch", "normalize_reward",
-                "eval_every", "eval_episodes", "env_kwargs")],
+    (
+        "scenarios_empty",
+        _top(lambda d: {**d, "scenarios": {}}),
+        "no PPO hyperparameters for 'nonstationary'",
+    ),
+    (
+        "unknown_scenario",
+        _top(lambda d: {**d, "scenarios": {**d["scenarios"], "windy": HP}}),
+        "windy",
+    ),
+    (
+        "scenario_a_list",
+        _top(lambda d: {**d, "scenarios": {"nonstationary": [1]}}),
+        "nonstationary.*object",
+    ),
+    *[
+        (f"missing_{k}", _hp_del(k), f"'{k}' is a required property")
+        for k in (
+            "n_envs",
+            "n_steps",
+            "batch_size",
+            "n_epochs",
+            "learning_rate",
+            "gamma",
+            "gae_lambda",
+            "ent_coef",
+            "clip_range",
+            "net_arch",
+            "normalize_reward",
+            "eval_every",
+            "eval_episodes",
+            "env_kwargs",
+        )
+    ],
     ("unknown_key", _hp("gama", 0.9), "'gama' was unexpected"),
     ("n_envs_text", _hp("n_envs", "8"), "n_envs.*integer"),
     ("n_envs_fraction", _hp("n_envs", 8.5), "n_envs.*integer"),
@@ -137,31 +161,61 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
     ("env_kwargs_bad_value", _sub("env_kwargs", "scale_limit", 0.5), "env_kwargs.*scale_limit"),
     ("env_kwargs_bad_type", _sub("env_kwargs", "extras", "yes"), "env_kwargs.*extras"),
     ("pretrain_a_list", _hp("pretrain", []), "pretrain.*object"),
-    ("pretrain_no_steps", lambda d: _hp("pretrain", {"epochs": 1})(d),
-     "'steps' is a required property"),
+    (
+        "pretrain_no_steps",
+        lambda d: _hp("pretrain", {"epochs": 1})(d),
+        "'steps' is a required property",
+    ),
     ("pretrain_steps_zero", _sub("pretrain", "steps", 0), r"pretrain\.steps.*≥ 1"),
     ("pretrain_epochs_zero", _sub("pretrain", "epochs", 0), r"pretrain\.epochs.*≥ 1"),
-    ("pretrain_threshold_negative", _sub("pretrain", "threshold_nt", -1.0),
-     r"pretrain\.threshold_nt.*> 0"),
+    (
+        "pretrain_threshold_negative",
+        _sub("pretrain", "threshold_nt", -1.0),
+        r"pretrain\.threshold_nt.*> 0",
+    ),
     ("pretrain_lr_zero", _sub("pretrain", "learning_rate", 0.0), r"pretrain\.learning_rate.*> 0"),
-    ("pretrain_bc_negative", _sub("pretrain", "bc_minibatches", -1),
-     r"pretrain\.bc_minibatches.*≥ 0"),
-    ("pretrain_bc_fraction", _sub("pretrain", "bc_minibatches", 2.5),
-     r"pretrain\.bc_minibatches.*integer"),
-    ("pretrain_bc_scenarios_unknown", _sub("pretrain", "bc_scenarios", ["windy"]),
-     r"pretrain\.bc_scenarios\.0"),
-    ("pretrain_bc_scenarios_empty", _sub("pretrain", "bc_scenarios", []),
-     r"pretrain\.bc_scenarios"),
-    ("pretrain_bc_lr_zero", _sub("pretrain", "bc_learning_rate", 0.0),
-     r"pretrain\.bc_learning_rate.*> 0"),
-    ("pretrain_floor_unknown_scenario", _sub("pretrain", "teacher_r_floor", {"windy": 2.0}),
-     r"pretrain\.teacher_r_floor"),
-    ("pretrain_floor_above_range", _sub("pretrain", "teacher_r_floor", {"noise_bursts": 9.0}),
-     r"pretrain\.teacher_r_floor\.noise_bursts.*\[-2, 7\]"),
-    ("pretrain_floor_text", _sub("pretrain", "teacher_r_floor", {"noise_bursts": "high"}),
-     r"pretrain\.teacher_r_floor\.noise_bursts.*number"),
+    (
+        "pretrain_bc_negative",
+        _sub("pretrain", "bc_minibatches", -1),
+        r"pretrain\.bc_minibatches.*≥ 0",
+    ),
+    (
+        "pretrain_bc_fraction",
+        _sub("pretrain", "bc_minibatches", 2.5),
+        r"pretrain\.bc_minibatches.*integer",
+    ),
+    (
+        "pretrain_bc_scenarios_unknown",
+        _sub("pretrain", "bc_scenarios", ["windy"]),
+        r"pretrain\.bc_scenarios\.0",
+    ),
+    (
+        "pretrain_bc_scenarios_empty",
+        _sub("pretrain", "bc_scenarios", []),
+        r"pretrain\.bc_scenarios",
+    ),
+    (
+        "pretrain_bc_lr_zero",
+        _sub("pretrain", "bc_learning_rate", 0.0),
+        r"pretrain\.bc_learning_rate.*> 0",
+    ),
+    (
+        "pretrain_floor_unknown_scenario",
+        _sub("pretrain", "teacher_r_floor", {"windy": 2.0}),
+        r"pretrain\.teacher_r_floor",
+    ),
+    (
+        "pretrain_floor_above_range",
+        _sub("pretrain", "teacher_r_floor", {"noise_bursts": 9.0}),
+        r"pretrain\.teacher_r_floor\.noise_bursts.*\[-2, 7\]",
+    ),
+    (
+        "pretrain_floor_text",
+        _sub("pretrain", "teacher_r_floor", {"noise_bursts": "high"}),
+        r"pretrain\.teacher_r_floor\.noise_bursts.*number",
+    ),
     ("pretrain_unknown", _sub("pretrain", "stepz", 1), "'stepz' was unexpected"),
-]  # fmt: skip
+]
 
 GOOD_TEXT = HYPERPARAMS.read_text(encoding="utf-8")
 #: Text-level faults: (case, the file's text or bytes, the message's problem).
@@ -245,11 +299,22 @@ def test_missing_file_directory_and_device(tmp_path):
 
 @pytest.mark.parametrize(
     ("key", "value"),
-    [("gamma", 1.0), ("gae_lambda", 0.0), ("gae_lambda", 1.0), ("learning_rate", "lin_3e-4"),
-     ("learning_rate", 1), ("batch_size", 2), ("net_arch", []), ("clip_range", 1.0),
-     ("ent_coef", 0), ("log_std_init", -20.0), ("vec_env", "dummy"), ("prefetch", False),
-     ("train_scenario", "nonstationary")],
-)  # fmt: skip
+    [
+        ("gamma", 1.0),
+        ("gae_lambda", 0.0),
+        ("gae_lambda", 1.0),
+        ("learning_rate", "lin_3e-4"),
+        ("learning_rate", 1),
+        ("batch_size", 2),
+        ("net_arch", []),
+        ("clip_range", 1.0),
+        ("ent_coef", 0),
+        ("log_std_init", -20.0),
+        ("vec_env", "dummy"),
+        ("prefetch", False),
+        ("train_scenario", "nonstationary"),
+    ],
+)
 def test_values_at_the_bounds_are_accepted(tmp_path, key, value):
     path = _write(tmp_path, "ok", json.dumps(_hp(key, value)(copy.deepcopy(SHIPPED))))
     assert load_hyperparams("nonstationary", path)[key] == value
@@ -293,8 +358,17 @@ def test_cli_train_with_bad_hyperparams_exits_2_before_training(tmp_path, capsys
     text = faults.get(case) or json.dumps(mutations[case](copy.deepcopy(SHIPPED)))
     path = _write(tmp_path, case, text)
     out = tmp_path / "out"
-    args = ["train", "--hyperparams", str(path), "--quick", "--timesteps", "64", "--out",
-            str(out), "--quiet"]  # fmt: skip
+    args = [
+        "train",
+        "--hyperparams",
+        str(path),
+        "--quick",
+        "--timesteps",
+        "64",
+        "--out",
+        str(out),
+        "--quiet",
+    ]
     assert main(args) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and str(path) in err and "Traceback" not in err
@@ -302,12 +376,16 @@ def test_cli_train_with_bad_hyperparams_exits_2_before_training(tmp_path, capsys
 
 
 JSON_VALUES = st.recursive(
-    st.none() | st.booleans() | st.integers(-(10**20), 10**20)
-    | st.floats(allow_nan=False, allow_infinity=False) | st.text(max_size=8),
-    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=5), inner,
-                                                                 max_size=3),
+    st.none()
+    | st.booleans()
+    | st.integers(-(10**20), 10**20)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(max_size=8),
+    lambda inner: (
+        st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=5), inner, max_size=3)
+    ),
     max_leaves=6,
-)  # fmt: skip
+)
 
 
 @settings(

@@ -64,12 +64,17 @@ def _drop(key: str) -> Callable[[Arrays], Arrays]:
 
 #: Array-level faults: (case, mutation of the shipped arrays, the problem the message names).
 ARRAY_FAULTS: list[tuple[str, Callable[[Arrays], Arrays], str]] = [
-    *[(f"missing_{k}", _drop(k), f"missing.*{k}")
-      for k in ("obs_mean", "obs_var", "obs_clip", "obs_eps", "w_out", "b_out", "meta")],
+    *[
+        (f"missing_{k}", _drop(k), f"missing.*{k}")
+        for k in ("obs_mean", "obs_var", "obs_clip", "obs_eps", "w_out", "b_out", "meta")
+    ],
     ("missing_w1", _drop("w1"), "b1 without w1|hidden layer"),
     ("missing_b0", _drop("b0"), "missing.*b0"),
-    ("layer_gap", lambda a: {**_drop("w1")(_drop("b1")(a)), "w2": a["w1"], "b2": a["b1"]},
-     "hidden layer"),
+    (
+        "layer_gap",
+        lambda a: {**_drop("w1")(_drop("b1")(a)), "w2": a["w1"], "b2": a["b1"]},
+        "hidden layer",
+    ),
     ("unexpected_array", lambda a: {**a, "w_extra": a["w0"]}, "unexpected.*w_extra"),
     ("obs_mean_2d", lambda a: {**a, "obs_mean": a["obs_mean"].reshape(2, 5)}, "obs_mean.*shape"),
     ("obs_var_short", lambda a: {**a, "obs_var": a["obs_var"][:-1]}, "obs_var.*shape"),
@@ -81,14 +86,21 @@ ARRAY_FAULTS: list[tuple[str, Callable[[Arrays], Arrays], str]] = [
     ("w1_narrow", lambda a: {**a, "w1": a["w1"][:, :-1]}, "w1.*shape"),
     ("w_out_narrow", lambda a: {**a, "w_out": a["w_out"][:, :-1]}, "w_out.*shape"),
     ("b_out_short", lambda a: {**a, "b_out": a["b_out"][:-1]}, "b_out.*shape"),
-    ("two_actions_for_three", lambda a: {**a, "w_out": a["w_out"][:2], "b_out": a["b_out"][:2]},
-     "2 actions.*3"),
-    ("observations_for_another_layout",
-     lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(innovation_power=False)),
-     "10 observations.*8"),
-    *[(f"{k}_{name}", _poke(k, v), f"{k}.*(finite|NaN|inf)")
-      for k in ("obs_mean", "obs_var", "w0", "b1", "w_out", "b_out", "obs_clip", "obs_eps")
-      for name, v in (("nan", np.nan), ("inf", np.inf), ("-inf", -np.inf))],
+    (
+        "two_actions_for_three",
+        lambda a: {**a, "w_out": a["w_out"][:2], "b_out": a["b_out"][:2]},
+        "2 actions.*3",
+    ),
+    (
+        "observations_for_another_layout",
+        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(innovation_power=False)),
+        "10 observations.*8",
+    ),
+    *[
+        (f"{k}_{name}", _poke(k, v), f"{k}.*(finite|NaN|inf)")
+        for k in ("obs_mean", "obs_var", "w0", "b1", "w_out", "b_out", "obs_clip", "obs_eps")
+        for name, v in (("nan", np.nan), ("inf", np.inf), ("-inf", -np.inf))
+    ],
     ("obs_var_negative", _poke("obs_var", -1.0, 3), "obs_var.*> 0"),
     ("obs_var_zero", _poke("obs_var", 0.0, 3), "obs_var.*> 0"),
     ("obs_eps_negative", _set("obs_eps", -1e-8), "obs_eps.*≥ 0"),
@@ -103,13 +115,22 @@ ARRAY_FAULTS: list[tuple[str, Callable[[Arrays], Arrays], str]] = [
     ("meta_a_list", _set("meta", "[]"), "meta.*object"),
     ("meta_nan", _set("meta", '{"env_kwargs": {"scale_limit": NaN}}'), "meta.*NaN"),
     ("meta_nested_deeply", _set("meta", "[" * 100_000 + "]" * 100_000), "meta.*nested"),
-    ("env_kwargs_a_list", lambda a: _with_meta(a, lambda m: m.update(env_kwargs=[1])),
-     "env_kwargs"),
-    ("env_kwargs_unknown_key",
-     lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(extra_s=1)), "extra_s"),
-    ("env_kwargs_bad_value",
-     lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(scale_limit=0.5)), "scale_limit"),
-]  # fmt: skip
+    (
+        "env_kwargs_a_list",
+        lambda a: _with_meta(a, lambda m: m.update(env_kwargs=[1])),
+        "env_kwargs",
+    ),
+    (
+        "env_kwargs_unknown_key",
+        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(extra_s=1)),
+        "extra_s",
+    ),
+    (
+        "env_kwargs_bad_value",
+        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(scale_limit=0.5)),
+        "scale_limit",
+    ),
+]
 
 
 def _zip(members: dict[str, bytes]) -> bytes:
@@ -240,8 +261,18 @@ def test_cli_evaluate_with_a_broken_policy_exits_2_with_one_line(tmp_path, capsy
     faults = {c: d for c, d, _ in BYTE_FAULTS}
     mutations = {c: m for c, m, _ in ARRAY_FAULTS}
     path.write_bytes(faults[case] if case in faults else _npz(mutations[case](_shipped())))
-    args = ["evaluate", "--scenario", "nonstationary", "--policies", f"ppo:{path}",
-            "--episodes", "1", "--out", str(tmp_path / "out"), "--quiet"]  # fmt: skip
+    args = [
+        "evaluate",
+        "--scenario",
+        "nonstationary",
+        "--policies",
+        f"ppo:{path}",
+        "--episodes",
+        "1",
+        "--out",
+        str(tmp_path / "out"),
+        "--quiet",
+    ]
     assert main(args) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and str(path) in err and "Traceback" not in err
@@ -287,8 +318,9 @@ def test_a_valid_policy_still_loads_and_predicts_as_before():
     np.testing.assert_array_equal(policy.mean, arrays["obs_mean"])
     np.testing.assert_array_equal(policy.std, np.sqrt(arrays["obs_var"] + arrays["obs_eps"]))
     obs = np.linspace(-2.0, 2.0, 10)
-    x = np.clip((obs - arrays["obs_mean"]) / np.sqrt(arrays["obs_var"] + arrays["obs_eps"]),
-                -10.0, 10.0)  # fmt: skip
+    x = np.clip(
+        (obs - arrays["obs_mean"]) / np.sqrt(arrays["obs_var"] + arrays["obs_eps"]), -10.0, 10.0
+    )
     for i in range(2):
         x = np.tanh(x @ arrays[f"w{i}"].T + arrays[f"b{i}"])
     want = np.clip(x @ arrays["w_out"].T + arrays["b_out"], -1, 1).astype(np.float32)

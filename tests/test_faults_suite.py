@@ -27,10 +27,30 @@ from experiments.fault_cases import BAD, FORMATS, OK, Case, clean_bytes, setup
 from experiments.fault_suite import check, generate, run_case
 
 CASES = generate()
-CLASSES = {"file", "missing", "duplicated", "mistyped", "mis-unit", "NaN/inf", "paths",
-           "option values", "hostile files", "clean"}  # fmt: skip
-COMMANDS = {"simulate", "info", "compensate", "reproduce-paper", "evaluate", "train", "discover",
-            "demo", "convert", "bench"}  # fmt: skip
+CLASSES = {
+    "file",
+    "missing",
+    "duplicated",
+    "mistyped",
+    "mis-unit",
+    "NaN/inf",
+    "paths",
+    "option values",
+    "hostile files",
+    "clean",
+}
+COMMANDS = {
+    "simulate",
+    "info",
+    "compensate",
+    "reproduce-paper",
+    "evaluate",
+    "train",
+    "discover",
+    "demo",
+    "convert",
+    "bench",
+}
 #: Cases run again through the installed ``aeromag`` script: a refusal, a reader's error, an
 #: option check, a path hazard, a hostile file and an accepted file with NaN samples.
 IN_A_PROCESS = (
@@ -53,7 +73,8 @@ def _slow(case: Case) -> bool:
     if case.argv[0] != "compensate":
         return False
     in_text_or_mat = case.fault_class in ("missing", "duplicated", "mistyped") and not (
-        case.argv[1].endswith(".h5"))  # fmt: skip
+        case.argv[1].endswith(".h5")
+    )
     return in_text_or_mat or "inf_burst/" in case.name or "neg_inf/" in case.name
 
 
@@ -61,8 +82,10 @@ def _run(case: Case) -> list[str]:
     """The checker's failures of ``case``, one line each with the command and what it printed."""
     with tempfile.TemporaryDirectory() as tmp:
         result = run_case(case, Path(tmp, "case"))
-    said = f"aeromag {' '.join(case.argv)} → exit {result.code} ({result.outcome}, expected " \
-           f"{case.expect}); stderr: {result.stderr.strip()[-400:]!r}"  # fmt: skip
+    said = (
+        f"aeromag {' '.join(case.argv)} → exit {result.code} ({result.outcome}, expected "
+        f"{case.expect}); stderr: {result.stderr.strip()[-400:]!r}"
+    )
     if result.outcome == "skipped":
         return ["skipped"]
     return [f"{kind}: {detail} [{said}]" for kind, detail in result.failures]
@@ -74,8 +97,10 @@ def test_the_suite_covers_every_class_and_command_with_unique_ids() -> None:
     assert {c.fault_class for c in CASES} == CLASSES
     assert {c.argv[0] for c in CASES} == COMMANDS
     assert sum(not _slow(c) for c in CASES) >= 500  # the issue's minimum, in the default run
-    assert all(c.expect in ("any", "refused") or set(c.expect.split("|")) <= {"refused", "warned",
-               "clean"} for c in CASES)  # fmt: skip
+    assert all(
+        c.expect in ("any", "refused") or set(c.expect.split("|")) <= {"refused", "warned", "clean"}
+        for c in CASES
+    )
 
 
 @pytest.mark.parametrize(
@@ -94,8 +119,9 @@ def test_a_real_process_exits_alike_without_a_traceback(case_id: str, tmp_path: 
     case.setup(tmp_path)
     argv = [a.replace("@/", f"{tmp_path}/") for a in case.argv]
     exe = Path(sys.executable).with_name("aeromag")
-    run = subprocess.run([str(exe), *argv], cwd=tmp_path, capture_output=True, text=True,
-                         timeout=300, check=False)  # fmt: skip
+    run = subprocess.run(
+        [str(exe), *argv], cwd=tmp_path, capture_output=True, text=True, timeout=300, check=False
+    )
     assert "Traceback" not in run.stderr, run.stderr[-3000:]
     assert run.returncode in (0, 2), run.stderr[-3000:]
     assert run.returncode == run_case(case, tmp_path / "in-process").code
@@ -147,8 +173,9 @@ def test_any_option_value_runs_or_is_refused(option: str, value: float | int | s
     }.get(option, (f"{option}={text}",))
     method = "kf" if option == "--r-std-nt" else "tl"
     argv = ("compensate", "@/in.h5", "--method", method, "--out", "@/out", *extra)
-    failures = _run(Case("hypothesis", "value", argv, partial(setup, ops=("in:in.h5",)), "any",
-                         COMPENSATED))  # fmt: skip
+    failures = _run(
+        Case("hypothesis", "value", argv, partial(setup, ops=("in:in.h5",)), "any", COMPENSATED)
+    )
     assert not failures, "\n".join(failures)
 
 
@@ -156,8 +183,10 @@ def test_the_table_counts_every_case_once(tmp_path: Path) -> None:
     """The README table of :func:`experiments.fault_suite.main` on three cases of known outcome."""
     from experiments.fault_suite import table
 
-    picked = [next(c for c in CASES if c.id == i) for i in ("missing/tt/h5/info",
-              "NaN/inf/flux_a_y_nan_burst/h5/info", "clean/clean/h5/info")]  # fmt: skip
+    picked = [
+        next(c for c in CASES if c.id == i)
+        for i in ("missing/tt/h5/info", "NaN/inf/flux_a_y_nan_burst/h5/info", "clean/clean/h5/info")
+    ]
     results = [run_case(c, tmp_path / str(k)) for k, c in enumerate(picked)]
     rows = {
         line.split(" | ")[0][2:]: line.split(" | ")[1:5] for line in table(results).splitlines()

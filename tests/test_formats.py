@@ -118,9 +118,24 @@ def test_xyz_in_the_sgl_layout_reads_under_our_names(tmp_path: Path) -> None:
     path = tmp_path / "Flt1002.xyz"
     path.write_bytes(SGL_XYZ)
     flight, notes = load_flight(path, needs=("tt", "flux_a", "mag_1_uc", "attitude"))
-    assert flight.names == ["tt", "lat", "lon", "utm_z", "mag_1_uc", "mag_1_c", "flux_a_x",
-                            "flux_a_y", "flux_a_z", "ins_pitch", "ins_roll", "ins_yaw", "baro",
-                            "diurnal", "cur_com_1", "line"]  # fmt: skip
+    assert flight.names == [
+        "tt",
+        "lat",
+        "lon",
+        "utm_z",
+        "mag_1_uc",
+        "mag_1_c",
+        "flux_a_x",
+        "flux_a_y",
+        "flux_a_z",
+        "ins_pitch",
+        "ins_roll",
+        "ins_yaw",
+        "baro",
+        "diurnal",
+        "cur_com_1",
+        "line",
+    ]
     np.testing.assert_array_equal(flight["tt"], [45100.0, 45100.1, 45100.2, 45100.3])
     assert np.isnan(flight["mag_1_uc"][1]) and np.isnan(flight["diurnal"][1])
     assert flight["mag_1_uc"][2] == 52314.8 and flight["cur_com_1"][1] == 0.5  # after the tab
@@ -210,13 +225,22 @@ def test_xyz_writer_layout(tmp_path: Path) -> None:
 
 def test_mat5_single_struct_in_magnav_layout(tmp_path: Path) -> None:
     n = 5
-    traj = {"tt": np.arange(n) / 10.0, "lat": np.full(n, 45.0), "lon": np.full(n, -75.0),
-            "alt": np.full(n, 3000.0), "roll": np.linspace(0, 1, n), "pitch": np.zeros(n),
-            "yaw": np.linspace(0, 90, n), "Cnb": np.zeros((3, 3, n)), "dt": 0.1}  # fmt: skip
+    traj = {
+        "tt": np.arange(n) / 10.0,
+        "lat": np.full(n, 45.0),
+        "lon": np.full(n, -75.0),
+        "alt": np.full(n, 3000.0),
+        "roll": np.linspace(0, 1, n),
+        "pitch": np.zeros(n),
+        "yaw": np.linspace(0, 90, n),
+        "Cnb": np.zeros((3, 3, n)),
+        "dt": 0.1,
+    }
     path = tmp_path / "traj.mat"
     with open(path, "wb") as fh:
-        scipy.io.savemat(fh, {"traj": {k: np.atleast_2d(v).T if np.ndim(v) == 1 else v
-                                       for k, v in traj.items()}})  # fmt: skip
+        scipy.io.savemat(
+            fh, {"traj": {k: np.atleast_2d(v).T if np.ndim(v) == 1 else v for k, v in traj.items()}}
+        )
     flight, notes = load_flight(path, needs=("position", "attitude"))
     assert flight.names == ["tt", "lat", "lon", "alt", "ins_roll", "ins_pitch", "ins_yaw"]
     np.testing.assert_array_equal(flight["ins_yaw"], traj["yaw"])
@@ -229,8 +253,13 @@ def test_mat5_single_struct_in_magnav_layout(tmp_path: Path) -> None:
 def test_mat5_top_level_variables_and_char_attribute(tmp_path: Path) -> None:
     path = tmp_path / "flight.mat"
     with open(path, "wb") as fh:
-        variables = {"tt": np.arange(4.0), "mag_1_uc": np.full(4, 5e4), "N": 4, "info": "Flt2001",
-                     "cells": np.array([1, "a"], dtype=object)}  # fmt: skip
+        variables = {
+            "tt": np.arange(4.0),
+            "mag_1_uc": np.full(4, 5e4),
+            "N": 4,
+            "info": "Flt2001",
+            "cells": np.array([1, "a"], dtype=object),
+        }
         scipy.io.savemat(fh, variables)
     flight, notes = load_flight(path)
     assert flight.names == ["tt", "mag_1_uc"]
@@ -240,10 +269,13 @@ def test_mat5_top_level_variables_and_char_attribute(tmp_path: Path) -> None:
 
 def test_mat73_written_with_h5py(tmp_path: Path) -> None:
     n = 6
-    columns = {"tt": np.arange(n, dtype=float).reshape(n, 1),  # (n, 1)
-               "utmZ": np.full((1, n), 400.0),  # (1, n), MagNav.jl's older name
-               "mag_1_uc": np.linspace(5e4, 5.1e4, n).reshape(n, 1),
-               "dt": np.array([[0.1]]), "info": "Flt1003"}  # fmt: skip
+    columns = {
+        "tt": np.arange(n, dtype=float).reshape(n, 1),  # (n, 1)
+        "utmZ": np.full((1, n), 400.0),  # (1, n), MagNav.jl's older name
+        "mag_1_uc": np.linspace(5e4, 5.1e4, n).reshape(n, 1),
+        "dt": np.array([[0.1]]),
+        "info": "Flt1003",
+    }
     for struct in (None, "xyz"):
         path = write_mat73(tmp_path / f"v73_{struct}.mat", columns, struct)
         flight, notes = load_flight(path)
@@ -307,10 +339,13 @@ def test_h5_magnav_older_names_and_a_clash(tmp_path: Path) -> None:
         for name in ("tt", "tie_line", "utmZ", "ins_azim", "ins_yaw", "pitch_rt", "vol_servo"):
             f[name] = np.arange(n, dtype=float) + len(name)
     flight, notes = load_flight(path)
-    assert flight.names == ["ins_azim", "ins_yaw", "pitch_rate", "line", "tt", "utm_z",
-                            "vol_srvo"]  # fmt: skip
-    assert flight.attrs["aliases"] == {"pitch_rate": "pitch_rt", "line": "tie_line",
-                                       "utm_z": "utmZ", "vol_srvo": "vol_servo"}  # fmt: skip
+    assert flight.names == ["ins_azim", "ins_yaw", "pitch_rate", "line", "tt", "utm_z", "vol_srvo"]
+    assert flight.attrs["aliases"] == {
+        "pitch_rate": "pitch_rt",
+        "line": "tie_line",
+        "utm_z": "utmZ",
+        "vol_srvo": "vol_servo",
+    }
     np.testing.assert_array_equal(flight["ins_yaw"], np.arange(n) + 7.0)  # canonical kept
     assert any("both ins_yaw and its alias ins_azim present" in n for n in notes)
 
@@ -332,9 +367,16 @@ def test_alias_table_is_consistent() -> None:
 
 @pytest.mark.parametrize(
     ("original", "canonical"),
-    [("TT", "tt"), ("Lat", "lat"), ("UNCOMPMAG12", "mag_12_uc"), ("FluxC_Tot", "flux_c_t"),
-     ("V_RESn", "vol_res_n"), ("utmz", "utm_z"), ("unknown_channel", "unknown_channel")],
-)  # fmt: skip
+    [
+        ("TT", "tt"),
+        ("Lat", "lat"),
+        ("UNCOMPMAG12", "mag_12_uc"),
+        ("FluxC_Tot", "flux_c_t"),
+        ("V_RESn", "vol_res_n"),
+        ("utmz", "utm_z"),
+        ("unknown_channel", "unknown_channel"),
+    ],
+)
 def test_alias_matching_ignores_case(original: str, canonical: str) -> None:
     assert canonical_name(original) == canonical
 
@@ -358,9 +400,16 @@ def test_csv_with_upper_case_names(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    ("written", "named"), [(".h5", ".csv"), (".csv", ".xyz"), (".xyz", ".csv"), (".mat", ".h5"),
-                           (".csv", ".dat"), (".h5", "")]
-)  # fmt: skip
+    ("written", "named"),
+    [
+        (".h5", ".csv"),
+        (".csv", ".xyz"),
+        (".xyz", ".csv"),
+        (".mat", ".h5"),
+        (".csv", ".dat"),
+        (".h5", ""),
+    ],
+)
 def test_format_is_found_from_the_content(tmp_path: Path, written: str, named: str) -> None:
     flight = awkward_flight()
     path = write_flight(flight, tmp_path / f"f{written}").rename(tmp_path / f"misnamed{named}")
@@ -409,9 +458,12 @@ def test_truncated_mat73_gives_one_line_error(tmp_path: Path, keep: int) -> None
 
 @pytest.mark.parametrize(
     ("name", "suffix", "words"),
-    [("UTM-Z", ".mat", ["MAT", "UTM-Z"]), ("two words", ".xyz", ["XYZ", "two words"]),
-     ("aeromag_attrs", ".mat", ["aeromag_attrs"])],
-)  # fmt: skip
+    [
+        ("UTM-Z", ".mat", ["MAT", "UTM-Z"]),
+        ("two words", ".xyz", ["XYZ", "two words"]),
+        ("aeromag_attrs", ".mat", ["aeromag_attrs"]),
+    ],
+)
 def test_writers_refuse_names_their_format_cannot_hold(
     tmp_path: Path, name: str, suffix: str, words: list[str]
 ) -> None:
@@ -455,9 +507,12 @@ def test_convert_from_vendor_xyz_keeps_the_originals_recorded(tmp_path: Path) ->
 
 @pytest.mark.parametrize(
     ("out_name", "words"),
-    [("in.h5", ["is the input file"]), ("out.txt", ["unsupported output type '.txt'"]),
-     ("missing/../in.h5", ["is the input file"])],
-)  # fmt: skip
+    [
+        ("in.h5", ["is the input file"]),
+        ("out.txt", ["unsupported output type '.txt'"]),
+        ("missing/../in.h5", ["is the input file"]),
+    ],
+)
 def test_convert_refuses_to_overwrite_or_guess(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], out_name: str, words: list[str]
 ) -> None:

@@ -41,9 +41,13 @@ def _track(n: int = 60) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _crust(seed: int = 1, main_field_ned: np.ndarray | None = None) -> cr.CrustField:
     rng = np.random.default_rng(seed)
     return cr.random_crust(
-        *_track(), rng, rms_nt=50.0, reference_altitude_m=400.0, main_field_ned=main_field_ned,
+        *_track(),
+        rng,
+        rms_nt=50.0,
+        reference_altitude_m=400.0,
+        main_field_ned=main_field_ned,
         **SPECTRUM,
-    )  # fmt: skip
+    )
 
 
 def _rel_rms(a: np.ndarray, b: np.ndarray) -> float:
@@ -96,9 +100,15 @@ def test_buried_dipole_matches_its_closed_form():
     axis = -size / 2 * spacing + spacing * np.arange(size)
     n, e = np.meshgrid(axis, axis, indexing="ij")
     ground = dipole(n, e, np.zeros_like(n))
-    crust = cr.CrustField(spectrum=np.fft.rfft2(ground[..., 2]), shape=(size, size),
-                          spacing_m=spacing, origin_m=(axis[0], axis[0]), lat0_rad=LAT0,
-                          lon0_rad=LON0, depth_to_source_m=depth)  # fmt: skip
+    crust = cr.CrustField(
+        spectrum=np.fft.rfft2(ground[..., 2]),
+        shape=(size, size),
+        spacing_m=spacing,
+        origin_m=(axis[0], axis[0]),
+        lat0_rad=LAT0,
+        lon0_rad=LON0,
+        depth_to_source_m=depth,
+    )
     for h in (0.0, 600.0):
         truth = np.moveaxis(dipole(n, e, np.full_like(n, h)), -1, 0)
         assert np.abs(cr.field_grid(crust, h) - truth).max() < 0.01 * np.abs(truth).max()
@@ -115,9 +125,15 @@ def test_horizontal_and_vertical_are_a_hilbert_pair():
     ``scipy.signal.hilbert``); for any field, the Riesz pair keeps B_n² + B_e² = B_d² on average."""
     profile = np.random.default_rng(3).standard_normal(512)
     grid = np.tile(profile[:, None], (1, 8))
-    crust = cr.CrustField(spectrum=np.fft.rfft2(grid), shape=grid.shape, spacing_m=100.0,
-                          origin_m=(0.0, 0.0), lat0_rad=LAT0, lon0_rad=LON0,
-                          depth_to_source_m=100.0)  # fmt: skip
+    crust = cr.CrustField(
+        spectrum=np.fft.rfft2(grid),
+        shape=grid.shape,
+        spacing_m=100.0,
+        origin_m=(0.0, 0.0),
+        lat0_rad=LAT0,
+        lon0_rad=LON0,
+        depth_to_source_m=100.0,
+    )
     b_n, b_e, b_d = cr.field_grid(crust, 300.0)
     assert np.abs(b_e).max() < 1e-12 * np.abs(b_d).max()
     np.testing.assert_allclose(b_n[:, 0], -np.imag(hilbert(b_d[:, 0])), atol=1e-4 * b_d.std())
@@ -142,8 +158,12 @@ def test_rms_at_the_reference_and_its_fall_with_altitude():
         ratios.append([np.sqrt(np.mean(tmi[h] ** 2)) / 50.0 for h in (1000.0, 3000.0)])
 
     def power(h: float) -> float:
-        return quad(lambda k: cr.source_spectrum(np.array(k), **SPECTRUM) * np.exp(-2 * k * h)
-                    * k, 0, np.inf, limit=500)[0]  # fmt: skip
+        return quad(
+            lambda k: cr.source_spectrum(np.array(k), **SPECTRUM) * np.exp(-2 * k * h) * k,
+            0,
+            np.inf,
+            limit=500,
+        )[0]
 
     expected = [np.sqrt(power(h) / power(400.0)) for h in (1000.0, 3000.0)]
     assert 0.3 < expected[1] < 0.5 < expected[0] < 0.9  # the fall is large: the test can fail
@@ -187,14 +207,28 @@ def test_same_seed_same_ground_and_position_only():
 def test_tracks_the_grid_cannot_serve_are_refused():
     lat, lon, alt = _track()
     with pytest.raises(ValueError, match="below the crustal sources' top"):
-        cr.random_crust(lat, lon, alt - 700.0, np.random.default_rng(0), rms_nt=50.0,
-                        reference_altitude_m=400.0, **SPECTRUM)  # fmt: skip
+        cr.random_crust(
+            lat,
+            lon,
+            alt - 700.0,
+            np.random.default_rng(0),
+            rms_nt=50.0,
+            reference_altitude_m=400.0,
+            **SPECTRUM,
+        )
     wide = np.linspace(0.0, np.deg2rad(10.0), lat.size)  # 10⁷ nodes at 120 m
     with pytest.raises(
         ValueError, match="spans 1121 km × 784 km: too large for a crustal grid down to 400 m"
     ):
-        cr.random_crust(lat + wide, lon + wide, alt, np.random.default_rng(0), rms_nt=50.0,
-                        reference_altitude_m=400.0, **SPECTRUM)  # fmt: skip
+        cr.random_crust(
+            lat + wide,
+            lon + wide,
+            alt,
+            np.random.default_rng(0),
+            rms_nt=50.0,
+            reference_altitude_m=400.0,
+            **SPECTRUM,
+        )
 
 
 @pytest.mark.parametrize(
@@ -227,8 +261,9 @@ def test_geology_config_round_trip_and_overrides():
 
 def _flight(name: str, seed: int, geology: GeologyConfig | None, **trajectory) -> Flight:
     cfg = preset(name)
-    cfg = dataclasses.replace(cfg, trajectory=dataclasses.replace(cfg.trajectory, **trajectory),
-                              geology=geology)  # fmt: skip
+    cfg = dataclasses.replace(
+        cfg, trajectory=dataclasses.replace(cfg.trajectory, **trajectory), geology=geology
+    )
     return simulate_flight(cfg, seed)
 
 
@@ -256,8 +291,9 @@ def test_the_ground_reaches_every_sensor_and_nothing_else():
     for k in ("lat", "lon", "alt", "ins_roll", "ins_yaw", "diurnal", "line"):
         assert np.array_equal(off[k], on[k]), k
     assert on.attrs["truth_coefficients"] == off.attrs["truth_coefficients"]
-    np.testing.assert_allclose(on.vector("truth_earth") - crust_b, off.vector("truth_earth"),
-                               atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(
+        on.vector("truth_earth") - crust_b, off.vector("truth_earth"), atol=1e-9
+    )
     noise = [
         f.vector("flux_a") - f.vector("truth_earth") - f.vector("truth_interf") for f in (on, off)
     ]
@@ -274,10 +310,14 @@ def _crossing_flight(seed: int) -> Flight:
     lat = np.r_[LAT0 + np.linspace(-d_lat, d_lat, n), np.full(n, LAT0)]
     lon = np.r_[np.full(n, LON0), LON0 + np.linspace(-d_lon, d_lon, n)]
     fields = {
-        "tt": np.arange(2 * n) * 0.1, "lat": np.rad2deg(lat), "lon": np.rad2deg(lon),
-        "alt": np.full(2 * n, 400.0), "ins_roll": np.r_[np.full(n, 3.0), np.full(n, -4.0)],
-        "ins_pitch": np.full(2 * n, 1.0), "ins_yaw": np.r_[np.zeros(n), np.full(n, 90.0)],
-    }  # fmt: skip
+        "tt": np.arange(2 * n) * 0.1,
+        "lat": np.rad2deg(lat),
+        "lon": np.rad2deg(lon),
+        "alt": np.full(2 * n, 400.0),
+        "ins_roll": np.r_[np.full(n, 3.0), np.full(n, -4.0)],
+        "ins_pitch": np.full(2 * n, 1.0),
+        "ins_yaw": np.r_[np.zeros(n), np.full(n, 90.0)],
+    }
     replay = Flight(fields=fields, attrs={"date": "2026-06-01T14:00:00"})
     cfg = dataclasses.replace(preset("paper"), geology=GeologyConfig(seed=21))
     return simulate_flight(cfg, seed, replay=replay)
@@ -345,10 +385,15 @@ def test_flights_of_other_patterns_lengths_and_seeds_see_the_same_ground():
     first = _flight("nominal", 1, AREA, pattern="calibration+survey", duration_s=1200.0)
     lines = np.flatnonzero(first["line"] >= 1001)[::-1][:2000]  # backwards along the lines
     assert lines.size == 2000 and np.ptp(first["alt"]) > 2000  # box and lines, lines only
-    fields = {"tt": np.arange(lines.size) * 0.1, "lat": first["lat"][lines],
-              "lon": first["lon"][lines], "alt": first["alt"][lines],
-              "ins_roll": np.full(lines.size, 5.0), "ins_pitch": np.full(lines.size, -2.0),
-              "ins_yaw": np.full(lines.size, 30.0)}  # fmt: skip
+    fields = {
+        "tt": np.arange(lines.size) * 0.1,
+        "lat": first["lat"][lines],
+        "lon": first["lon"][lines],
+        "alt": first["alt"][lines],
+        "ins_roll": np.full(lines.size, 5.0),
+        "ins_pitch": np.full(lines.size, -2.0),
+        "ins_yaw": np.full(lines.size, 30.0),
+    }
     replay = Flight(fields=fields, attrs={"date": "2027-03-01T09:00:00"})
     second = simulate_flight(dataclasses.replace(preset("paper"), geology=AREA), 2, replay=replay)
     seen = _ned_crust(second)
@@ -365,12 +410,17 @@ def test_each_flight_samples_the_areas_exact_fourier_series():
         _flight("paper", 4, AREA, pattern="calibration+survey", duration_s=1500.0),
     ]
     center = (AREA.area_center_lat_deg or 45.3, AREA.area_center_lon_deg or -76.0)
-    ground = crust_area.area_ground(7, center, 100.0, 300.0, rms_nt=50.0,
-                                    reference_altitude_m=400.0, **SPECTRUM)  # fmt: skip
+    ground = crust_area.area_ground(
+        7, center, 100.0, 300.0, rms_nt=50.0, reference_altitude_m=400.0, **SPECTRUM
+    )
     for f in flights:
         pick = np.linspace(0, f.n - 1, 12).astype(int)
-        north, east = cr.local_north_east(np.deg2rad(f["lat"][pick]), np.deg2rad(f["lon"][pick]),
-                                          ground.crust.lat0_rad, ground.crust.lon0_rad)  # fmt: skip
+        north, east = cr.local_north_east(
+            np.deg2rad(f["lat"][pick]),
+            np.deg2rad(f["lon"][pick]),
+            ground.crust.lat0_rad,
+            ground.crust.lon0_rad,
+        )
         exact = _exact(ground.crust, north, east, f["alt"][pick])
         assert np.abs(exact).max() > 10.0
         np.testing.assert_allclose(_ned_crust(f)[pick], exact, atol=0.05)
@@ -380,8 +430,9 @@ def test_the_areas_fixed_levels_match_the_exact_fourier_series():
     """Splines across and Hermite between the levels anchored at ``min_altitude_m`` (not at the
     points' own altitudes): within 0.05 nT at 40 points from 300 to 3000 m, as for a track's
     grid; the levels of two altitude ranges coincide where they overlap."""
-    ground = crust_area.area_ground(3, (45.3, -76.0), 10.0, 300.0, rms_nt=50.0,
-                                    reference_altitude_m=400.0, **SPECTRUM)  # fmt: skip
+    ground = crust_area.area_ground(
+        3, (45.3, -76.0), 10.0, 300.0, rms_nt=50.0, reference_altitude_m=400.0, **SPECTRUM
+    )
     rng = np.random.default_rng(11)
     north, east = rng.uniform(-5000.0, 5000.0, (2, 40))
     alt = rng.uniform(300.0, 3000.0, 40)
@@ -404,16 +455,25 @@ def test_a_seeded_ground_is_drawn_once_for_many_flights():
 @pytest.mark.parametrize(
     ("geology", "trajectory", "words"),
     [
-        (GeologyConfig(seed=1, area_size_km=10.0), {"pattern": "survey", "duration_s": 300.0},
-         r"the track leaves the 10 km geology area around \(45.3000°, -76.0000°\) by 6\.03 km: "
-         "set GeologyConfig.area_size_km or area_center_lat_deg/area_center_lon_deg"),
-        (GeologyConfig(seed=1, area_center_lat_deg=46.0, area_center_lon_deg=-76.0),
-         {"pattern": "survey", "duration_s": 60.0}, "leaves the 100 km geology area around "
-         r"\(46\.0000°, -76\.0000°\) by 2[78]\.\d\d km"),
-        (GeologyConfig(seed=1, min_altitude_m=500.0), {"pattern": "survey", "duration_s": 60.0},
-         "the track flies down to 400 m, below GeologyConfig.min_altitude_m = 500 m"),
+        (
+            GeologyConfig(seed=1, area_size_km=10.0),
+            {"pattern": "survey", "duration_s": 300.0},
+            r"the track leaves the 10 km geology area around \(45.3000°, -76.0000°\) by 6\.03 km: "
+            "set GeologyConfig.area_size_km or area_center_lat_deg/area_center_lon_deg",
+        ),
+        (
+            GeologyConfig(seed=1, area_center_lat_deg=46.0, area_center_lon_deg=-76.0),
+            {"pattern": "survey", "duration_s": 60.0},
+            "leaves the 100 km geology area around "
+            r"\(46\.0000°, -76\.0000°\) by 2[78]\.\d\d km",
+        ),
+        (
+            GeologyConfig(seed=1, min_altitude_m=500.0),
+            {"pattern": "survey", "duration_s": 60.0},
+            "the track flies down to 400 m, below GeologyConfig.min_altitude_m = 500 m",
+        ),
     ],
-)  # fmt: skip
+)
 def test_a_track_the_area_does_not_serve_is_refused(geology, trajectory, words):
     with pytest.raises(ValueError, match=words) as err:
         _flight("nominal", 0, geology, **trajectory)
@@ -428,10 +488,13 @@ def test_a_track_the_area_does_not_serve_is_refused(geology, trajectory, words):
         ({"area_center_lat_deg": 0.0, "area_center_lon_deg": 400.0}, "out of range: 400.0"),
         ({"area_size_km": 0.0}, "GeologyConfig.area_size_km must be > 0"),
         ({"min_altitude_m": float("nan")}, "GeologyConfig.min_altitude_m must be ≥ 0"),
-        ({"area_size_km": 300.0}, "GeologyConfig.area_size_km: a 300 km area down to 300 m "
-         r"needs 3200 × 3200 crustal grid nodes at 100 m, more than 4194304"),
+        (
+            {"area_size_km": 300.0},
+            "GeologyConfig.area_size_km: a 300 km area down to 300 m "
+            r"needs 3200 × 3200 crustal grid nodes at 100 m, more than 4194304",
+        ),
     ],
-)  # fmt: skip
+)
 def test_geology_area_errors_are_one_line(fields, words):
     with pytest.raises(ConfigError, match=words) as err:
         GeologyConfig(**fields)
@@ -439,8 +502,10 @@ def test_geology_area_errors_are_one_line(fields, words):
 
 
 def test_geology_area_round_trip():
-    cfg = with_overrides(preset("paper"), {"geology": {"seed": 3, "area_center_lat_deg": 50.0,
-                                                       "area_center_lon_deg": 10.0}})  # fmt: skip
+    cfg = with_overrides(
+        preset("paper"),
+        {"geology": {"seed": 3, "area_center_lat_deg": 50.0, "area_center_lon_deg": 10.0}},
+    )
     assert from_json(SimulationConfig, to_json(cfg)) == cfg
 
 

@@ -1,6 +1,7 @@
 """Tests of the package's layout: one direction of imports, no circles, no private names across
-subpackages, modules and functions of a readable size, a light ``import aeromag_env`` and a public
-API that resolves. The contracts themselves are in ``pyproject.toml`` (``[tool.importlinter]``)."""
+subpackages, few positional parameters, ``ruff format`` deciding the layout (``# fmt: skip`` only
+for aligned tables), a light ``import aeromag_env`` and a public API that resolves. The contracts
+themselves are in ``pyproject.toml`` (``[tool.importlinter]``)."""
 
 from __future__ import annotations
 
@@ -16,15 +17,10 @@ import aeromag_env
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("aeromag_env", "agents")
-#: Module and function sizes the README promises (lines, docstrings included).
-MAX_MODULE_LINES, MAX_FUNCTION_LINES = 400, 60
 #: Most positional parameters a function takes; kernels group their arrays in NamedTuples.
 MAX_PARAMETERS = 12
-#: A compiled kernel over MAX_FUNCTION_LINES must say in a comment that it unrolls on purpose.
-UNROLLED = "unrolled on purpose"
-#: Still over the limits when the layout was re-laid (issue 18), to be split: this list may only
-#: shrink (a test below fails when an entry is no longer needed).
-KNOWN_OVERSIZE: set[str] = set()
+#: ``ruff format`` decides the layout; ``# fmt: skip`` is for aligned tables only (STYLE.md).
+MAX_FMT_SKIPS = 20
 
 
 def _sources() -> list[Path]:
@@ -107,36 +103,32 @@ def test_no_private_name_imported_across_subpackages() -> None:
     assert not offences, offences
 
 
-def _oversize() -> set[str]:
-    """Modules over MAX_MODULE_LINES, functions over MAX_FUNCTION_LINES (without the unrolling
-    comment) and functions with more than MAX_PARAMETERS positional parameters."""
-    found = set()
+def _too_many_parameters() -> list[str]:
+    """Functions with more than MAX_PARAMETERS positional parameters."""
+    found = []
     for path in _sources():
-        text = path.read_text(encoding="utf-8")
-        lines = text.splitlines()
-        where = str(path.relative_to(ROOT))
-        if len(lines) > MAX_MODULE_LINES:
-            found.add(where)
-        for node in ast.walk(ast.parse(text)):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 continue
-            assert node.end_lineno is not None
-            body = lines[node.lineno - 1 : node.end_lineno]
-            if len(body) > MAX_FUNCTION_LINES and not any(UNROLLED in line for line in body):
-                found.add(f"{where}:{node.name}")
             if len(node.args.posonlyargs) + len(node.args.args) > MAX_PARAMETERS:
-                found.add(f"{where}:{node.name} (parameters)")
+                found.append(f"{path.relative_to(ROOT)}:{node.name}")
     return found
 
 
-def test_modules_and_functions_are_of_a_readable_size() -> None:
-    new = _oversize() - KNOWN_OVERSIZE
-    assert not new, f"over the size limits (split them): {sorted(new)}"
+def test_functions_take_few_positional_parameters() -> None:
+    assert not _too_many_parameters(), _too_many_parameters()
 
 
-def test_known_oversize_list_only_shrinks() -> None:
-    fixed = KNOWN_OVERSIZE - _oversize()
-    assert not fixed, f"no longer over the limits, remove from KNOWN_OVERSIZE: {sorted(fixed)}"
+def test_ruff_format_decides_the_layout() -> None:
+    """Module size is a question for review, not a count; packing lines under ``# fmt: skip``
+    to meet one is what this guards against."""
+    skips = [
+        f"{path.relative_to(ROOT)}:{i}"
+        for path in _sources()
+        for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if line.rstrip().endswith("# fmt: skip")
+    ]
+    assert len(skips) <= MAX_FMT_SKIPS, f"{len(skips)} '# fmt: skip' lines: {skips[:10]}"
 
 
 def test_import_is_light() -> None:

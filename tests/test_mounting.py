@@ -69,8 +69,12 @@ def test_mount_recovered_within_a_degree(box: Flight, name: str) -> None:
     assert est.source == "estimated" and est.samples == box.n
     # the fit explains the reading to the interference's size, not the Earth field's [nT]
     assert est.residual_nt < 200.0
-    assert mount_residual_nt(Mount.identity(), box.vector("flux_a") @ true.rotation.T,
-                             box.vector("truth_earth")) > 10_000.0  # fmt: skip
+    assert (
+        mount_residual_nt(
+            Mount.identity(), box.vector("flux_a") @ true.rotation.T, box.vector("truth_earth")
+        )
+        > 10_000.0
+    )
 
 
 def test_solver_agrees_with_scipy_on_centred_data() -> None:
@@ -176,9 +180,12 @@ def test_auto_keeps_the_body_axes_of_a_body_aligned_fluxgate(box: Flight) -> Non
 @pytest.mark.parametrize("method", ["lsq", "kf"])
 @pytest.mark.parametrize("name", MOUNTS)
 def test_cli_default_mount_recovers_the_aligned_compensation(
-    box_files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str],
-    name: str, method: str,
-) -> None:  # fmt: skip
+    box_files: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    name: str,
+    method: str,
+) -> None:
     """``aeromag compensate`` with the default (auto) mount on a remounted fluxgate: residual
     std, IR and FOM within 10 % of the body-aligned flight's, the mount within 1°, no warning."""
     aligned = _compensate(box_files["aligned"], tmp_path / "a", "--method", method)["metrics"]
@@ -224,8 +231,9 @@ def test_cli_mount_file_in_angles_or_matrix_is_applied(
     for kind, spec in specs.items():
         path = tmp_path / f"{kind}.json"
         path.write_text(json.dumps(spec))
-        report = _compensate(box_files["45_deg"], tmp_path / kind, "--method", "lsq",
-                             "--mount", str(path))  # fmt: skip
+        report = _compensate(
+            box_files["45_deg"], tmp_path / kind, "--method", "lsq", "--mount", str(path)
+        )
         assert "warning" not in capsys.readouterr().err  # the file's mount is the data's
         mount = report["mount"]
         assert mount["mode"] == "file" and mount["source"] == "file" and mount["applied"]
@@ -247,9 +255,12 @@ def test_cli_mount_file_in_angles_or_matrix_is_applied(
     ],
 )
 def test_cli_bad_mount_files_are_one_line_errors(
-    box_files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str],
-    content: str | None, message: str,
-) -> None:  # fmt: skip
+    box_files: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    content: str | None,
+    message: str,
+) -> None:
     path = tmp_path / "mount.json"
     if content is not None:
         path.write_text(content)

@@ -19,8 +19,16 @@ from agents.evaluate import BOOTSTRAP_RESAMPLES, _summaries, normalized_scores
 def _per(**rmse: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
     n = len(next(iter(rmse.values())))
     zeros = np.zeros(n)
-    return {name: {"rmse_nt": r, "reward": -r, "divergences": zeros, "outliers_rejected": zeros,
-                   "log_ror_abs_median": zeros} for name, r in rmse.items()}  # fmt: skip
+    return {
+        name: {
+            "rmse_nt": r,
+            "reward": -r,
+            "divergences": zeros,
+            "outliers_rejected": zeros,
+            "log_ror_abs_median": zeros,
+        }
+        for name, r in rmse.items()
+    }
 
 
 def _flights(seed: int = 0, n: int = 30) -> dict[str, np.ndarray]:
@@ -80,8 +88,12 @@ def test_the_table_shows_the_score_column_and_the_anchors():
     f = _flights()
     per = _per(**f)
     scores = normalized_scores(per)
-    results = {"scenario": "x", "seeds": list(range(30)), "policies": _summaries(per),
-               "normalized_score": scores.pop("anchors")}  # fmt: skip
+    results = {
+        "scenario": "x",
+        "seeds": list(range(30)),
+        "policies": _summaries(per),
+        "normalized_score": scores.pop("anchors"),
+    }
     for name, row in scores.items():
         results["policies"][name].update(row)
     table = evaluation_table(results)

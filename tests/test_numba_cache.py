@@ -59,8 +59,15 @@ def _g(folder: Path, keyed: bool) -> str:
         env["KEYED"] = "1"
     else:
         env.pop("KEYED", None)
-    done = subprocess.run([sys.executable, "-c", RUN], cwd=folder, env=env, text=True,
-                          capture_output=True, timeout=300, check=True)  # fmt: skip
+    done = subprocess.run(
+        [sys.executable, "-c", RUN],
+        cwd=folder,
+        env=env,
+        text=True,
+        capture_output=True,
+        timeout=300,
+        check=True,
+    )
     return done.stdout.strip()
 
 
@@ -102,7 +109,11 @@ def test_the_digest_follows_compiled_modules_and_their_imports_only(tmp_path):
     (root / "sub" / "deep.py").write_text("A = 1\n")
     (root / "plain.py").write_text("Y = 1\n")
     assert {p.relative_to(root).as_posix() for p in compiled_sources(root)} == {
-        "__init__.py", "k.py", "layout.py", "sub/deep.py"}  # fmt: skip
+        "__init__.py",
+        "k.py",
+        "layout.py",
+        "sub/deep.py",
+    }
     digest = compiled_sources_digest.__wrapped__
     first = digest(root)
     (root / "plain.py").write_text("Y = 2\n")
@@ -115,8 +126,12 @@ def test_the_digest_follows_compiled_modules_and_their_imports_only(tmp_path):
 
 def test_the_package_digest_covers_the_layouts_the_kernels_read():
     names = {p.relative_to(PACKAGE).as_posix() for p in compiled_sources()}
-    assert {"compensation/kernel_layout.py", "environment/spaces.py",
-            "simulation/interference.py", "compensation/model.py"} <= names  # fmt: skip
+    assert {
+        "compensation/kernel_layout.py",
+        "environment/spaces.py",
+        "simulation/interference.py",
+        "compensation/model.py",
+    } <= names
     assert "cli/main.py" not in names and "flight/files.py" not in names
 
 

@@ -25,8 +25,13 @@ def test_quick_reproduction_writes_report_and_figures(tmp_path):
     report = json.loads((tmp_path / "report.json").read_text())
     for name in ("fakf", "kf"):
         r = report[name]
-        assert {"ror_median", "qoq_median", "noise_std_est_nt", "noise_std_true_nt",
-                "convergence_time_s"} <= set(r)  # fmt: skip
+        assert {
+            "ror_median",
+            "qoq_median",
+            "noise_std_est_nt",
+            "noise_std_true_nt",
+            "convergence_time_s",
+        } <= set(r)
         assert r["noise_std_true_nt"] == 20.0 and len(r["noise_std_est_nt"]) == 3
     # the plain KF with the paper's R(0) = 2e-3 nT² keeps its 0.045 nT noise and is inconsistent
     assert np.allclose(report["kf"]["noise_std_est_nt"], np.sqrt(2e-3))

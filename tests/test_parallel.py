@@ -33,8 +33,10 @@ def test_serial_runner_reports_a_raising_task_and_completes_the_rest() -> None:
 
 
 def test_nothing_imports_ray_without_the_flag() -> None:
-    code = ("import sys; from aeromag_env.cli.main import main; import aeromag_env.parallel as p;"
-            "r = p.runner(None); r.run([]); print('ray' in sys.modules)")  # fmt: skip
+    code = (
+        "import sys; from aeromag_env.cli.main import main; import aeromag_env.parallel as p;"
+        "r = p.runner(None); r.run([]); print('ray' in sys.modules)"
+    )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert run.stdout.strip() == "False"
 

@@ -26,8 +26,15 @@ def test_numpy_export_reproduces_sb3_actions(tmp_path):
 
     hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "n_steps": 64, "batch_size": 64}
     venv = make_training_env("nonstationary", hp, seed=0)
-    model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, seed=0, device="cpu",
-                policy_kwargs={"net_arch": [64, 64]})  # fmt: skip
+    model = PPO(
+        "MlpPolicy",
+        venv,
+        n_steps=64,
+        batch_size=64,
+        seed=0,
+        device="cpu",
+        policy_kwargs={"net_arch": [64, 64]},
+    )
     model.learn(256)  # non-trivial weights and observation statistics
     path = export_policy(model, venv, tmp_path / "p.npz", {"env_kwargs": hp["env_kwargs"]})
     policy = NumpyPPOPolicy.load(path)
@@ -159,8 +166,14 @@ def test_training_setup_changes_no_result_and_restores_torch():
 
     from agents.ppo import _ppo_kwargs, training_torch
 
-    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "n_steps": 64, "batch_size": 64,
-          "vec_env": "batched", "prefetch": False}  # fmt: skip
+    hp = {
+        **load_hyperparams("nonstationary"),
+        "n_envs": 2,
+        "n_steps": 64,
+        "batch_size": 64,
+        "vec_env": "batched",
+        "prefetch": False,
+    }
     venv = lambda: make_training_env("nonstationary", hp, seed=3)  # noqa: E731
 
     def learned(model: PPO) -> list[np.ndarray]:
@@ -243,8 +256,9 @@ def test_the_dagger_teacher_keeps_r_above_its_floor_on_the_named_scenarios():
     venv.close()
     assert labels["plain"][:, ACT_R].min() < floor - 0.1
     assert labels["floored"][:, ACT_R].min() >= floor - 1e-9
-    np.testing.assert_array_equal(np.delete(labels["plain"], ACT_R, 1),
-                                  np.delete(labels["floored"], ACT_R, 1))  # fmt: skip
+    np.testing.assert_array_equal(
+        np.delete(labels["plain"], ACT_R, 1), np.delete(labels["floored"], ACT_R, 1)
+    )
 
 
 def _first_seed():
@@ -276,8 +290,9 @@ def test_the_cloning_term_pulls_the_actor_to_the_demonstrations():
     states = np.concatenate(obs)
     # a demonstrator that acts on what it sees: the first observation's sign, on every action
     target = np.repeat(np.tanh(states[:, :1]), venv.action_space.shape[0], axis=1) * 0.8
-    demos = Demonstrations(states.astype(np.float32), target.astype(np.float32),
-                           np.full(len(states), "nonstationary"))  # fmt: skip
+    demos = Demonstrations(
+        states.astype(np.float32), target.astype(np.float32), np.full(len(states), "nonstationary")
+    )
 
     def gap() -> float:
         mean, _ = model.policy.predict(venv.normalize_obs(states), deterministic=True)
@@ -305,8 +320,10 @@ def test_training_with_the_cloning_term_keeps_and_reads_back_its_demonstrations(
     hp.update(eval_episodes=7, env_kwargs={**hp["env_kwargs"]})
     files = {}
     for name, minibatches in (("with", 100), ("without", 0)):
-        spec = {**hp, "pretrain": {**hp["pretrain"], "bc_minibatches": minibatches,
-                                   "bc_learning_rate": 3e-3}}  # fmt: skip
+        spec = {
+            **hp,
+            "pretrain": {**hp["pretrain"], "bc_minibatches": minibatches, "bc_learning_rate": 3e-3},
+        }
         files[name] = tmp_path / f"{name}.json"
         files[name].write_text(json.dumps({"version": 99, "scenarios": {"suite": spec}}))
     args = ["train", "--scenario", "suite", "--quick", "--timesteps", "1024", "--quiet"]
@@ -342,10 +359,17 @@ def test_the_cloning_term_keeps_only_the_scenarios_named():
     model = make_ppo(venv, hp, seed=0)
     n_obs, n_act = venv.observation_space.shape[0], venv.action_space.shape[0]
     flown = np.array(["manoeuvre_heavy", "nonstationary_dense", "paper", "manoeuvre_heavy"])
-    demos = Demonstrations(np.arange(4 * n_obs, dtype=np.float32).reshape(4, n_obs),
-                           np.zeros((4, n_act), np.float32), flown)  # fmt: skip
-    hp["pretrain"] = {"steps": 1, "epochs": 1, "bc_minibatches": 1,
-                      "bc_scenarios": ["manoeuvre_heavy", "paper"]}  # fmt: skip
+    demos = Demonstrations(
+        np.arange(4 * n_obs, dtype=np.float32).reshape(4, n_obs),
+        np.zeros((4, n_act), np.float32),
+        flown,
+    )
+    hp["pretrain"] = {
+        "steps": 1,
+        "epochs": 1,
+        "bc_minibatches": 1,
+        "bc_scenarios": ["manoeuvre_heavy", "paper"],
+    }
     kept = CloningTerm(model, venv, hp, demos, seed=0).demos
     np.testing.assert_array_equal(kept.obs, demos.obs[[0, 2, 3]])
     assert list(kept.scenarios) == ["manoeuvre_heavy", "paper", "manoeuvre_heavy"]
@@ -365,8 +389,9 @@ def test_the_teacher_holds_a_step_for_the_same_time_at_any_decision_window(windo
     from agents.policies import PrivilegedPolicy
 
     assert teacher_after(10) == 3 and teacher_after(5) == 6 and teacher_after(7) == 5
-    env = gym.make("AeroMag/Nonstationary-v0", **{**policy_env_kwargs("ppo"),
-                                                  "decision_window": window})  # fmt: skip
+    env = gym.make(
+        "AeroMag/Nonstationary-v0", **{**policy_env_kwargs("ppo"), "decision_window": window}
+    )
     obs, _ = env.reset(seed=100_000)
     teacher = PrivilegedPolicy(env, after=teacher_after(window))
     step = int(env.unwrapped.episode.step_samples[0])

@@ -26,8 +26,10 @@ def test_prefetched_flights_are_the_flights_a_reset_simulates():
     for k in range(35):
         if k == 15:  # environment 1 reseeded: its prepared flight is not the one wanted
             mask = {"reset_mask": np.array([False, True])}
-            _same(ahead.reset(seed=[None, 99], options=dict(mask)),
-                  here.reset(seed=[None, 99], options=dict(mask)))  # fmt: skip
+            _same(
+                ahead.reset(seed=[None, 99], options=dict(mask)),
+                here.reset(seed=[None, 99], options=dict(mask)),
+            )
         _same(ahead.step(actions), here.step(actions))
     ahead.close()
 

@@ -55,7 +55,10 @@ def test_report_records_what_the_run_used(vendor_file: Path, tmp_path: Path) -> 
     assert report["input_format"] == "hdf5"
     channels = report["channels"]
     assert [channels[k]["name"] for k in ("fluxgate", "scalar", "altitude")] == [
-        "flux_a", "mag_1_uc", "alt"]  # fmt: skip
+        "flux_a",
+        "mag_1_uc",
+        "alt",
+    ]
     assert all(channels[k]["reason"] for k in channels)
     mount = report["mount"]
     assert mount["fluxgate"] == "flux_a" and mount["mode"] == "auto" and not mount["applied"]

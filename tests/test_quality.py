@@ -38,9 +38,13 @@ def _with(flight: Flight, keep: np.ndarray | None = None, **edits: tuple[int, fl
 
 @pytest.mark.parametrize(
     ("pattern", "seed", "name"),
-    [("calibration", 0, "nominal"), ("survey", 1, "nominal"), ("calibration+survey", 2, "paper"),
-     ("calibration", 3, "paper")],
-)  # fmt: skip
+    [
+        ("calibration", 0, "nominal"),
+        ("survey", 1, "nominal"),
+        ("calibration+survey", 2, "paper"),
+        ("calibration", 3, "paper"),
+    ],
+)
 def test_no_false_alarm_on_clean_flights(pattern: str, seed: int, name: str) -> None:
     report = fault_report(_flight(pattern, seed, name))
     assert report["spikes"] == {} and report["gap_count"] == 0 and report["segments"] == 1
@@ -99,5 +103,7 @@ def test_labels_that_are_not_window_ids_are_warned_and_read_as_outside(
     assert bad.maneuver_windows() == clean.maneuver_windows()
     assert fault_report(bad)["bad_maneuver_labels"] == 3
     report = describe(write_flight(bad, tmp_path / "bad.h5"))
-    assert any(p.startswith("maneuver: 3 sample(s) hold labels that are not window ids")
-               for p in report.problems)  # fmt: skip
+    assert any(
+        p.startswith("maneuver: 3 sample(s) hold labels that are not window ids")
+        for p in report.problems
+    )

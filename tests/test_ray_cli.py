@@ -25,8 +25,11 @@ EVALUATE = ["evaluate", "--policies", "constant,fis,tuned_constant,privileged", 
 #: How long a Ray worker must have been running tasks before the test may kill it [s].
 WARM_S = 2.0
 #: the aeromag command of this interpreter's environment
-AEROMAG = [sys.executable, "-c", "import sys; from aeromag_env.cli.main import main; "
-           "sys.exit(main(sys.argv[1:]))"]  # fmt: skip
+AEROMAG = [
+    sys.executable,
+    "-c",
+    "import sys; from aeromag_env.cli.main import main; sys.exit(main(sys.argv[1:]))",
+]
 
 
 def test_evaluate_on_ray_equals_serial_bit_for_bit(local_ray: None, tmp_path: Path) -> None:
@@ -106,8 +109,11 @@ def test_a_killed_worker_is_retried_and_every_episode_arrives(tmp_path: Path) ->
     streak: dict[int, int] = {}  # polls in a row each worker was seen computing a task
     first: dict[int, float] = {}  # when each worker was first seen running a task
     while killed is None and run.poll() is None and time.monotonic() < deadline:
-        busy = {p: _cpu_ticks(p) for p, cmd in _descendants(run.pid).items()
-                if cmd.startswith("ray::aeromag_task")}  # fmt: skip
+        busy = {
+            p: _cpu_ticks(p)
+            for p, cmd in _descendants(run.pid).items()
+            if cmd.startswith("ray::aeromag_task")
+        }
         now = time.monotonic()
         first.update({p: now for p in busy if p not in first})
         streak = {p: streak.get(p, 0) + 1 for p, t in busy.items() if p in before and t > before[p]}
@@ -147,8 +153,14 @@ def two_node_cluster():
 
     def start(*args: str) -> None:
         cmd = [ray, "start", *args, *common]
-        run = subprocess.Popen(cmd, env=env, start_new_session=True, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.PIPE, text=True)  # fmt: skip
+        run = subprocess.Popen(
+            cmd,
+            env=env,
+            start_new_session=True,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         groups.append(run.pid)  # the daemons it leaves behind keep its process group
         assert run.wait(timeout=120) == 0, run.stderr.read() if run.stderr else ""
 
@@ -165,15 +177,27 @@ def two_node_cluster():
 def test_evaluate_joins_a_two_node_cluster(two_node_cluster, tmp_path: Path) -> None:
     address, env = two_node_cluster
     nodes = subprocess.run(
-        [sys.executable, "-c", "import ray; ray.init(address='" + address + "', "
-         "logging_level='ERROR'); print(sum(n['Alive'] for n in ray.nodes()), "
-         "int(ray.cluster_resources()['CPU']))"],
-        capture_output=True, text=True, env=env, check=True,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-c",
+            "import ray; ray.init(address='" + address + "', "
+            "logging_level='ERROR'); print(sum(n['Alive'] for n in ray.nodes()), "
+            "int(ray.cluster_resources()['CPU']))",
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+    )
     assert nodes.stdout.split() == ["2", "2"]
     args = [*EVALUATE, "--scenario", "nonstationary", "--episodes", "16"]
-    run = subprocess.run([*AEROMAG, *args, "--out", str(tmp_path / "ray"), "--ray", address],
-                         capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
+    run = subprocess.run(
+        [*AEROMAG, *args, "--out", str(tmp_path / "ray"), "--ray", address],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr
     assert main([*args, "--out", str(tmp_path / "serial")]) == 0
     got = json.loads((tmp_path / "ray" / "results.json").read_text())
@@ -205,8 +229,9 @@ def test_bench_only_ray_needs_ray(tmp_path: Path, capsys) -> None:
     assert "give --ray" in capsys.readouterr().err
 
 
-def test_a_task_that_raises_is_reported_with_its_input(local_ray: None, tmp_path: Path,
-                                                       capsys) -> None:  # fmt: skip
+def test_a_task_that_raises_is_reported_with_its_input(
+    local_ray: None, tmp_path: Path, capsys
+) -> None:
     bad = tmp_path / "bad.npz"
     bad.write_text("not a policy")
     args = ["evaluate", "--policies", f"fis,ppo:{bad}", "--episodes", "2", "--quiet"]

@@ -43,19 +43,43 @@ def test_rl_zoo3_trains_on_a_registered_id(tmp_path: Path) -> None:
         entry["env_kwargs"]["duration_s"] = 60.0
     conf = tmp_path / "zoo.yml"
     conf.write_text(yaml.safe_dump(hyperparams), encoding="utf-8")
-    argv = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo",
-            "--env", "AeroMag/NonstationaryDense-v0", "--gym-packages", "aeromag_env",
-            "--conf-file", str(conf), "-n", "4096", "--eval-freq", "-1", "--seed", "0",
-            "--log-folder", str(tmp_path / "logs"), "--hyperparams", "n_envs:2",
-            "--verbose", "0"]  # fmt: skip
-    run = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=600,
-                         check=False)  # fmt: skip
+    argv = [
+        sys.executable,
+        "-m",
+        "rl_zoo3.train",
+        "--algo",
+        "ppo",
+        "--env",
+        "AeroMag/NonstationaryDense-v0",
+        "--gym-packages",
+        "aeromag_env",
+        "--conf-file",
+        str(conf),
+        "-n",
+        "4096",
+        "--eval-freq",
+        "-1",
+        "--seed",
+        "0",
+        "--log-folder",
+        str(tmp_path / "logs"),
+        "--hyperparams",
+        "n_envs:2",
+        "--verbose",
+        "0",
+    ]
+    run = subprocess.run(
+        argv, cwd=tmp_path, capture_output=True, text=True, timeout=600, check=False
+    )
     assert run.returncode == 0, run.stderr[-3000:]
     out = tmp_path / "logs" / "ppo" / "AeroMag-NonstationaryDense-v0_1"
     assert (out / "AeroMag-NonstationaryDense-v0.zip").stat().st_size > 0
     assert (out / "AeroMag-NonstationaryDense-v0" / "vecnormalize.pkl").is_file()
-    rows = [row for f in sorted(out.glob("*.monitor.csv"))
-            for row in csv.DictReader(f.read_text().splitlines()[1:])]  # fmt: skip
+    rows = [
+        row
+        for f in sorted(out.glob("*.monitor.csv"))
+        for row in csv.DictReader(f.read_text().splitlines()[1:])
+    ]
     assert len(rows) >= 2 * (4096 // 2 // 61)  # every episode of both environments
     assert all(0.0 < float(row["episode_rmse_nt"]) < 1e3 for row in rows)
     assert all(row["l"] == "60" for row in rows)

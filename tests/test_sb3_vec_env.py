@@ -47,8 +47,16 @@ def test_tiny_ppo_trains_identically_with_either_vectorisation():
     params = []
     for kind in ("batched", "dummy"):
         venv = make_training_env("nonstationary", _hp(kind, n_envs=2), seed=0)
-        model = PPO("MlpPolicy", venv, n_steps=32, batch_size=32, n_epochs=2, seed=0,
-                    device="cpu", policy_kwargs={"net_arch": [16]})  # fmt: skip
+        model = PPO(
+            "MlpPolicy",
+            venv,
+            n_steps=32,
+            batch_size=32,
+            n_epochs=2,
+            seed=0,
+            device="cpu",
+            policy_kwargs={"net_arch": [16]},
+        )
         model.learn(128)
         params.append([p.detach().numpy().copy() for p in model.policy.parameters()])
     for a, b in zip(*params, strict=True):

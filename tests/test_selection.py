@@ -120,8 +120,20 @@ def test_tl_fitted_on_the_calibration_line_and_judged_on_the_lines(
     lines' own, and they are close to those of a fit on the whole flight (the box excites every
     term, the lines add little)."""
     out = tmp_path / "cal"
-    assert main(["compensate", str(survey_file), "--method", "tl", "--out", str(out),
-                 "--calibration-line"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "compensate",
+                str(survey_file),
+                "--method",
+                "tl",
+                "--out",
+                str(out),
+                "--calibration-line",
+            ]
+        )
+        == 0
+    )
     report = json.loads((out / "report.json").read_text())
     cal = report["selection"]["calibration_line"]
     assert cal["line"] == 1 and "labelled" in cal["reason"]
@@ -139,8 +151,23 @@ def test_tl_fitted_on_the_calibration_line_and_judged_on_the_lines(
 
 def test_line_selection_keeps_the_calibration_line(survey_file: Path, tmp_path: Path) -> None:
     out = tmp_path / "line"
-    assert main(["compensate", str(survey_file), "--method", "lsq", "--out", str(out),
-                 "--line", "1002", "--calibration-line", "1"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "compensate",
+                str(survey_file),
+                "--method",
+                "lsq",
+                "--out",
+                str(out),
+                "--line",
+                "1002",
+                "--calibration-line",
+                "1",
+            ]
+        )
+        == 0
+    )
     written = read_flight(out / "compensated.h5")
     assert set(np.unique(written["line"])) == {1.0, 1002.0}
     report = json.loads((out / "report.json").read_text())
@@ -165,11 +192,15 @@ def test_info_on_one_line(survey_file: Path, capsys: pytest.CaptureFixture[str])
     ],
 )
 def test_bad_selections_are_one_line_errors(
-    survey_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],
+    survey_file: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    args: list[str],
     message: str,
-) -> None:  # fmt: skip
-    code = main(["compensate", str(survey_file), "--method", "lsq", "--out",
-                 str(tmp_path / "x"), *args])  # fmt: skip
+) -> None:
+    code = main(
+        ["compensate", str(survey_file), "--method", "lsq", "--out", str(tmp_path / "x"), *args]
+    )
     err = capsys.readouterr().err.strip()
     assert code == 2 and message in err and len(err.splitlines()) == 1
     assert not (tmp_path / "x").exists()
@@ -178,8 +209,10 @@ def test_bad_selections_are_one_line_errors(
 def test_discover_fits_on_the_calibration_line(survey_file: Path, tmp_path: Path) -> None:
     """The calibration line becomes discover's calibration window (the box is one stretch)."""
     out = tmp_path / "disc"
-    assert main(["discover", str(survey_file), "--out", str(out), "--calibration-line",
-                 "--quiet"]) == 0  # fmt: skip
+    assert (
+        main(["discover", str(survey_file), "--out", str(out), "--calibration-line", "--quiet"])
+        == 0
+    )
     report = json.loads((out / "report.json").read_text())
     assert report["selection"]["calibration_line"]["line"] == 1
     flight = read_flight(survey_file)

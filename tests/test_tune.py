@@ -131,8 +131,21 @@ def test_quick_search_writes_the_best_trial_as_a_hyperparameter_file(
     import ray
 
     out, space = tmp_path / "out", _space(tmp_path, SMALL)
-    argv = ["tune", "--quick", "--space", str(space), "--samples", "3", "--timesteps", "1536",
-            "--seed", "1", "--out", str(out), "--ray"]  # fmt: skip
+    argv = [
+        "tune",
+        "--quick",
+        "--space",
+        str(space),
+        "--samples",
+        "3",
+        "--timesteps",
+        "1536",
+        "--seed",
+        "1",
+        "--out",
+        str(out),
+        "--ray",
+    ]
     assert _cli(argv) == 0
     assert "best: trial" in capsys.readouterr().out
     assert ray.is_initialized()  # the session's Ray was joined, not shut down

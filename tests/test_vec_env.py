@@ -32,24 +32,33 @@ def _pair(n, mode, **kw):
         autoreset_mode=mode,
         **kw,
     )
-    sync = gym.make_vec("AeroMagCompensation-v0", num_envs=n, vectorization_mode="sync",
-                        vector_kwargs={"autoreset_mode": mode}, **kw)  # fmt: skip
+    sync = gym.make_vec(
+        "AeroMagCompensation-v0",
+        num_envs=n,
+        vectorization_mode="sync",
+        vector_kwargs={"autoreset_mode": mode},
+        **kw,
+    )
     return ours, sync
 
 
 @pytest.mark.parametrize(
     "mode, split_q",
-    [(AutoresetMode.NEXT_STEP, False), (AutoresetMode.SAME_STEP, False),
-     (AutoresetMode.NEXT_STEP, True)],
-)  # fmt: skip
+    [
+        (AutoresetMode.NEXT_STEP, False),
+        (AutoresetMode.SAME_STEP, False),
+        (AutoresetMode.NEXT_STEP, True),
+    ],
+)
 def test_equals_gymnasium_sync_vector_env_of_single_envs(mode, split_q):
     """Over two autoresets (30-step flights), random actions beyond the clip range; with
     split_q also every optional observation."""
     optional = dict.fromkeys(
         ("innovation_power", "step_statistic", "turn_rate", "innovation_bias"), split_q
     )
-    ours, sync = _pair(3, mode, scenario="misspecified", extras=True, duration_s=30.0,
-                       split_q=split_q, **optional)  # fmt: skip
+    ours, sync = _pair(
+        3, mode, scenario="misspecified", extras=True, duration_s=30.0, split_q=split_q, **optional
+    )
     _assert_identical(ours.reset(seed=100_000), sync.reset(seed=100_000))
     rng = np.random.default_rng(0)
     ends = 0
@@ -67,8 +76,10 @@ def test_flights_of_different_lengths_end_on_their_own():
     for env in (ours, sync):
         env.reset(seed=[100_000, 100_001])
     switch = {"scenario": "nonstationary", "reset_mask": np.array([False, True])}
-    _assert_identical(ours.reset(seed=[None, 7], options=dict(switch)),
-                      sync.reset(seed=[None, 7], options=dict(switch)))  # fmt: skip
+    _assert_identical(
+        ours.reset(seed=[None, 7], options=dict(switch)),
+        sync.reset(seed=[None, 7], options=dict(switch)),
+    )
     assert list(ours.unwrapped.episode_lengths) == [5272, 12000]
     actions = np.full((2, 2), 0.25, np.float32)
     for k in range(529):  # 528 steps end the shorter flight, the next one restarts it
@@ -80,8 +91,13 @@ def test_flights_of_different_lengths_end_on_their_own():
 
 
 def test_make_vec_builds_it_and_it_follows_the_vector_api():
-    env = gym.make_vec("AeroMagCompensation-v0", num_envs=4, duration_s=20.0, extras=True,
-                       vectorization_mode="vector_entry_point")  # fmt: skip
+    env = gym.make_vec(
+        "AeroMagCompensation-v0",
+        num_envs=4,
+        duration_s=20.0,
+        extras=True,
+        vectorization_mode="vector_entry_point",
+    )
     assert isinstance(env, AeroMagCompensationVecEnv) and env.spec.id == "AeroMagCompensation-v0"
     assert env.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     assert env.single_observation_space.shape == (7,) and env.observation_space.shape == (4, 7)

@@ -153,8 +153,12 @@ def bench_memory(hours: float = 10.0) -> dict[str, float]:
 
     with tempfile.TemporaryDirectory() as tmp:
         path = write_flight(simulate_flight(_hour_config(hours), 0), Path(tmp) / "long.h5")
-        res = subprocess.run([sys.executable, "-c", _MEMORY_PROBE, str(path), f"{tmp}/out"],
-                             capture_output=True, text=True, check=True)  # fmt: skip
+        res = subprocess.run(
+            [sys.executable, "-c", _MEMORY_PROBE, str(path), f"{tmp}/out"],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
     status, base, peak = res.stdout.split()[-3:]
     if status != "0":
         raise RuntimeError(f"aeromag compensate failed in the memory benchmark: {res.stderr}")
@@ -183,15 +187,22 @@ def run_benchmarks(
     figures |= bench_filter_figures(hour, 1000 if quick else FILTER_SAMPLES, repeats)
     figures |= bench_env(repeats)
     figures |= bench_ppo(16384 if quick else 49152, 1 if quick else PPO_REPEATS)
-    figures |= bench_ppo(32768 if quick else 163840, 1 if quick else PPO64_REPEATS, n_envs=64,
-                         prefix="ppo64")  # fmt: skip
+    figures |= bench_ppo(
+        32768 if quick else 163840, 1 if quick else PPO64_REPEATS, n_envs=64, prefix="ppo64"
+    )
     figures |= bench_discover(hour, 1 if quick else 3)
     figures |= bench_memory()
     return _report(out, figures, _rows(figures) + ray_rows(figures), quick, repeats, load_before)
 
 
-def _report(out: Path, figures: dict[str, Any], rows: list[Row], quick: bool, repeats: int,
-            load_before: float | None) -> dict[str, Any]:  # fmt: skip
+def _report(
+    out: Path,
+    figures: dict[str, Any],
+    rows: list[Row],
+    quick: bool,
+    repeats: int,
+    load_before: float | None,
+) -> dict[str, Any]:
     """Print the table, write ``bench.json``; return its content."""
     _print_table(rows)
     result = {
@@ -215,48 +226,97 @@ def _report(out: Path, figures: dict[str, Any], rows: list[Row], quick: bool, re
 
 def _rows(f: dict[str, Any]) -> list[Row]:
     """(benchmark, median, ratio to its reference in this run, target, target met)."""
-    sim, fp, comp = f["simulate_s_per_flight_hour"], f["filterpy_samples_per_s"], \
-        f["filter_compiled_samples_per_s"]  # fmt: skip
+    sim, fp, comp = (
+        f["simulate_s_per_flight_hour"],
+        f["filterpy_samples_per_s"],
+        f["filter_compiled_samples_per_s"],
+    )
     batched, numpy_ref = f["filter_batched_samples_per_s"], f["filter_numpy_samples_per_s"]
     warm = f.get("simulate_warm_s_per_flight_hour")  # not in bench.json before 2026-11
     env1, envn = f["env_single_steps_per_s"], f["env_batched_steps_per_s"]
     peak, base = f["compensate_10h_peak_mb"], f["compensate_baseline_mb"]
     return [
-        ("simulate 1 flight-hour (grid IGRF)", f"{sim:.3f} s",
-         f"{f['simulate_direct_igrf_s_per_flight_hour'] / sim:.0f}× faster than IGRF at every "
-         "sample", "< 1 s", sim < 1.0),
-        ("simulate it again (pattern remembered)", _num(warm, "s", ".3f"),
-         "n/a" if warm is None else f"{sim / warm:.1f}× faster than the first time", "", None),
-        ("filter, compiled, 1 flight", f"{comp:,.0f} samples/s",
-         _ratio(comp, fp, "filterpy", ".1f"), "≥ 30× filterpy",
-         None if fp is None else comp >= 30 * fp),
-        ("filter, batched, 64 flights", f"{batched:,.0f} samples/s",
-         f"{batched / comp:.1f}× compiled 1 flight", "≥ 1 000 000 samples/s", batched >= 1e6),
-        ("filter, plain numpy reference", f"{numpy_ref:,.0f} samples/s",
-         _ratio(numpy_ref, fp, "filterpy", ".2f"), "", None),
+        (
+            "simulate 1 flight-hour (grid IGRF)",
+            f"{sim:.3f} s",
+            f"{f['simulate_direct_igrf_s_per_flight_hour'] / sim:.0f}× faster than IGRF at every "
+            "sample",
+            "< 1 s",
+            sim < 1.0,
+        ),
+        (
+            "simulate it again (pattern remembered)",
+            _num(warm, "s", ".3f"),
+            "n/a" if warm is None else f"{sim / warm:.1f}× faster than the first time",
+            "",
+            None,
+        ),
+        (
+            "filter, compiled, 1 flight",
+            f"{comp:,.0f} samples/s",
+            _ratio(comp, fp, "filterpy", ".1f"),
+            "≥ 30× filterpy",
+            None if fp is None else comp >= 30 * fp,
+        ),
+        (
+            "filter, batched, 64 flights",
+            f"{batched:,.0f} samples/s",
+            f"{batched / comp:.1f}× compiled 1 flight",
+            "≥ 1 000 000 samples/s",
+            batched >= 1e6,
+        ),
+        (
+            "filter, plain numpy reference",
+            f"{numpy_ref:,.0f} samples/s",
+            _ratio(numpy_ref, fp, "filterpy", ".2f"),
+            "",
+            None,
+        ),
         ("filterpy KalmanFilter (reference)", _num(fp, "samples/s"), "1×", "", None),
-        ("env steps, 1 env, K = 10", f"{env1:,.0f} /s",
-         f"{env1 / f['env_numpy_reference_steps_per_s']:.0f}× an env on the numpy filter",
-         "≥ 20 000 /s", env1 >= 20_000),
-        ("env steps, 64 envs batched, K = 10", f"{envn:,.0f} /s", f"{envn / env1:.1f}× 1 env",
-         "≥ 100 000 /s", envn >= 100_000),
-        ("env reset (simulate a nominal flight)", f"{1000 * f['env_reset_s']:.0f} ms",
-         f"= {f['env_reset_s'] * env1:.0f} steps of 1 env", "", None),
+        (
+            "env steps, 1 env, K = 10",
+            f"{env1:,.0f} /s",
+            f"{env1 / f['env_numpy_reference_steps_per_s']:.0f}× an env on the numpy filter",
+            "≥ 20 000 /s",
+            env1 >= 20_000,
+        ),
+        (
+            "env steps, 64 envs batched, K = 10",
+            f"{envn:,.0f} /s",
+            f"{envn / env1:.1f}× 1 env",
+            "≥ 100 000 /s",
+            envn >= 100_000,
+        ),
+        (
+            "env reset (simulate a nominal flight)",
+            f"{1000 * f['env_reset_s']:.0f} ms",
+            f"= {f['env_reset_s'] * env1:.0f} steps of 1 env",
+            "",
+            None,
+        ),
         *_ppo_rows(f, "ppo"),
         *_ppo_rows(f, "ppo64"),
         _discover_row(f),
-        ("compensate 10-hour flight, peak RSS", f"{peak:.0f} MB",
-         f"{peak / base:.1f}× the process after imports ({base:.0f} MB)", "< 1024 MB",
-         peak < 1024),
-    ]  # fmt: skip
+        (
+            "compensate 10-hour flight, peak RSS",
+            f"{peak:.0f} MB",
+            f"{peak / base:.1f}× the process after imports ({base:.0f} MB)",
+            "< 1024 MB",
+            peak < 1024,
+        ),
+    ]
 
 
 def _discover_row(f: dict[str, Any]) -> Row:
     """The discrepancy workflow per flight-hour, against real time, with issue 22's target."""
     disc = f["discover_s_per_flight_hour"]
-    return ("discover 1 flight-hour", _num(disc, "s", ".2f"),
-            "n/a" if disc is None else f"{3600 / disc:.0f}× real time", "≤ 5 s",
-            None if disc is None else disc <= 5.0)  # fmt: skip
+    return (
+        "discover 1 flight-hour",
+        _num(disc, "s", ".2f"),
+        "n/a" if disc is None else f"{3600 / disc:.0f}× real time",
+        "≤ 5 s",
+        None if disc is None else disc <= 5.0,
+    )
 
 
 def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
@@ -266,8 +326,12 @@ def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
     at 8 environments) when measured."""
     n, dummy = f[f"{prefix}_n_envs"], f[f"{prefix}_dummyvec_steps_per_s"]
     rows: list[Row] = []
-    for variant, label in (("batched", "batched + prefetch"), ("batched_no_prefetch", "batched"),
-                           ("dummyvec", "DummyVecEnv"), ("free", "zero-cost env")):  # fmt: skip
+    for variant, label in (
+        ("batched", "batched + prefetch"),
+        ("batched_no_prefetch", "batched"),
+        ("dummyvec", "DummyVecEnv"),
+        ("free", "zero-cost env"),
+    ):
         rate = f.get(f"{prefix}_{variant}_steps_per_s")
         if rate is None:
             continue
@@ -278,20 +342,30 @@ def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
             note = f"repeats {low:.2f}–{high:.2f}; {note}"
         if variant == "free":
             note = "PPO alone: the most any env allows"
-        rows.append((f"PPO learn, {label}, {n} envs", f"{rate:,.0f} steps/s",
-                     f"{rate / dummy:.2f}× DummyVecEnv ({note})",
-                     "≥ 1.5× DummyVecEnv" if first else "",
-                     rate >= 1.5 * dummy if first else None))  # fmt: skip
+        rows.append(
+            (
+                f"PPO learn, {label}, {n} envs",
+                f"{rate:,.0f} steps/s",
+                f"{rate / dummy:.2f}× DummyVecEnv ({note})",
+                "≥ 1.5× DummyVecEnv" if first else "",
+                rate >= 1.5 * dummy if first else None,
+            )
+        )
     if f"{prefix}_free_env_us_per_step" in f:  # from 2026-11-27 on
         rows.append(_extra_time_row(f, prefix, n))
     share = f.get(f"{prefix}_env_share")
     if share is not None:
         low, high = f[f"{prefix}_env_share_min"], f[f"{prefix}_env_share_max"]
         capped = n == 8
-        rows.append((f"PPO learn, the env's share, {n} envs", f"{share:.1%}",
-                     f"1 − batched/zero-cost, paired repeats {100 * low:.1f}–{100 * high:.1f}%",
-                     f"≤ {ENV_SHARE_TARGET:.0%}" if capped else "",
-                     share <= ENV_SHARE_TARGET if capped else None))  # fmt: skip
+        rows.append(
+            (
+                f"PPO learn, the env's share, {n} envs",
+                f"{share:.1%}",
+                f"1 − batched/zero-cost, paired repeats {100 * low:.1f}–{100 * high:.1f}%",
+                f"≤ {ENV_SHARE_TARGET:.0%}" if capped else "",
+                share <= ENV_SHARE_TARGET if capped else None,
+            )
+        )
     return rows
 
 
@@ -302,13 +376,19 @@ def _extra_time_row(f: dict[str, Any], prefix: str, n: int) -> Row:
     (separated by semicolons: a comma after a number would read as a thousands separator when
     ``experiments/bench_table.py`` joins runs)."""
     us = f"{prefix}_{{}}_{{}}_us_per_step".format
-    extra = {part: f[us("batched", part)] - f[us("free", part)]
-             for part in ("env", "forward", "update", "rest")}  # fmt: skip
+    extra = {
+        part: f[us("batched", part)] - f[us("free", part)]
+        for part in ("env", "forward", "update", "rest")
+    }
     total = 1e6 / f[f"{prefix}_batched_steps_per_s"] - 1e6 / f[f"{prefix}_free_steps_per_s"]
-    return (f"PPO learn, batched + prefetch beyond zero-cost, {n} envs",
-            f"{total:.0f} µs per env step",
-            f"environments {extra['env']:.0f}; policy forward {extra['forward']:.0f}; updates "
-            f"{extra['update']:.0f}; rest {extra['rest']:.0f} µs more", "", None)  # fmt: skip
+    return (
+        f"PPO learn, batched + prefetch beyond zero-cost, {n} envs",
+        f"{total:.0f} µs per env step",
+        f"environments {extra['env']:.0f}; policy forward {extra['forward']:.0f}; updates "
+        f"{extra['update']:.0f}; rest {extra['rest']:.0f} µs more",
+        "",
+        None,
+    )
 
 
 def _ratio(value: float, reference: float | None, name: str, fmt: str = ".0f") -> str:

@@ -81,8 +81,12 @@ def _episode_rate(env: Any, num_envs: int) -> float:
 def bench_env(repeats: int) -> dict[str, float]:
     """One env and the vector env, K = 10, ``nominal``; the numpy-filter env as reference."""
     single = gym.make("AeroMagCompensation-v0", scenario="nominal")
-    batched = gym.make_vec("AeroMagCompensation-v0", num_envs=VEC_ENVS, scenario="nominal",
-                           vectorization_mode="vector_entry_point")  # fmt: skip
+    batched = gym.make_vec(
+        "AeroMagCompensation-v0",
+        num_envs=VEC_ENVS,
+        scenario="nominal",
+        vectorization_mode="vector_entry_point",
+    )
     _episode_rate(single, 1)  # warm: numba cache load, first-step checks
     _episode_rate(batched, VEC_ENVS)
     single_rates, batched_rates, resets = [], [], []
@@ -123,8 +127,9 @@ PPO_VARIANTS: dict[str, dict[str, Any] | None] = {
 }
 
 
-def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
-              prefix: str = "ppo") -> dict[str, Any]:  # fmt: skip
+def bench_ppo(
+    timesteps: int, repeats: int, n_envs: int | None = None, prefix: str = "ppo"
+) -> dict[str, Any]:
     """PPO ``learn(timesteps)`` steps per second for each of :data:`PPO_VARIANTS`, with
     ``ppo.json``'s hyperparameters (``n_envs`` overridden if given), interleaved one rollout at
     a time (:func:`_interleaved`); the share of each run's time spent inside the environments'
@@ -181,8 +186,9 @@ def bench_ppo(timesteps: int, repeats: int, n_envs: int | None = None,
     return figures
 
 
-def _interleaved(models: dict[str, Any], running: Seconds, timesteps: int, repeats: int,
-                 rollout: int) -> tuple[dict[str, list[float]], Seconds]:  # fmt: skip
+def _interleaved(
+    models: dict[str, Any], running: Seconds, timesteps: int, repeats: int, rollout: int
+) -> tuple[dict[str, list[float]], Seconds]:
     """Each repeat, every model goes on ``learn``-ing for ``timesteps`` steps, one rollout (and
     its update) at a time, the models taking turns and the order rotating each turn. Returns
     the seconds each model spent in each repeat, and of them the seconds in each part
@@ -225,15 +231,17 @@ def _free_env_like(venv: Any) -> Callable[[], Any]:
     return lambda: free_vec_env(n_envs, *spaces, steps)
 
 
-def free_vec_env(n_envs: int, observation_space: Any, action_space: Any,
-                 episode_steps: int) -> Any:  # fmt: skip
+def free_vec_env(n_envs: int, observation_space: Any, action_space: Any, episode_steps: int) -> Any:
     """An SB3 ``VecEnv`` that costs nothing: a fixed observation, zero reward, every episode
     ``episode_steps`` long and ended as a time limit (with the info entries SB3 reads). PPO
     trained on it measures its own cost per step: the ceiling of any environment's speed-up."""
     from stable_baselines3.common.vec_env import VecEnv
 
-    obs = np.clip(np.random.default_rng(0).standard_normal((n_envs, *observation_space.shape)),
-                  observation_space.low, observation_space.high).astype(np.float32)  # fmt: skip
+    obs = np.clip(
+        np.random.default_rng(0).standard_normal((n_envs, *observation_space.shape)),
+        observation_space.low,
+        observation_space.high,
+    ).astype(np.float32)
 
     class FreeVecEnv(VecEnv):
         def __init__(self) -> None:
@@ -265,8 +273,9 @@ def free_vec_env(n_envs: int, observation_space: Any, action_space: Any,
         def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
             pass
 
-        def env_method(self, method_name: str, *args: Any, indices: Any = None,
-                       **kwargs: Any) -> list[Any]:  # fmt: skip
+        def env_method(
+            self, method_name: str, *args: Any, indices: Any = None, **kwargs: Any
+        ) -> list[Any]:
             return [None] * len(list(self._get_indices(indices)))
 
         def env_is_wrapped(self, wrapper_class: Any, indices: Any = None) -> list[bool]:

@@ -38,8 +38,9 @@ from aeromag_env.simulation.interference import N_STATES
 BATCH = 64
 
 
-def median_rates(cases: dict[str, tuple[Callable[[], Any], Callable[[Any], object], float]],
-                 repeats: int) -> dict[str, float]:  # fmt: skip
+def median_rates(
+    cases: dict[str, tuple[Callable[[], Any], Callable[[Any], object], float]], repeats: int
+) -> dict[str, float]:
     """For each named case ``(setup, run, count)``: the median of ``count / seconds`` of
     ``run(setup())`` over ``repeats`` runs (setup untimed), the cases alternating."""
     rates: dict[str, list[float]] = {name: [] for name in cases}
@@ -68,8 +69,9 @@ def run_filterpy(cfg: FilterConfig, y: np.ndarray, t_b: np.ndarray, tdot_b: np.n
         kf.update(y[k].reshape(3, 1), H=h_all[k])
 
 
-def bench_filters(y: np.ndarray, t_b: np.ndarray, tdot_b: np.ndarray,
-                  repeats: int) -> dict[str, float | None]:  # fmt: skip
+def bench_filters(
+    y: np.ndarray, t_b: np.ndarray, tdot_b: np.ndarray, repeats: int
+) -> dict[str, float | None]:
     """Samples per second of the four filters on ``y``, ``t_b``, ``tdot_b`` (n, 3); filterpy's
     is None when filterpy (a ``dev`` extra) is not installed."""
     cfg, n = FilterConfig(), y.shape[0]

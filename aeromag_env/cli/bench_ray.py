@@ -90,13 +90,26 @@ def ray_rows(f: dict[str, Any]) -> list[Row]:
     low, high = f["ray_evaluate_speedup_min"], f["ray_evaluate_speedup_max"]
     same = "identical results" if f["ray_results_identical"] else "RESULTS DIFFER"
     return [
-        (f"evaluate {n} flights × {len(POLICIES)} policies, Ray, {f['ray_cpus']} CPUs",
-         f"{f['ray_evaluate_ray_s']:.1f} s",
-         f"{speedup:.2f}× serial {f['ray_evaluate_serial_s']:.1f} s (repeats {low:.2f}–"
-         f"{high:.2f}; {same})", f"≥ {SPEEDUP_TARGET}× serial", speedup >= SPEEDUP_TARGET),
-        ("  the same, first run (Ray start, imports)", f"{f['ray_evaluate_cold_s']:.1f} s",
-         f"{f['ray_evaluate_first_serial_s'] / f['ray_evaluate_cold_s']:.2f}× serial", "", None),
-        ("Ray task overhead", f"{f['ray_task_overhead_ms']:.2f} ms",
-         f"per no-op task, {NOOP_TASKS} at once; one alone {f['ray_task_round_trip_ms']:.1f} ms",
-         "", None),
-    ]  # fmt: skip
+        (
+            f"evaluate {n} flights × {len(POLICIES)} policies, Ray, {f['ray_cpus']} CPUs",
+            f"{f['ray_evaluate_ray_s']:.1f} s",
+            f"{speedup:.2f}× serial {f['ray_evaluate_serial_s']:.1f} s (repeats {low:.2f}–"
+            f"{high:.2f}; {same})",
+            f"≥ {SPEEDUP_TARGET}× serial",
+            speedup >= SPEEDUP_TARGET,
+        ),
+        (
+            "  the same, first run (Ray start, imports)",
+            f"{f['ray_evaluate_cold_s']:.1f} s",
+            f"{f['ray_evaluate_first_serial_s'] / f['ray_evaluate_cold_s']:.2f}× serial",
+            "",
+            None,
+        ),
+        (
+            "Ray task overhead",
+            f"{f['ray_task_overhead_ms']:.2f} ms",
+            f"per no-op task, {NOOP_TASKS} at once; one alone {f['ray_task_round_trip_ms']:.1f} ms",
+            "",
+            None,
+        ),
+    ]

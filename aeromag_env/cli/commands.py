@@ -64,16 +64,33 @@ def cmd_discover(args: argparse.Namespace) -> int:
             print(f"discover: {msg}", file=sys.stderr, flush=True)
 
     if fleet.is_fleet(args.file):
-        job = fleet.DiscoverJob(path=Path(args.file), out=out, flux=args.flux,
-                                calibration_window=window, mount=args.mount,
-                                selection=selection_options(args), ground=args.ground)  # fmt: skip
+        job = fleet.DiscoverJob(
+            path=Path(args.file),
+            out=out,
+            flux=args.flux,
+            calibration_window=window,
+            mount=args.mount,
+            selection=selection_options(args),
+            ground=args.ground,
+        )
         return fleet.discover_fleet(job, args.file, args.ray, args.quiet)
     fleet.note_single_file("discover", args.ray)
-    report = run_discover(Path(args.file), out, args.flux, window, say, mount=args.mount,
-                          selection=selection_options(args), ground=args.ground)  # fmt: skip
+    report = run_discover(
+        Path(args.file),
+        out,
+        args.flux,
+        window,
+        say,
+        mount=args.mount,
+        selection=selection_options(args),
+        ground=args.ground,
+    )
     gap, problems = report["gap"], report["input_problems"]
-    warned = (f"; {len(problems)} input warning(s), listed in report.json (aeromag info explains "
-              "them)") if problems else ""  # fmt: skip
+    warned = (
+        (f"; {len(problems)} input warning(s), listed in report.json (aeromag info explains them)")
+        if problems
+        else ""
+    )
     print(
         f"{report['verdict']}; held-out gap {gap['rms_before_nt']:.3g} → "
         f"{gap['rms_after_nt']:.3g} nT ({shrink_text(gap)}); wrote {out}/report.json, "
@@ -215,12 +232,20 @@ def cmd_compensate(args: argparse.Namespace) -> int:
     from aeromag_env.cli.compensate import CompensateRequest, run_compensate, summary_line
 
     req = CompensateRequest(
-        path=Path(args.file), out=Path(args.out), method=args.method, flux=args.flux,
-        scalar=args.scalar, tl_bandpass_hz=tl_bandpass(args.tl_bandpass), tl_trim=args.tl_trim,
-        tl_ridge=args.tl_ridge, calibration_window_s=tuple(args.calibration_window) if
-        args.calibration_window else None, filter_preset=args.filter_preset, r_std_nt=args.r_std_nt,
-        mount=args.mount, **selection_options(args),
-    )  # fmt: skip
+        path=Path(args.file),
+        out=Path(args.out),
+        method=args.method,
+        flux=args.flux,
+        scalar=args.scalar,
+        tl_bandpass_hz=tl_bandpass(args.tl_bandpass),
+        tl_trim=args.tl_trim,
+        tl_ridge=args.tl_ridge,
+        calibration_window_s=tuple(args.calibration_window) if args.calibration_window else None,
+        filter_preset=args.filter_preset,
+        r_std_nt=args.r_std_nt,
+        mount=args.mount,
+        **selection_options(args),
+    )
     if fleet.is_fleet(args.file):
         return fleet.compensate_fleet(req, args.file, args.ray)
     fleet.note_single_file("compensate", args.ray)
@@ -266,8 +291,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from aeromag_env.cli.evaluate import run_evaluate
 
     policies = [p.strip() for p in args.policies.split(",") if p.strip()]
-    run_evaluate(args.scenario, policies, args.episodes, args.seed_start, Path(args.out),
-                 args.quiet, ray=args.ray)  # fmt: skip
+    run_evaluate(
+        args.scenario,
+        policies,
+        args.episodes,
+        args.seed_start,
+        Path(args.out),
+        args.quiet,
+        ray=args.ray,
+    )
     return 0
 
 
@@ -295,15 +327,29 @@ def cmd_train(args: argparse.Namespace) -> int:
         from aeromag_env.cli.train import parse_seeds, train_seeds
 
         hp = Path(args.hyperparams) if args.hyperparams else None
-        train_seeds(args.scenario, args.timesteps, parse_seeds(args.seeds), Path(args.out),
-                    args.quick, hp, args.ray, args.quiet)  # fmt: skip
+        train_seeds(
+            args.scenario,
+            args.timesteps,
+            parse_seeds(args.seeds),
+            Path(args.out),
+            args.quick,
+            hp,
+            args.ray,
+            args.quiet,
+        )
         print(f"policies: {args.out}/seed_<k>/policy.npz; summary: {args.out}/seeds.json")
         return 0
     if args.ray is not None:
         raise AeromagError("--ray runs several training seeds side by side: give --seeds")
-    summary = train_ppo(args.scenario, args.timesteps, args.seed, Path(args.out), args.quick,
-                        progress=not args.quiet, hyperparams=Path(args.hyperparams) if
-                        args.hyperparams else HYPERPARAMS)  # fmt: skip
+    summary = train_ppo(
+        args.scenario,
+        args.timesteps,
+        args.seed,
+        Path(args.out),
+        args.quick,
+        progress=not args.quiet,
+        hyperparams=Path(args.hyperparams) if args.hyperparams else HYPERPARAMS,
+    )
     print(
         f"trained {summary['timesteps']} steps in {summary['train_seconds_this_run']:.0f} s; "
         f"best validation RMSE {summary['best_validation_rmse_nt']:.3g} nT; "

@@ -123,10 +123,19 @@ def run_compensate(req: CompensateRequest, warn: Warn = warn_stderr) -> dict[str
     flight, problems = load_flight(req.path, needs=req.needs())
     # channels and mount from the whole flight (the mount is the installation's, and a single
     # line may turn too little to show it), then the selected part
-    inputs = choose_inputs(flight, req.path, req.flux, req.scalar, req.required_channels(),
-                           req.mount, mount_matters=req.method != "tl", warn=warn)  # fmt: skip
-    chosen = select(inputs.work, req.lines, req.segment_s, req.calibration_line,
-                    req.calibration_window_s)  # fmt: skip
+    inputs = choose_inputs(
+        flight,
+        req.path,
+        req.flux,
+        req.scalar,
+        req.required_channels(),
+        req.mount,
+        mount_matters=req.method != "tl",
+        warn=warn,
+    )
+    chosen = select(
+        inputs.work, req.lines, req.segment_s, req.calibration_line, req.calibration_window_s
+    )
     work, flux, calibration = chosen.flight, inputs.flux_name, chosen.calibration
     if req.method == "tl":
         tl = TollesLawson(bandpass_hz=req.tl_bandpass_hz, trim=req.tl_trim, ridge=req.tl_ridge)
@@ -244,8 +253,11 @@ def summary_line(report: dict[str, Any], out: Path) -> str:
     """One line for the terminal (input problems are listed in report.json)."""
     m = report["metrics"]
     parts = [f"{report['method']}: wrote {out}/compensated.h5, report.json, compensation.png"]
-    for key, label in (("compensation_rmse_nt", "RMSE (2nd half)"), ("improvement_ratio", "IR"),
-                       ("fom_nt", "FOM")):  # fmt: skip
+    for key, label in (
+        ("compensation_rmse_nt", "RMSE (2nd half)"),
+        ("improvement_ratio", "IR"),
+        ("fom_nt", "FOM"),
+    ):
         if m.get(key) is not None:
             parts.append(f"{label} {m[key]:.3g}" + (" nT" if key != "improvement_ratio" else ""))
     mount = report.get("mount") or {}
@@ -259,18 +271,25 @@ def summary_line(report: dict[str, Any], out: Path) -> str:
         parts.append(f"IR {held['improvement_ratio']:.3g} outside the calibration part")
     vendor = report.get("vendor_comparison") or {}
     if vendor.get("improvement_ratio_vendor") is not None:
-        parts.append(f"vendor's {vendor['vendor_channel']} IR "
-                     f"{vendor['improvement_ratio_vendor']:.3g}")  # fmt: skip
+        parts.append(
+            f"vendor's {vendor['vendor_channel']} IR {vendor['improvement_ratio_vendor']:.3g}"
+        )
     if m["nonfinite_samples"]:
         parts.append(f"{m['nonfinite_samples']} non-finite samples ({report['nonfinite_policy']})")
     if m["divergences"]:
-        fell_back = " (a runaway makes an adaptive filter the plain kf)" if report.get(
-            "method") in ("fakf", "ding", "sage-husa") else ""  # fmt: skip
+        fell_back = (
+            " (a runaway makes an adaptive filter the plain kf)"
+            if report.get("method") in ("fakf", "ding", "sage-husa")
+            else ""
+        )
         parts.append(f"{m['divergences']} divergences detected and recovered{fell_back}")
     if m.get("outliers_rejected"):
-        parts.append(f"{m['outliers_rejected']} samples rejected by the filter's outlier gate "
-                     "(predict only)")  # fmt: skip
+        parts.append(
+            f"{m['outliers_rejected']} samples rejected by the filter's outlier gate (predict only)"
+        )
     if report["input_problems"]:
-        parts.append(f"{len(report['input_problems'])} input warning(s), listed in report.json "
-                     "(aeromag info explains them)")  # fmt: skip
+        parts.append(
+            f"{len(report['input_problems'])} input warning(s), listed in report.json "
+            "(aeromag info explains them)"
+        )
     return "; ".join(parts)

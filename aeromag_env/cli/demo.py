@@ -25,8 +25,14 @@ from aeromag_env.simulation.simulate import simulate_flight
 DEMO_METHODS = ("kf", "fakf", "lsq", "tl")
 DEMO_EPISODES = 5
 #: The output set of ``aeromag demo``, in the folder ``--out``.
-OUTPUTS = ("flight.h5", "flight.png", *(f"compensation_{m}.png" for m in DEMO_METHODS),
-           "tuners.png", "summary.md", "summary.json")  # fmt: skip
+OUTPUTS = (
+    "flight.h5",
+    "flight.png",
+    *(f"compensation_{m}.png" for m in DEMO_METHODS),
+    "tuners.png",
+    "summary.md",
+    "summary.json",
+)
 
 
 def run_demo(out: Path, seed: int = 0) -> dict[str, Any]:

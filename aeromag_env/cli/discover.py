@@ -58,19 +58,36 @@ def run_discover(
     check_output_set(out, OUTPUTS, sources)
     flight, problems = load_flight(path, needs=("tt", "position", "attitude", "date"))
     flight.attrs.setdefault("path", str(path))
-    inputs = choose_inputs(flight, path, flux, require=("fluxgate", "altitude"), mount=mount,
-                           warn=warn, kinds=("fluxgate", "altitude"))  # fmt: skip
+    inputs = choose_inputs(
+        flight,
+        path,
+        flux,
+        require=("fluxgate", "altitude"),
+        mount=mount,
+        warn=warn,
+        kinds=("fluxgate", "altitude"),
+    )
     assert inputs.mount is not None  # a fluxgate is required
     chosen = select(inputs.work, calibration_window=calibration_window, **(selection or {}))
     if chosen.calibration is not None and "calibration_line" in chosen.report:
         tt = chosen.flight.tt[chosen.calibration]
         calibration_window = (float(tt[0]), float(tt[-1]))
     work = in_body_axes(chosen.flight, inputs.mount)
-    result = discover(work, flux=inputs.flux_name, calibration_window=calibration_window,
-                      progress=progress, ground=ground)  # fmt: skip
-    report = {"report_version": REPORT_VERSION, "input": str(path), **result.report,
-              "input_problems": problems, "selection": chosen.report,
-              **provenance(path, inputs.work, inputs, earth_model_used=True)}  # fmt: skip
+    result = discover(
+        work,
+        flux=inputs.flux_name,
+        calibration_window=calibration_window,
+        progress=progress,
+        ground=ground,
+    )
+    report = {
+        "report_version": REPORT_VERSION,
+        "input": str(path),
+        **result.report,
+        "input_problems": problems,
+        "selection": chosen.report,
+        **provenance(path, inputs.work, inputs, earth_model_used=True),
+    }
     report = _jsonable(report)
     for caveat in report["caveats"]:
         warn(caveat)
@@ -105,8 +122,10 @@ def markdown(report: dict[str, Any]) -> str:
     lines += ["## Candidates", "", head, "|---|---|---|---|---|"]
     for c in report["candidates"]:
         frac = c.get("identifiable_fraction")
-        lines.append(f"| `{c['name']}` | {c.get('channel') or '–'} | {c.get('regressors', '–')} | "
-                     f"{'–' if frac is None else f'{frac:.3g}'} | {c['verdict']} |")  # fmt: skip
+        lines.append(
+            f"| `{c['name']}` | {c.get('channel') or '–'} | {c.get('regressors', '–')} | "
+            f"{'–' if frac is None else f'{frac:.3g}'} | {c['verdict']} |"
+        )
     for s in report["skipped"]:
         lines.append(f"\n* skipped `{s['name']}`: {s['reason']}")
     d = report["diagnostics"]
@@ -142,8 +161,10 @@ def shrink_text(gap: dict[str, Any]) -> str:
 def _ground_lines(ground: dict[str, Any]) -> list[str]:
     """The report's paragraph on the magnetic ground."""
     if ground["mode"] == "ignore":
-        return ["Magnetic ground: ignored (`--ground separate` fits only what it cannot explain).",
-                ""]  # fmt: skip
+        return [
+            "Magnetic ground: ignored (`--ground separate` fits only what it cannot explain).",
+            "",
+        ]
     lo, hi = ground["knot_spacing_s"] or [float("nan")] * 2
     return [
         f"Magnetic ground: separated ({ground['model']}; {ground['runs']} runs, "
@@ -172,8 +193,15 @@ def plot_discovery(result: Discovery, out: Path) -> None:
     for i, ax in enumerate(axes[:3]):
         ax.plot(tt, s["residual_before"][:, i], lw=0.4, label="base model")
         ax.plot(tt, s["residual_after"][:, i], lw=0.4, label="with named effects")
-        ax.fill_between(tt, 0, 1, where=held, transform=ax.get_xaxis_transform(), color="0.9",
-                        label="held out" if i == 0 else None)  # fmt: skip
+        ax.fill_between(
+            tt,
+            0,
+            1,
+            where=held,
+            transform=ax.get_xaxis_transform(),
+            color="0.9",
+            label="held out" if i == 0 else None,
+        )
         ax.set_ylabel(f"{'xyz'[i]} [nT]")
     axes[0].legend(loc="upper right", fontsize=8)
     axes[0].set_title(f"Measured − simulated ({result.report['verdict']})")
@@ -229,8 +257,10 @@ def _effects_table(missing: list[dict[str, Any]]) -> list[str]:
     """The named effects' Markdown: their tests, sizes, held-out gaps and parameters."""
     if not missing:
         return []
-    head = ("| effect | channel | test | F | log10 p | Holm threshold | ΔBIC "
-            "| held-out RMS [nT] | held-out gap without → with it [nT] |")  # fmt: skip
+    head = (
+        "| effect | channel | test | F | log10 p | Holm threshold | ΔBIC "
+        "| held-out RMS [nT] | held-out gap without → with it [nT] |"
+    )
     lines = ["## Missing effects", "", head, "|---|---|---|---|---|---|---|---|---|"]
     for e in missing:
         ev, g = e["evidence"], e["held_out_gap"]

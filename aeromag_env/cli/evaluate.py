@@ -22,8 +22,15 @@ from aeromag_env.parallel import runner
 OUTPUTS = ("results.json", "evaluation.png")
 
 
-def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: int, out: Path,
-                 quiet: bool = False, ray: str | None = None) -> dict[str, Any]:  # fmt: skip
+def run_evaluate(
+    scenario: str,
+    policies: list[str],
+    episodes: int,
+    seed_start: int,
+    out: Path,
+    quiet: bool = False,
+    ray: str | None = None,
+) -> dict[str, Any]:
     """Evaluate, write ``results.json`` and ``evaluation.png``, print a table; return results.
 
     ``scenario`` may name several, comma-separated: each gets its output set in
@@ -42,8 +49,10 @@ def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: 
         check_scenario(s)
     unknown = [p for p in policies if p not in POLICIES and not p.startswith("ppo:")]
     if unknown or not policies:
-        raise AeromagError(f"unknown policy {unknown[0] if unknown else ''!r}; valid policies: "
-                           f"{', '.join(POLICIES)}")  # fmt: skip
+        raise AeromagError(
+            f"unknown policy {unknown[0] if unknown else ''!r}; valid policies: "
+            f"{', '.join(POLICIES)}"
+        )
     if episodes < 1:
         raise AeromagError(f"--episodes must be ≥ 1, got {episodes}")
     policy_files = [Path(p[4:]) for p in policies if p.startswith("ppo:")]
@@ -51,13 +60,23 @@ def run_evaluate(scenario: str, policies: list[str], episodes: int, seed_start: 
     for folder in outs.values():
         check_output_set(folder, OUTPUTS, policy_files)
     seeds = list(range(seed_start, seed_start + episodes))
-    with runner(ray) as tasks, tqdm(total=episodes * len(policies) * len(scenarios),
-                                    desc=scenario, unit="episode", disable=quiet or None,
-                                    leave=False) as bar:  # fmt: skip
+    with (
+        runner(ray) as tasks,
+        tqdm(
+            total=episodes * len(policies) * len(scenarios),
+            desc=scenario,
+            unit="episode",
+            disable=quiet or None,
+            leave=False,
+        ) as bar,
+    ):
         results = evaluate_scenarios(scenarios, policies, seeds, progress=bar.update, runner=tasks)
     if tasks.retried:
-        print(f"aeromag evaluate: {len(tasks.retried)} task(s) ran again after their Ray worker "
-              f"died (same results): {'; '.join(tasks.retried)}", file=sys.stderr)  # fmt: skip
+        print(
+            f"aeromag evaluate: {len(tasks.retried)} task(s) ran again after their Ray worker "
+            f"died (same results): {'; '.join(tasks.retried)}",
+            file=sys.stderr,
+        )
     from aeromag_env.cli.plots import plot_evaluation
 
     for s, folder in outs.items():
@@ -91,15 +110,20 @@ def evaluation_table(results: dict[str, Any]) -> str:
             score = f" {r['normalized_score']:.3g} {_interval(r['normalized_score_ci95'], '.3g')} |"
         elif anchors:
             score = " n/a |"
-        lines.append(f"| {name} | {mean} | {diff} | {r['log_ror_abs_median']:.2g} | "
-                     f"{r['divergences']} |{score}")  # fmt: skip
+        lines.append(
+            f"| {name} | {mean} | {diff} | {r['log_ror_abs_median']:.2g} | "
+            f"{r['divergences']} |{score}"
+        )
     if len(results["seeds"]) < 2:
         lines += ["", "n/a: an interval needs at least 2 flights (--episodes ≥ 2)"]
     if anchors:
         headroom = _interval(anchors["headroom_nt_ci95"], ".3g")
-        lines += ["", f"normalized score: 0 = {anchors['zero']}, 1 = {anchors['one']} "
-                  f"(headroom {anchors['headroom_nt_mean']:.3g} nT {headroom})"
-                  + (f"; {anchors['note']}" if anchors["note"] else "")]  # fmt: skip
+        lines += [
+            "",
+            f"normalized score: 0 = {anchors['zero']}, 1 = {anchors['one']} "
+            f"(headroom {anchors['headroom_nt_mean']:.3g} nT {headroom})"
+            + (f"; {anchors['note']}" if anchors["note"] else ""),
+        ]
     return "\n".join(lines) + "\n"
 
 

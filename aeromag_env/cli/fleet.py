@@ -39,14 +39,36 @@ OUTPUTS = ("fleet.csv", "fleet.png")
 #: Columns of ``fleet.csv`` for ``compensate``: the band-passed (0.1–0.9 Hz) std of the field
 #: before and after, its improvement ratio and the FOM, from the report's ``headline`` block
 #: (real-data figures, no truth needed) [nT, ratio unitless].
-COMPENSATE_COLUMNS = ("file", "output", "status", "method", "std_uncompensated_nt",
-                      "std_compensated_nt", "improvement_ratio", "fom_nt", "warnings",
-                      "warning_text", "error", "attempts")  # fmt: skip
+COMPENSATE_COLUMNS = (
+    "file",
+    "output",
+    "status",
+    "method",
+    "std_uncompensated_nt",
+    "std_compensated_nt",
+    "improvement_ratio",
+    "fom_nt",
+    "warnings",
+    "warning_text",
+    "error",
+    "attempts",
+)
 #: Columns of ``fleet.csv`` for ``discover``: the verdict, the named effects (``name(channel)``,
 #: ``;``-joined) and the held-out gap [nT] with the base model, with the effects, and the shrink.
-DISCOVER_COLUMNS = ("file", "output", "status", "verdict", "named_effects", "gap_before_nt",
-                    "gap_after_nt", "gap_shrink", "warnings", "warning_text", "error",
-                    "attempts")  # fmt: skip
+DISCOVER_COLUMNS = (
+    "file",
+    "output",
+    "status",
+    "verdict",
+    "named_effects",
+    "gap_before_nt",
+    "gap_after_nt",
+    "gap_shrink",
+    "warnings",
+    "warning_text",
+    "error",
+    "attempts",
+)
 #: A warning is cut to this many characters in ``warning_text``.
 WARNING_CHARS = 160
 _GLOB = re.compile(r"[*?[]")
@@ -61,8 +83,11 @@ def is_fleet(arg: str) -> bool:
 def note_single_file(command: str, ray: str | None) -> None:
     """One line on stderr when ``--ray`` came with a single file (it runs here, not on Ray)."""
     if ray is not None:
-        print(f"aeromag {command}: --ray: one file runs in this process; Ray takes a folder or "
-              "a glob of flight files", file=sys.stderr)  # fmt: skip
+        print(
+            f"aeromag {command}: --ray: one file runs in this process; Ray takes a folder or "
+            "a glob of flight files",
+            file=sys.stderr,
+        )
 
 
 def fleet_files(arg: str, out: Path) -> list[Path]:
@@ -80,8 +105,9 @@ def fleet_files(arg: str, out: Path) -> list[Path]:
         found = [Path(p) for p in glob.glob(arg, recursive=True)]
         where = f"match {arg!r}"
     ours = _written_here(out)
-    files = sorted(p for p in found if p.is_file() and p.suffix.lower() in SUFFIXES
-                   and p.resolve() not in ours)  # fmt: skip
+    files = sorted(
+        p for p in found if p.is_file() and p.suffix.lower() in SUFFIXES and p.resolve() not in ours
+    )
     if not files:
         raise AeromagError(f"no flight files ({', '.join(SUFFIXES)}) {where}")
     return files
@@ -148,14 +174,24 @@ def discover_flight(job: DiscoverJob) -> dict[str, Any]:
 
     warnings: list[str] = []
     try:
-        report = run_discover(job.path, job.out, job.flux, job.calibration_window, None,
-                              mount=job.mount, warn=warnings.append,
-                              selection=job.selection, ground=job.ground)  # fmt: skip
+        report = run_discover(
+            job.path,
+            job.out,
+            job.flux,
+            job.calibration_window,
+            None,
+            mount=job.mount,
+            warn=warnings.append,
+            selection=job.selection,
+            ground=job.ground,
+        )
     except (AeromagError, OSError) as e:
         return _failed(e, warnings)
     gap = report["gap"]
-    effects = [f"{e['name']}({e['channel']})" if e.get("channel") else e["name"]
-               for e in report["missing_effects"]]  # fmt: skip
+    effects = [
+        f"{e['name']}({e['channel']})" if e.get("channel") else e["name"]
+        for e in report["missing_effects"]
+    ]
     return {
         "status": "ok",
         "verdict": report["verdict"],
@@ -192,8 +228,10 @@ def compensate_fleet(req: CompensateRequest, arg: str, ray: str | None) -> int:
     status (0, or 2 when a flight failed)."""
     req.check()
     files, names = _plan(arg, req.out)
-    tasks = [Task(str(path), compensate_flight, (replace(req, path=path, out=req.out / name),))
-             for path, name in zip(files, names, strict=True)]  # fmt: skip
+    tasks = [
+        Task(str(path), compensate_flight, (replace(req, path=path, out=req.out / name),))
+        for path, name in zip(files, names, strict=True)
+    ]
     return _run("compensate", tasks, names, req.out, ray, quiet=False)
 
 
@@ -201,8 +239,10 @@ def discover_fleet(job: DiscoverJob, arg: str, ray: str | None, quiet: bool) -> 
     """``aeromag discover DIR_OR_GLOB``: as :func:`compensate_fleet`, ``job.out`` the fleet's
     folder."""
     files, names = _plan(arg, job.out)
-    tasks = [Task(str(path), discover_flight, (replace(job, path=path, out=job.out / name),))
-             for path, name in zip(files, names, strict=True)]  # fmt: skip
+    tasks = [
+        Task(str(path), discover_flight, (replace(job, path=path, out=job.out / name),))
+        for path, name in zip(files, names, strict=True)
+    ]
     return _run("discover", tasks, names, job.out, ray, quiet)
 
 
@@ -226,16 +266,24 @@ def _run(
         for line in _stderr_lines(command, outcome):
             bar.write(line, file=sys.stderr)
 
-    bar = tqdm(total=len(tasks), desc=command, unit="flight", disable=quiet or None,
-               file=sys.stderr, leave=False)  # fmt: skip
+    bar = tqdm(
+        total=len(tasks),
+        desc=command,
+        unit="flight",
+        disable=quiet or None,
+        file=sys.stderr,
+        leave=False,
+    )
     with runner(ray) as r, bar:
         outcomes = r.run(tasks, report)
     rows = [_row(o, name) for o, name in zip(outcomes, names, strict=True)]
     columns = COMPENSATE_COLUMNS if command == "compensate" else DISCOVER_COLUMNS
     write_summary(out, rows, columns, [Path(t.label) for t in tasks], command)
     failed = sum(row["status"] != "ok" for row in rows)
-    print(f"{command}: {failed} of {len(rows)} flights failed ({r.name} runner); wrote "
-          f"{out}/<flight>/ per flight, {out}/fleet.csv, fleet.png")  # fmt: skip
+    print(
+        f"{command}: {failed} of {len(rows)} flights failed ({r.name} runner); wrote "
+        f"{out}/<flight>/ per flight, {out}/fleet.csv, fleet.png"
+    )
     return 2 if failed else 0
 
 

@@ -17,14 +17,19 @@ from aeromag_env.flight.plot import pyplot
 
 #: Per command: the two columns drawn as bars, their labels, the x-axis label and the title.
 BARS = {
-    "compensate": (("std_uncompensated_nt", "uncompensated"),
-                   ("std_compensated_nt", "compensated"),
-                   "band-passed std, 0.1–0.9 Hz, second half [nT]",
-                   "compensate: each flight before and after"),
-    "discover": (("gap_before_nt", "base model"), ("gap_after_nt", "with named effects"),
-                 "held-out gap above the white-noise floor [nT]",
-                 "discover: each flight's held-out gap"),
-}  # fmt: skip
+    "compensate": (
+        ("std_uncompensated_nt", "uncompensated"),
+        ("std_compensated_nt", "compensated"),
+        "band-passed std, 0.1–0.9 Hz, second half [nT]",
+        "compensate: each flight before and after",
+    ),
+    "discover": (
+        ("gap_before_nt", "base model"),
+        ("gap_after_nt", "with named effects"),
+        "held-out gap above the white-noise floor [nT]",
+        "discover: each flight's held-out gap",
+    ),
+}
 
 
 def _values(rows: list[dict[str, Any]], key: str) -> np.ndarray:
@@ -59,8 +64,13 @@ def plot_fleet(rows: list[dict[str, Any]], command: str, path: Path) -> Path:
         if row.get("status") != "ok":
             ax.text(0, i, "  failed: see fleet.csv", va="center", color="tab:red", fontsize=8)
         elif np.isfinite(before[i]) and np.isfinite(after[i]) and after[i] > 0:
-            ax.text(max(before[i], after[i]), i, f"  ×{before[i] / after[i]:.3g}", va="center",
-                    fontsize=8)  # fmt: skip
+            ax.text(
+                max(before[i], after[i]),
+                i,
+                f"  ×{before[i] / after[i]:.3g}",
+                va="center",
+                fontsize=8,
+            )
     ax.set_yticks(y, [str(row.get("output", "")) for row in rows])
     ax.invert_yaxis()
     ax.set(xlabel=xlabel, title=f"{title} ({len(rows)} flights)")

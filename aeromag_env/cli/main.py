@@ -66,9 +66,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as e:
         if os.environ.get(DEBUG_VARIABLE) == "1":
             raise
-        print(f"aeromag {args.command}: internal error: {_one_line(e)} (a bug: please report "
-              f"it with the command line; {DEBUG_VARIABLE}=1 shows the traceback)",
-              file=sys.stderr)  # fmt: skip
+        print(
+            f"aeromag {args.command}: internal error: {_one_line(e)} (a bug: please report "
+            f"it with the command line; {DEBUG_VARIABLE}=1 shows the traceback)",
+            file=sys.stderr,
+        )
         return 1
 
 

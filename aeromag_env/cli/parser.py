@@ -87,8 +87,11 @@ def _add_discover(sub: argparse._SubParsersAction) -> None:
         "effects library (GLS F-tests, Holm-corrected), add them and show the gap on held-out "
         "data. Writes report.json, report.md, model_config.json, residual.png, diagnostics.png.",
     )
-    p.add_argument("file", help=f"flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat), real or "
-                   f"simulated; {FLEET_HELP}")  # fmt: skip
+    p.add_argument(
+        "file",
+        help=f"flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat), real or "
+        f"simulated; {FLEET_HELP}",
+    )
     p.add_argument("--out", required=True, help="output folder")
     _add_ray_option(p)
     p.add_argument(
@@ -105,9 +108,14 @@ def _add_discover(sub: argparse._SubParsersAction) -> None:
         help="fit on this time window [s] and score the rest (default: interleaved 60-s "
         "blocks, every third held out)",
     )
-    p.add_argument("--ground", choices=GROUND_MODES, default="ignore", help="separate: fit, test "
-                   "and score only what magnetic ground cannot explain (survey lines; the "
-                   "report lists effects it cannot tell from ground) (default ignore)")  # fmt: skip
+    p.add_argument(
+        "--ground",
+        choices=GROUND_MODES,
+        default="ignore",
+        help="separate: fit, test "
+        "and score only what magnetic ground cannot explain (survey lines; the "
+        "report lists effects it cannot tell from ground) (default ignore)",
+    )
     _add_selection_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_discover)
@@ -350,10 +358,11 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true", help="fewer repeats and shorter runs")
     p.add_argument(
-        "--only", choices=("ray", "discover"),
+        "--only",
+        choices=("ray", "discover"),
         help="ray: only the Ray figures (needs --ray [ADDRESS]); discover: only the discrepancy "
         "workflow's seconds per flight-hour",
-    )  # fmt: skip
+    )
     _add_ray_option(p)
     p.set_defaults(func=cmd_bench)
 
@@ -389,9 +398,19 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(
         dest="command", required=True, metavar="COMMAND", parser_class=_Parser
     )
-    adders = (_add_simulate, _add_info, _add_compensate, _add_reproduce, _add_evaluate, _add_train,
-              _add_tune, _add_discover, _add_demo, _add_convert,
-              _add_bench)  # fmt: skip
+    adders = (
+        _add_simulate,
+        _add_info,
+        _add_compensate,
+        _add_reproduce,
+        _add_evaluate,
+        _add_train,
+        _add_tune,
+        _add_discover,
+        _add_demo,
+        _add_convert,
+        _add_bench,
+    )
     for add in adders:
         add(sub)
     for command in sub.choices.values():

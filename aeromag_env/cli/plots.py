@@ -18,8 +18,14 @@ def plot_evaluation(results: dict, path: str | os.PathLike) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), constrained_layout=True)
     means = [results["policies"][n]["rmse_nt_mean"] for n in names]
     ci = np.array([results["policies"][n]["rmse_nt_ci95"] for n in names])
-    axes[0].bar(names, means, yerr=[np.subtract(means, ci[:, 0]), np.subtract(ci[:, 1], means)],
-                capsize=4, color="tab:blue", alpha=0.8)  # fmt: skip
+    axes[0].bar(
+        names,
+        means,
+        yerr=[np.subtract(means, ci[:, 0]), np.subtract(ci[:, 1], means)],
+        capsize=4,
+        color="tab:blue",
+        alpha=0.8,
+    )
     axes[0].set(ylabel="compensation RMSE [nT]", title=f"{results['scenario']}: mean, 95 % CI")
     axes[0].set_yscale("log")
     per = np.array([results["policies"][n]["rmse_nt"] for n in names])

@@ -58,15 +58,19 @@ def load_replay(path: str | Path) -> Flight:
     replay, problems = load_flight(path, needs=("tt", "position", "attitude", "date"))
     for problem in [*problems, *replay_warnings(replay)]:
         print(f"aeromag simulate: warning: {problem}", file=sys.stderr)
-    flown = {"tt": replay.tt, **dict(zip(("lat", "lon", "alt"), replay.position_rad(),
-                                         strict=True)),
-             **dict(zip(("roll", "pitch", "yaw"), replay.attitude_rad(), strict=True))}  # fmt: skip
+    flown = {
+        "tt": replay.tt,
+        **dict(zip(("lat", "lon", "alt"), replay.position_rad(), strict=True)),
+        **dict(zip(("roll", "pitch", "yaw"), replay.attitude_rad(), strict=True)),
+    }
     for name, values in flown.items():
         bad = int(np.count_nonzero(~np.isfinite(np.asarray(values, float))))
         if bad:
-            raise FlightFileError(f"{path}: cannot replay: {name} has {bad} non-finite "
-                                  "sample(s) (a replay flies every sample; cut them out first, "
-                                  "e.g. with aeromag convert of a selected part)")  # fmt: skip
+            raise FlightFileError(
+                f"{path}: cannot replay: {name} has {bad} non-finite "
+                "sample(s) (a replay flies every sample; cut them out first, "
+                "e.g. with aeromag convert of a selected part)"
+            )
     replay.attrs["path"] = str(path)
     return replay
 
@@ -105,8 +109,13 @@ def run_simulate(args: argparse.Namespace) -> tuple[Flight, SimulationConfig]:
     inputs = [p for p in (args.config, args.replay) if p]
     check_output_file(out, inputs)
     replay = load_replay(args.replay) if args.replay else None
-    with tqdm(total=len(STAGES) + 1, desc="simulate", unit="stage", disable=args.quiet or None,
-              leave=False) as bar:  # fmt: skip
+    with tqdm(
+        total=len(STAGES) + 1,
+        desc="simulate",
+        unit="stage",
+        disable=args.quiet or None,
+        leave=False,
+    ) as bar:
 
         def progress(stage: str) -> None:
             bar.set_description(stage)

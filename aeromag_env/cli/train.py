@@ -35,8 +35,10 @@ def parse_seeds(text: str) -> list[int]:
         except ValueError:
             raise AeromagError(f"--seeds takes e.g. 0-4 or 0,2,5, got {text!r}") from None
         if last < first or last - first >= MAX_SEEDS:
-            raise AeromagError(f"--seeds: {part.strip()!r} is not a range of at most "
-                               f"{MAX_SEEDS} seeds (low-high, low ≤ high)")  # fmt: skip
+            raise AeromagError(
+                f"--seeds: {part.strip()!r} is not a range of at most "
+                f"{MAX_SEEDS} seeds (low-high, low ≤ high)"
+            )
         seeds += range(first, last + 1)
     for seed in seeds:
         check_seed("--seeds", seed)
@@ -46,9 +48,15 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def train_seeds(
-    scenario: str, timesteps: int, seeds: list[int], out: Path, quick: bool,
-    hyperparams: Path | None, ray: str | None, quiet: bool,
-) -> dict[str, Any]:  # fmt: skip
+    scenario: str,
+    timesteps: int,
+    seeds: list[int],
+    out: Path,
+    quick: bool,
+    hyperparams: Path | None,
+    ray: str | None,
+    quiet: bool,
+) -> dict[str, Any]:
     """Train one run per seed (tasks of ``--ray``'s runner, one CPU each); write and return
     the summary. A failed seed is reported with its folder and the rest complete; then the
     error is raised."""
@@ -60,45 +68,70 @@ def train_seeds(
     for seed in seeds:
         check_output_set(out / f"seed_{seed}", (*CHECKPOINT, *OUTPUTS), [hp])
     check_output_set(out, ("seeds.json",), [hp])
-    tasks = [Task(f"seed {seed} ({out / f'seed_{seed}'})", train_ppo,
-                  (scenario, timesteps, seed, out / f"seed_{seed}", quick, False, hp, True))
-             for seed in seeds]  # fmt: skip
-    with runner(ray) as r, tqdm(total=len(seeds), desc="training seeds", unit="seed",
-                                disable=quiet or None, leave=False) as bar:  # fmt: skip
+    tasks = [
+        Task(
+            f"seed {seed} ({out / f'seed_{seed}'})",
+            train_ppo,
+            (scenario, timesteps, seed, out / f"seed_{seed}", quick, False, hp, True),
+        )
+        for seed in seeds
+    ]
+    with (
+        runner(ray) as r,
+        tqdm(
+            total=len(seeds), desc="training seeds", unit="seed", disable=quiet or None, leave=False
+        ) as bar,
+    ):
         outcomes = r.run(tasks, lambda o: bar.update(1))
-    rows = [{"seed": seed, "folder": str(out / f"seed_{seed}"), "attempts": o.attempts,
-             "best_validation_rmse_nt": o.value["best_validation_rmse_nt"] if o.ok else None,
-             "timesteps": o.value["timesteps"] if o.ok else None, "error": o.error}
-            for seed, o in zip(seeds, outcomes, strict=True)]  # fmt: skip
+    rows = [
+        {
+            "seed": seed,
+            "folder": str(out / f"seed_{seed}"),
+            "attempts": o.attempts,
+            "best_validation_rmse_nt": o.value["best_validation_rmse_nt"] if o.ok else None,
+            "timesteps": o.value["timesteps"] if o.ok else None,
+            "error": o.error,
+        }
+        for seed, o in zip(seeds, outcomes, strict=True)
+    ]
     summary = {"scenario": scenario, "runner": r.name, "seeds": rows, **_spread(rows)}
     with output_set(out, ("seeds.json",), [hp]) as stage:
         write_text(stage / "seeds.json", json.dumps(summary, indent=2))
     print(seed_table(summary))
     failed = failures(outcomes)
     if failed:
-        raise AeromagError(f"{len(failed)} of {len(seeds)} training run(s) failed; first: "
-                           f"{failed[0].label}: {failed[0].error}")  # fmt: skip
+        raise AeromagError(
+            f"{len(failed)} of {len(seeds)} training run(s) failed; first: "
+            f"{failed[0].label}: {failed[0].error}"
+        )
     return summary
 
 
 def _spread(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Mean and SD of the seeds' finite best validation RMSEs (SD from 2 seeds on)."""
-    finite = [v for r in rows if (v := r["best_validation_rmse_nt"]) is not None
-              and math.isfinite(v)]  # fmt: skip
+    finite = [
+        v for r in rows if (v := r["best_validation_rmse_nt"]) is not None and math.isfinite(v)
+    ]
     sd = statistics.stdev(finite) if len(finite) > 1 else None
-    return {"validation_rmse_nt_mean": statistics.fmean(finite) if finite else None,
-            "validation_rmse_nt_sd": sd}  # fmt: skip
+    return {
+        "validation_rmse_nt_mean": statistics.fmean(finite) if finite else None,
+        "validation_rmse_nt_sd": sd,
+    }
 
 
 def seed_table(summary: dict[str, Any]) -> str:
     """Markdown: per seed its best validation RMSE, attempts and error; then mean and SD."""
-    lines = ["| seed | best validation RMSE [nT] | steps | attempts | error |",
-             "|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        "| seed | best validation RMSE [nT] | steps | attempts | error |",
+        "|---|---|---|---|---|",
+    ]
     for r in summary["seeds"]:
         rmse = r["best_validation_rmse_nt"]
         shown = "—" if rmse is None else f"{rmse:.3g}"
-        lines.append(f"| {r['seed']} | {shown} | {r['timesteps'] or '—'} | {r['attempts']} | "
-                     f"{r['error'] or ''} |")  # fmt: skip
+        lines.append(
+            f"| {r['seed']} | {shown} | {r['timesteps'] or '—'} | {r['attempts']} | "
+            f"{r['error'] or ''} |"
+        )
     mean, sd = summary["validation_rmse_nt_mean"], summary["validation_rmse_nt_sd"]
     if sd is not None:
         lines += ["", f"over {len(summary['seeds'])} seeds: mean {mean:.3g} nT, SD {sd:.2g} nT"]

@@ -36,9 +36,17 @@ def run_tune(args: argparse.Namespace) -> dict[str, Any]:
     address = None if args.ray in (None, "local") else args.ray
     space = Path(args.space) if args.space else SPACE
     hyperparams = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS
-    return tune_ppo(args.scenario, space, args.samples, args.timesteps, Path(args.out),
-                    seed=args.seed, quick=args.quick, ray_address=address,
-                    hyperparams=hyperparams)  # fmt: skip
+    return tune_ppo(
+        args.scenario,
+        space,
+        args.samples,
+        args.timesteps,
+        Path(args.out),
+        seed=args.seed,
+        quick=args.quick,
+        ray_address=address,
+        hyperparams=hyperparams,
+    )
 
 
 def tune_summary(summary: dict[str, Any], out: str) -> str:
@@ -46,8 +54,9 @@ def tune_summary(summary: dict[str, Any], out: str) -> str:
     trials, best = summary["trials"], summary["best"]
     stopped = sum(t["stopped_by_asha"] for t in trials)
     failed = sum(t["error"] is not None for t in trials)
-    config = ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
-                       for k, v in best["config"].items())  # fmt: skip
+    config = ", ".join(
+        f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}" for k, v in best["config"].items()
+    )
     return (
         f"{len(trials)} trials ({stopped} stopped early by ASHA, {failed} failed) in "
         f"{summary['seconds']:.0f} s on {summary['cpus']} CPUs\n"

@@ -124,9 +124,21 @@ def row(f: FilterArrays, i: int) -> FilterArrays:
     field as in the classes above."""
     g, s, w, o = f.signals, f.state, f.window, f.outputs
     signals = Signals(g.y[i], g.t[i], g.td[i], g.valid[i])
-    state = State(s.d[i], s.z[i], s.p[i], s.qd[i], s.rm[i], s.z_good[i], s.p0[i], s.q0[i],
-                  s.r0[i], s.ints[i], s.par[i])  # fmt: skip
+    state = State(
+        s.d[i],
+        s.z[i],
+        s.p[i],
+        s.qd[i],
+        s.rm[i],
+        s.z_good[i],
+        s.p0[i],
+        s.q0[i],
+        s.r0[i],
+        s.ints[i],
+        s.par[i],
+    )
     window = Window(w.rbuf[i], w.sbuf[i], w.acc[i])
-    outputs = Outputs(o.est[i], o.innov[i], o.ror[i], o.qoq[i], o.q_scale[i], o.r_scale[i],
-                      o.states[i])  # fmt: skip
+    outputs = Outputs(
+        o.est[i], o.innov[i], o.ror[i], o.qoq[i], o.q_scale[i], o.r_scale[i], o.states[i]
+    )
     return FilterArrays(signals, state, window, outputs)

@@ -108,8 +108,9 @@ def bandpass_finite(
     out = np.full(x.shape, np.nan)
     finite = np.isfinite(x)
     parts = [slice(0, x.size)] if segments is None else segments
-    for run in (slice(p.start + r.start, p.start + r.stop) for p in parts
-                for r in finite_runs(finite[p])):  # fmt: skip
+    for run in (
+        slice(p.start + r.start, p.start + r.stop) for p in parts for r in finite_runs(finite[p])
+    ):
         if run.stop - run.start >= need:
             out[run] = bandpass(x[run], fs_hz, low_hz, high_hz, order)
     return out

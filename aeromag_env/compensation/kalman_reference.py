@@ -157,10 +157,21 @@ def run_reference(
         out["r_scale"][k] = np.trace(r) / np.trace(r0)
         states[k] = z * d
     return FilterResult(
-        est, innovations, out["ror"], out["qoq"], out["q_scale"], out["r_scale"],
-        states, z * d, p * np.outer(d, d), r, np.diag(q) * d**2, counts["divergences"],
-        counts["skipped"], counts["outliers"],
-    )  # fmt: skip
+        est,
+        innovations,
+        out["ror"],
+        out["qoq"],
+        out["q_scale"],
+        out["r_scale"],
+        states,
+        z * d,
+        p * np.outer(d, d),
+        r,
+        np.diag(q) * d**2,
+        counts["divergences"],
+        counts["skipped"],
+        counts["outliers"],
+    )
 
 
 def _ratios(window: list, gain: np.ndarray | None, q: np.ndarray) -> tuple[float, float]:

@@ -159,9 +159,15 @@ def _predict(mode: int, lam: float, p: np.ndarray, qd: np.ndarray) -> None:
 
 @per_sample
 def _estimate(
-    k: int, t: np.ndarray, td: np.ndarray, d: np.ndarray, z: np.ndarray, col: np.ndarray,
-    hv: np.ndarray, est: np.ndarray,
-) -> None:  # fmt: skip
+    k: int,
+    t: np.ndarray,
+    td: np.ndarray,
+    d: np.ndarray,
+    z: np.ndarray,
+    col: np.ndarray,
+    hv: np.ndarray,
+    est: np.ndarray,
+) -> None:
     """``H_s(k)`` into ``col``, ``hv`` and the a-priori interference ``H_s z⁻`` into ``est[k]``."""
     _h_row(t, td, k, d, col, hv)
     for i in range(3):
@@ -173,9 +179,17 @@ def _estimate(
 
 @per_sample
 def _innovation(
-    k: int, y: np.ndarray, est: np.ndarray, p: np.ndarray, rm: np.ndarray, col: np.ndarray,
-    hv: np.ndarray, gt: np.ndarray, s: np.ndarray, r: np.ndarray,
-) -> None:  # fmt: skip
+    k: int,
+    y: np.ndarray,
+    est: np.ndarray,
+    p: np.ndarray,
+    rm: np.ndarray,
+    col: np.ndarray,
+    hv: np.ndarray,
+    gt: np.ndarray,
+    s: np.ndarray,
+    r: np.ndarray,
+) -> None:
     """``Gᵀ`` (``gt``), ``S = H_s G + R`` (``s``) and ``r = y − H_s z⁻`` (``r``) of sample k."""
     n_state = p.shape[0]
     # Gᵀ[i, a] = Σ_m P⁻[a, c_im] h_im, read as P⁻[c_im, a] (P is kept exactly symmetric)
@@ -196,9 +210,15 @@ def _innovation(
 
 @per_sample
 def _update(
-    z: np.ndarray, p: np.ndarray, gt: np.ndarray, kt: np.ndarray, kst: np.ndarray,
-    s: np.ndarray, sinv: np.ndarray, r: np.ndarray,
-) -> None:  # fmt: skip
+    z: np.ndarray,
+    p: np.ndarray,
+    gt: np.ndarray,
+    kt: np.ndarray,
+    kst: np.ndarray,
+    s: np.ndarray,
+    sinv: np.ndarray,
+    r: np.ndarray,
+) -> None:
     """``K = G S⁻¹`` (eq. 19, into ``kt``), ``z = z⁻ + K r`` and the Joseph form, expanded:
     ``P = P⁻ − K Gᵀ − G Kᵀ + K S Kᵀ`` on the lower triangle, then mirrored (P exactly
     symmetric)."""
@@ -255,9 +275,16 @@ def _copy(src: np.ndarray, dst: np.ndarray) -> None:
 
 @njit(cache=True)  # on a divergence only; copies arrays: needs the runtime
 def _restart(
-    z: np.ndarray, z_good: np.ndarray, p: np.ndarray, p0: np.ndarray, qd: np.ndarray,
-    q0: np.ndarray, rm: np.ndarray, r0: np.ndarray, ints: np.ndarray,
-) -> None:  # fmt: skip
+    z: np.ndarray,
+    z_good: np.ndarray,
+    p: np.ndarray,
+    p0: np.ndarray,
+    qd: np.ndarray,
+    q0: np.ndarray,
+    rm: np.ndarray,
+    r0: np.ndarray,
+    ints: np.ndarray,
+) -> None:
     """Divergence: count it and restart from the last good state with P(0), Q(0), R(0)."""
     ints[INT_DIV] += 1
     z[:] = z_good
@@ -268,9 +295,15 @@ def _restart(
 
 @per_sample
 def _statistics(
-    k: int, valid: bool, ints: np.ndarray, acc: np.ndarray, kt: np.ndarray, qd: np.ndarray,
-    ror: np.ndarray, qoq: np.ndarray,
-) -> None:  # fmt: skip
+    k: int,
+    valid: bool,
+    ints: np.ndarray,
+    acc: np.ndarray,
+    kt: np.ndarray,
+    qd: np.ndarray,
+    ror: np.ndarray,
+    qoq: np.ndarray,
+) -> None:
     """ROR and QOQ of the window at sample k (eqs. 22–24; NaN before data)."""
     count = ints[INT_COUNT]
     ror[k] = acc[ACC_RR] / acc[ACC_S] if count > 0 and acc[ACC_S] > 0.0 else np.nan
@@ -279,9 +312,17 @@ def _statistics(
 
 @per_sample
 def _adapt(
-    mode: int, ror: float, qoq: float, ints: np.ndarray, par: np.ndarray, acc: np.ndarray,
-    qd: np.ndarray, q0: np.ndarray, rm: np.ndarray, r0: np.ndarray,
-) -> None:  # fmt: skip
+    mode: int,
+    ror: float,
+    qoq: float,
+    ints: np.ndarray,
+    par: np.ndarray,
+    acc: np.ndarray,
+    qd: np.ndarray,
+    q0: np.ndarray,
+    rm: np.ndarray,
+    r0: np.ndarray,
+) -> None:
     """``fakf``, ``ding``: adapt Q and R from the window statistics ``ror``, ``qoq`` once the
     window is full, every ``adapt_interval`` samples; then (and after every Sage–Husa sample)
     clamp their scales."""
@@ -300,9 +341,17 @@ def _adapt(
 
 @per_sample
 def _record(
-    k: int, trq0: float, trr0: float, qd: np.ndarray, rm: np.ndarray, z: np.ndarray,
-    d: np.ndarray, q_scale: np.ndarray, r_scale: np.ndarray, states: np.ndarray,
-) -> None:  # fmt: skip
+    k: int,
+    trq0: float,
+    trr0: float,
+    qd: np.ndarray,
+    rm: np.ndarray,
+    z: np.ndarray,
+    d: np.ndarray,
+    q_scale: np.ndarray,
+    r_scale: np.ndarray,
+    states: np.ndarray,
+) -> None:
     """Q and R scales and (when kept) the posterior state in physical units at row k."""
     q_scale[k] = qd.sum() / trq0 if trq0 > 0.0 else np.nan
     r_scale[k] = (rm[0, 0] + rm[1, 1] + rm[2, 2]) / trr0

@@ -93,18 +93,32 @@ def _claims(fakf: dict[str, Any], kf: dict[str, Any], tuned: dict[str, Any]) -> 
     return [
         _claim("ROR around 1 (fakf)", band, fakf["ror_median"], lo <= fakf["ror_median"] <= hi),
         _claim("QOQ around 1 (fakf)", band, fakf["qoq_median"], lo <= fakf["qoq_median"] <= hi),
-        _claim("noise estimated ≈ 20 nT per axis (fakf)", "each axis within 10 %",
-               noise.tolist(), noise_ok),
-        _claim("states converge to constants in finite time (fakf)",
-               f"all 21 states within ±{CONVERGENCE_TOLERANCE:g} typical magnitude of their final "
-               "value over at least the last 10 % of the flight", conv, conv is not None),
-        _claim("fuzzy adaptation improves on the plain KF of the same setting",
-               "lower compensation RMSE than kf", [rmse["fakf"], rmse["kf"]],
-               rmse["fakf"] < rmse["kf"]),
-        _claim("(not in the paper) fakf as accurate as a well-tuned constant KF",
-               "RMSE within 10 % of kf with R = true noise", [rmse["fakf"], tuned_rmse],
-               rmse["fakf"] <= 1.1 * tuned_rmse),
-    ]  # fmt: skip
+        _claim(
+            "noise estimated ≈ 20 nT per axis (fakf)",
+            "each axis within 10 %",
+            noise.tolist(),
+            noise_ok,
+        ),
+        _claim(
+            "states converge to constants in finite time (fakf)",
+            f"all 21 states within ±{CONVERGENCE_TOLERANCE:g} typical magnitude of their final "
+            "value over at least the last 10 % of the flight",
+            conv,
+            conv is not None,
+        ),
+        _claim(
+            "fuzzy adaptation improves on the plain KF of the same setting",
+            "lower compensation RMSE than kf",
+            [rmse["fakf"], rmse["kf"]],
+            rmse["fakf"] < rmse["kf"],
+        ),
+        _claim(
+            "(not in the paper) fakf as accurate as a well-tuned constant KF",
+            "RMSE within 10 % of kf with R = true noise",
+            [rmse["fakf"], tuned_rmse],
+            rmse["fakf"] <= 1.1 * tuned_rmse,
+        ),
+    ]
 
 
 def reproduce_paper(out: Path, quick: bool = False, seed: int = 2014) -> dict[str, Any]:
@@ -134,13 +148,17 @@ def reproduce_paper(out: Path, quick: bool = False, seed: int = 2014) -> dict[st
     half = np.arange(flight.n) >= flight.n // 2
     lsq_rmse = compensation_rmse(flight.vector("truth_interf"), lsq, half)
     report = {
-        "setting": {"seed": seed, "duration_s": flight.duration_s, "preset": "paper",
-                    "filter": "paper_filter_config (Q(0) = 1e-3 I normalised, R(0) = 2e-3 I nT²)"},
+        "setting": {
+            "seed": seed,
+            "duration_s": flight.duration_s,
+            "preset": "paper",
+            "filter": "paper_filter_config (Q(0) = 1e-3 I normalised, R(0) = 2e-3 I nT²)",
+        },
         "fakf": summaries["fakf"],
         "kf": summaries["kf"],
         "reference": {"kf_true_r": summaries["kf_true_r"], "lsq_compensation_rmse_nt": lsq_rmse},
         "claims": _claims(summaries["fakf"], summaries["kf"], summaries["kf_true_r"]),
-    }  # fmt: skip
+    }
     from aeromag_env.compensation.paper_plots import plot_paper_figures
 
     with output_set(out, OUTPUTS) as stage:
@@ -169,8 +187,11 @@ def seed_sweep(seeds: list[int], quick: bool = False) -> dict[str, Any]:
         y = flight.vector("flux_a") - t_b
         half = np.arange(flight.n) >= flight.n // 2
         truth = flight.vector("truth_interf")
-        for name, fcfg in (("fakf", paper_filter_config("fakf")), ("kf", paper_filter_config("kf")),
-                           ("kf_true_r", FilterConfig(r_std_nt=20.0))):  # fmt: skip
+        for name, fcfg in (
+            ("fakf", paper_filter_config("fakf")),
+            ("kf", paper_filter_config("kf")),
+            ("kf_true_r", FilterConfig(r_std_nt=20.0)),
+        ):
             res = run_filter(fcfg, y, t_b, tdot_b, store_states=False)
             for key, value in (
                 ("ror_median", np.nanmedian(res.ror[half])),

@@ -18,8 +18,13 @@ def plot_compensation(flight: Flight, comp: Any, metrics: dict, path: str | os.P
     """Compensation overview: total field before/after, interference error, filter ratios."""
     plt = pyplot()
     has_ratios = "ror" in comp.series
-    fig, axes = plt.subplots(3 if has_ratios else 2, 1, figsize=(11, 9 if has_ratios else 6.5),
-                             sharex=True, constrained_layout=True)  # fmt: skip
+    fig, axes = plt.subplots(
+        3 if has_ratios else 2,
+        1,
+        figsize=(11, 9 if has_ratios else 6.5),
+        sharex=True,
+        constrained_layout=True,
+    )
     ref = comp.model_total if comp.model_total is not None else np.nanmean(comp.total_before)
     ax = axes[0]
     ax.plot(flight.tt, comp.total_before - ref, lw=0.6, label="uncompensated")

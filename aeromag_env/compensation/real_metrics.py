@@ -80,8 +80,9 @@ def spreads(
     ``{"samples", "std_nt": {name: …}, "segments": [...], "segment_count"}``."""
     parts = segments(flight.tt)
     common = np.all([np.isfinite(v) for v in series.values()], axis=0)
-    bp = {k: bandpassed(flight, np.where(common, v, np.nan), parts=parts)
-          for k, v in series.items()}  # fmt: skip
+    bp = {
+        k: bandpassed(flight, np.where(common, v, np.nan), parts=parts) for k, v in series.items()
+    }
     ok = np.all([np.isfinite(v) for v in bp.values()], axis=0)
     if span is not None:
         ok &= span
@@ -189,8 +190,12 @@ def vendor_comparison(
         return None
     flags = spike_flags(flight, [scalar, vendor])
     spiky = flags[scalar] | flags[vendor]
-    series = {"uncompensated": flight[scalar], "vendor": flight[vendor],
-              "ours_uncompensated": ours_before, "ours": ours_after}  # fmt: skip
+    series = {
+        "uncompensated": flight[scalar],
+        "vendor": flight[vendor],
+        "ours_uncompensated": ours_before,
+        "ours": ours_after,
+    }
     series = {k: np.where(spiky, np.nan, v) for k, v in series.items()}
     s = spreads(flight, series, second_half(flight))
     std = s["std_nt"]

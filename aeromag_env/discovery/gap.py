@@ -113,8 +113,11 @@ def effect_gap(
     others = [c for c in sel.chosen if c != j]
     without = _predict(base, groups, others, sel.beta_without[j])
     gap, _, _ = gap_record(data, without, _predict(base, groups, sel.chosen, sel.beta), _white(sel))
-    return {"rms_without_nt": gap["rms_before_nt"], "rms_with_nt": gap["rms_after_nt"],
-            "shrink": gap["shrink"]}  # fmt: skip
+    return {
+        "rms_without_nt": gap["rms_before_nt"],
+        "rms_with_nt": gap["rms_after_nt"],
+        "shrink": gap["shrink"],
+    }
 
 
 def _predict(

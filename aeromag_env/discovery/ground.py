@@ -145,9 +145,13 @@ class GroundReference:
             "knot_spacing_s": [min(spacing), max(spacing)] if spacing else [],
             "knots_per_clearance": sorted({r.knots_per_clearance for r in self.runs}),
             "samples_dropped": int(sum(d.size for d in self.dropped)),
-            "clearance_m": [min(r.clearance_m for r in self.runs),
-                            max(r.clearance_m for r in self.runs)] if self.runs else [],
-        }  # fmt: skip
+            "clearance_m": [
+                min(r.clearance_m for r in self.runs),
+                max(r.clearance_m for r in self.runs),
+            ]
+            if self.runs
+            else [],
+        }
 
 
 def ground_reference(
@@ -200,8 +204,7 @@ def ground_reference(
         h = max(h, MIN_CLEARANCE_M)
         v = float(np.nanmedian(speed[idx]))
         runs.append((idx, h, v))
-    coarse = [_span(tt, c_nb, idx, _spacing(tt, idx, KNOT_FACTORS[0], h, v))
-              for idx, h, v in runs]  # fmt: skip
+    coarse = [_span(tt, c_nb, idx, _spacing(tt, idx, KNOT_FACTORS[0], h, v)) for idx, h, v in runs]
     resid = y - np.einsum("kip,p->ki", base, _base_fit(runs, coarse, y, base, calibration))
     for run, first in zip(runs, coarse, strict=True):
         idx, h, v = run
@@ -339,9 +342,11 @@ def _clearance(flight: Flight) -> tuple[np.ndarray, str]:
     dropped out is NaN there, and the next source fills in)."""
     alt_name = flight.altitude_name() or "alt"
     alt = np.asarray(flight[alt_name], float) if alt_name in flight else np.full(flight.n, np.nan)
-    sources = [("radar", np.asarray(flight["radar"], float) if "radar" in flight else None),
-               (f"{alt_name} − dem", alt - flight["dem"] if "dem" in flight else None),
-               (f"{alt_name} (ground at 0 m)", alt)]  # fmt: skip
+    sources = [
+        ("radar", np.asarray(flight["radar"], float) if "radar" in flight else None),
+        (f"{alt_name} − dem", alt - flight["dem"] if "dem" in flight else None),
+        (f"{alt_name} (ground at 0 m)", alt),
+    ]
     out, used = np.full(flight.n, np.nan), []
     for name, values in sources:
         if values is None:

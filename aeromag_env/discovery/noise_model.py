@@ -175,10 +175,16 @@ def log_likelihood(r: np.ndarray, gap: np.ndarray, noise: NoiseModel) -> float:
     """Gaussian log-likelihood of the residual ``r`` (m, 3) under ``noise`` (axes independent)."""
     buf = np.empty((r.shape[0], 1))
     return sum(
-        _innovations(np.ascontiguousarray(r[:, i : i + 1]), gap, noise.fogm_tau_s[i],
-                     noise.fogm_std_nt[i] ** 2, noise.white_std_nt[i] ** 2, buf)
+        _innovations(
+            np.ascontiguousarray(r[:, i : i + 1]),
+            gap,
+            noise.fogm_tau_s[i],
+            noise.fogm_std_nt[i] ** 2,
+            noise.white_std_nt[i] ** 2,
+            buf,
+        )
         for i in range(3)
-    )  # fmt: skip
+    )
 
 
 def fit_noise(r: np.ndarray, gap: np.ndarray, start: NoiseModel | None = None) -> NoiseModel:
@@ -199,9 +205,12 @@ def fit_noise(r: np.ndarray, gap: np.ndarray, start: NoiseModel | None = None) -
     NoiseModel
         The fitted model, one value per axis.
     """
-    starts = [None if start is None else
-              (start.white_std_nt[i], start.fogm_std_nt[i], start.fogm_tau_s[i])
-              for i in range(3)]  # fmt: skip
+    starts = [
+        None
+        if start is None
+        else (start.white_std_nt[i], start.fogm_std_nt[i], start.fogm_tau_s[i])
+        for i in range(3)
+    ]
     # the axes are independent and the kernel releases the GIL: one thread each (bit-identical)
     fits = map_threads(
         lambda i: _fit_one(np.ascontiguousarray(r[:, i : i + 1]), gap, starts[i]), range(3)

@@ -114,8 +114,11 @@ def caveats(
     """
     out = []
     if inseparable:
-        names = ", ".join(dict.fromkeys(d["name"] + (f" ({d['channel']})" if d["channel"] else "")
-                                        for d in inseparable))  # fmt: skip
+        names = ", ".join(
+            dict.fromkeys(
+                d["name"] + (f" ({d['channel']})" if d["channel"] else "") for d in inseparable
+            )
+        )
         out.append(
             f"the ground reference absorbs, or leaves under {SEPARABLE_FRACTION:.0%} of, {names}: "
             "on this flight they can hardly be told from geology, so their verdicts say little "
@@ -132,9 +135,12 @@ def caveats(
         f"correlation time {tau:.0f} s, on axis {'xyz'[i]}; white floor {white:.2f} nT"
     )
     if ground:
-        return [*out, f"even off the ground's span the residual holds a signal no candidate "
-                f"explains ({what}): geology shorter than the knots (flown lower than the "
-                "clearance says?) or an effect outside the library"]  # fmt: skip
+        return [
+            *out,
+            f"even off the ground's span the residual holds a signal no candidate "
+            f"explains ({what}): geology shorter than the knots (flown lower than the "
+            "clearance says?) or an effect outside the library",
+        ]
     return [
         *out,
         f"the residual holds a slow signal no candidate explains ({what}): on survey lines that "

@@ -381,13 +381,15 @@ def select_effects(
     floor = float(np.max(np.std(prob.residual([0], beta0), axis=0)))
     if floor < RESOLUTION_NT:  # a noise-free simulation: tests on rounding errors mean nothing
         chosen, evidence = [0], dict[int, dict[str, Any]]()
-        steps: list[dict[str, Any]] = [{"step": 1, "tests": {}, "residual_std_nt": floor,
-                                        "below_resolution_nt": RESOLUTION_NT}]  # fmt: skip
+        steps: list[dict[str, Any]] = [
+            {"step": 1, "tests": {}, "residual_std_nt": floor, "below_resolution_nt": RESOLUTION_NT}
+        ]
     else:
         chosen, steps, evidence = forward(prob, groups, fractions, base, ctx, alpha, say)
     chosen, retracted = backward(prob, groups, chosen, alpha)
-    chosen, vetoed = held_out_veto(prob, data, [base] + [g.columns for g in groups], chosen,
-                                   evidence)  # fmt: skip
+    chosen, vetoed = held_out_veto(
+        prob, data, [base] + [g.columns for g in groups], chosen, evidence
+    )
     retracted += vetoed
     lag_on_signal(prob, groups, chosen, base, ctx, evidence)
     beta, cov = prob.fit(chosen)
@@ -396,5 +398,17 @@ def select_effects(
         fit_noise(prob.residual(chosen, beta), prob.gap) if len(chosen) > 1 else noise_before
     )
     without = {j: prob.fit([c for c in chosen if c != j])[0] for j in chosen[1:]}
-    return Selection(chosen, retracted, beta, cov, beta_base, steps, evidence, noise_before,
-                     noise_after, lb_before, lb_after, without)  # fmt: skip
+    return Selection(
+        chosen,
+        retracted,
+        beta,
+        cov,
+        beta_base,
+        steps,
+        evidence,
+        noise_before,
+        noise_after,
+        lb_before,
+        lb_after,
+        without,
+    )

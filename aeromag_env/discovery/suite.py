@@ -54,9 +54,14 @@ SNRS = (0.5, 1.0, 2.0, 4.0)
 DURATIONS_S = (1200.0, 1800.0, 2700.0, 3600.0)
 DURATION_SNRS = (0.1, 0.25, 0.5)
 SINGLE = (
-    "onboard_current", "external_field_variation", "permanent_field_drift",
-    "induced_second_order", "altitude_gradient", "eddy_time_constant", "sensor_lag",
-)  # fmt: skip
+    "onboard_current",
+    "external_field_variation",
+    "permanent_field_drift",
+    "induced_second_order",
+    "altitude_gradient",
+    "eddy_time_constant",
+    "sensor_lag",
+)
 ABSORBED_CASES = ("fluxgate_offset", "fluxgate_scale", "fluxgate_nonorthogonality", "misalignment")
 PAIRS = (
     ("onboard_current", "altitude_gradient"),
@@ -84,11 +89,16 @@ SEED_BASE = {
 
 def base_config(duration_s: float = 1800.0) -> SimulationConfig:
     """The suite's flight without any effect."""
-    cfg = with_overrides(preset("nominal"), {
-        "trajectory.pattern": "calibration+survey", "trajectory.duration_s": duration_s,
-        "earth.daily_amplitude_nt": 0.0, "earth.external_fogm_std_nt": 0.0,
-        "scalar.enabled": False,
-    })  # fmt: skip
+    cfg = with_overrides(
+        preset("nominal"),
+        {
+            "trajectory.pattern": "calibration+survey",
+            "trajectory.duration_s": duration_s,
+            "earth.daily_amplitude_nt": 0.0,
+            "earth.external_fogm_std_nt": 0.0,
+            "scalar.enabled": False,
+        },
+    )
     return dataclasses.replace(cfg, aux_channels=AUX, preset="discovery_suite")
 
 
@@ -106,18 +116,30 @@ def prototype(name: str, rng: np.random.Generator) -> tuple[EffectConfig, float]
             name=name, channel=ch, parameters={"k_nt_per_unit": _unit(rng, 3).tolist()}
         ), 1
     if name == "external_field_variation":
-        return EffectConfig(name=name, parameters={
-            "offset_ned_nt": _unit(rng, 3).tolist(), "daily_amplitude_nt": 1.0,
-            "fogm_std_nt": 0.3, "fogm_tau_s": 900.0, "smoothing_s": 180.0}), 1  # fmt: skip
+        return EffectConfig(
+            name=name,
+            parameters={
+                "offset_ned_nt": _unit(rng, 3).tolist(),
+                "daily_amplitude_nt": 1.0,
+                "fogm_std_nt": 0.3,
+                "fogm_tau_s": 900.0,
+                "smoothing_s": 180.0,
+            },
+        ), 1
     if name == "permanent_field_drift":
-        return EffectConfig(name=name, channel="temp_flux",
-                            parameters={"k_nt_per_unit": _unit(rng, 3).tolist()}), 1  # fmt: skip
+        return EffectConfig(
+            name=name, channel="temp_flux", parameters={"k_nt_per_unit": _unit(rng, 3).tolist()}
+        ), 1
     if name == "induced_second_order":
         return EffectConfig(name=name, parameters={"coefficients": _unit(rng, 18).tolist()}), 1
     if name == "altitude_gradient":
-        return EffectConfig(name=name, parameters={
-            "gradient_ned_nt_per_m": (1e-3 * _unit(rng, 3)).tolist(),
-            "reference_alt_m": 1500.0}), 1  # fmt: skip
+        return EffectConfig(
+            name=name,
+            parameters={
+                "gradient_ned_nt_per_m": (1e-3 * _unit(rng, 3)).tolist(),
+                "reference_alt_m": 1500.0,
+            },
+        ), 1
     if name == "eddy_time_constant":
         return EffectConfig(
             name=name, parameters={"tau_s": 0.2, "eddy_s": (1e-3 * _unit(rng, 9)).tolist()}
@@ -136,19 +158,32 @@ def prototype(name: str, rng: np.random.Generator) -> tuple[EffectConfig, float]
 
 
 def _scaled(eff: EffectConfig, factor: float) -> EffectConfig:
-    amplitude = {"k_nt_per_unit", "offset_ned_nt", "daily_amplitude_nt", "fogm_std_nt",
-                 "coefficients", "gradient_ned_nt_per_m", "eddy_s", "lag_s", "offset_nt",
-                 "scale", "angles_rad"}  # fmt: skip
-    params = {k: (np.asarray(v, float) * factor).tolist() if k in amplitude else v
-              for k, v in eff.parameters.items()}  # fmt: skip
+    amplitude = {
+        "k_nt_per_unit",
+        "offset_ned_nt",
+        "daily_amplitude_nt",
+        "fogm_std_nt",
+        "coefficients",
+        "gradient_ned_nt_per_m",
+        "eddy_s",
+        "lag_s",
+        "offset_nt",
+        "scale",
+        "angles_rad",
+    }
+    params = {
+        k: (np.asarray(v, float) * factor).tolist() if k in amplitude else v
+        for k, v in eff.parameters.items()
+    }
     return dataclasses.replace(eff, parameters=params)
 
 
 def identifiable_rms(flight: Flight) -> float:
     """RMS of ``truth_effects`` outside the base span (true Earth field, whole flight) [nT]."""
     t_b = flight.vector("truth_earth")
-    span = BaseSpan(base_columns(t_b, time_derivative(t_b, flight.tt, "central")),
-                    np.ones(flight.n, bool))  # fmt: skip
+    span = BaseSpan(
+        base_columns(t_b, time_derivative(t_b, flight.tt, "central")), np.ones(flight.n, bool)
+    )
     return float(np.sqrt(np.mean(span.perp(flight.vector("truth_effects")[:, :, None]) ** 2)))
 
 
@@ -177,8 +212,9 @@ def build_case(case: Case) -> tuple[SimulationConfig, dict[str, Any]]:
     noise = cfg.fluxgate_noise
     sigma = math.hypot(noise.white_std_nt, noise.fogm_std_nt)
     if case.kind == "absorbed":  # nothing identifiable to scale: the prototype's raw strength
-        truth["effects"] = [{"name": e.name, "channel": e.channel, "parameters": e.parameters}
-                            for e, _ in protos]  # fmt: skip
+        truth["effects"] = [
+            {"name": e.name, "channel": e.channel, "parameters": e.parameters} for e, _ in protos
+        ]
         return dataclasses.replace(cfg, effects=tuple(e for e, _ in protos)), truth
     scaled = []
     for eff, power in protos:
@@ -210,9 +246,14 @@ def suite_cases(
 ) -> list[Case]:
     """The suite's cases (sizes per cell; ``n_duration`` per effect, duration and SNR)."""
     cases = [Case("null", SEED_BASE["null"] + s) for s in range(n_null)]
-    cases += [Case("coloured_null", SEED_BASE["coloured_null"] + s,
-                   noise=COLOURED_NOISE[s % len(COLOURED_NOISE)])
-              for s in range(n_coloured)]  # fmt: skip
+    cases += [
+        Case(
+            "coloured_null",
+            SEED_BASE["coloured_null"] + s,
+            noise=COLOURED_NOISE[s % len(COLOURED_NOISE)],
+        )
+        for s in range(n_coloured)
+    ]
     k = SEED_BASE["single"]
     for nm in SINGLE:
         for snr in SNRS:

@@ -134,9 +134,17 @@ class WhitenedProblem:
         assert noise is not None
         m = self.idx.size
         out = np.empty((3 * m, cols.shape[2])) if out is None else out
-        map_threads(lambda i: whiten(cols[i], self.gap, noise.white_std_nt[i],
-                                     noise.fogm_std_nt[i], noise.fogm_tau_s[i],
-                                     out=out[i * m : (i + 1) * m]), range(3))  # fmt: skip
+        map_threads(
+            lambda i: whiten(
+                cols[i],
+                self.gap,
+                noise.white_std_nt[i],
+                noise.fogm_std_nt[i],
+                noise.fogm_tau_s[i],
+                out=out[i * m : (i + 1) * m],
+            ),
+            range(3),
+        )
         return out
 
     def _rows(self, columns: np.ndarray) -> np.ndarray:
@@ -184,9 +192,11 @@ class WhitenedProblem:
         u = self._absorbing_basis(chosen, candidate)
         q = [u[i * m : (i + 1) * m] for i in range(3)]
         return np.array(
-            [[fogm_quadratic(q[i], self.gap, t).sum() / m for i, t in enumerate(row)]
-             for row in np.atleast_2d(tau_s)]
-        )  # fmt: skip
+            [
+                [fogm_quadratic(q[i], self.gap, t).sum() / m for i, t in enumerate(row)]
+                for row in np.atleast_2d(tau_s)
+            ]
+        )
 
     def _absorbing_basis(self, chosen: list[int], candidate: int) -> np.ndarray:
         """Orthonormal basis (3m, r) of ``candidate``'s un-whitened columns off the span of

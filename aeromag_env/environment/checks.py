@@ -42,9 +42,14 @@ MAX_DECADES = 100.0
 RESET_OPTIONS = ("scenario",)
 #: The boolean switches of the configuration.
 SWITCHES = (
-    "extras", "split_q", "innovation_power", "step_statistic", "turn_rate", "innovation_bias",
+    "extras",
+    "split_q",
+    "innovation_power",
+    "step_statistic",
+    "turn_rate",
+    "innovation_bias",
     "qp_gate",
-)  # fmt: skip
+)
 #: The (lo, hi) log10 ranges of the absolute mode.
 LOG10_RANGES = ("absolute_q_log10", "absolute_r_log10", "absolute_qp_log10")
 
@@ -120,9 +125,16 @@ def require(ok: bool, name: str, allowed: str, value: object) -> None:
 
 
 def require_number(
-    cfg: Any, name: str, lo: float, hi: float, unit: str, *, integer: bool = False,
-    low_open: bool = False, high_open: bool = False,
-) -> None:  # fmt: skip
+    cfg: Any,
+    name: str,
+    lo: float,
+    hi: float,
+    unit: str,
+    *,
+    integer: bool = False,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> None:
     """Field ``name`` of ``cfg`` a real number (an integer with ``integer``) in [lo, hi], with
     open ends as asked (an infinite end is open: the value must be finite)."""
     v = getattr(cfg, name)

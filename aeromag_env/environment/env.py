@@ -267,11 +267,18 @@ class AeroMagCompensationEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}  # noqa: RUF012 (gymnasium API)
 
-    def __init__(self, config: EnvConfig | dict | None = None, render_mode: str | None = None,
-                 **overrides: Any) -> None:  # fmt: skip
+    def __init__(
+        self,
+        config: EnvConfig | dict | None = None,
+        render_mode: str | None = None,
+        **overrides: Any,
+    ) -> None:
         base = from_dict(EnvConfig, config) if config is not None else EnvConfig()
-        said = config.get("scenario") if isinstance(config, dict) else getattr(config, "scenario",
-                                                                                None)  # fmt: skip
+        said = (
+            config.get("scenario")
+            if isinstance(config, dict)
+            else getattr(config, "scenario", None)
+        )
         if said is not None and "scenario" in overrides and overrides["scenario"] != said:
             raise ConfigError(
                 f"scenario given twice: {overrides['scenario']!r} by the id or keyword, {said!r} "

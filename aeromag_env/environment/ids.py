@@ -15,8 +15,16 @@ from gymnasium.envs.registration import register, registry
 
 #: Scenarios that are evaluated and tabled; what each one tests is in
 #: :mod:`aeromag_env.environment.scenarios`.
-SCENARIOS = ("paper", "nominal", "misspecified", "nonstationary", "calibration_then_survey",
-             "noise_bursts", "degradation", "manoeuvre_heavy")  # fmt: skip
+SCENARIOS = (
+    "paper",
+    "nominal",
+    "misspecified",
+    "nonstationary",
+    "calibration_then_survey",
+    "noise_bursts",
+    "degradation",
+    "manoeuvre_heavy",
+)
 #: Evaluated as a control, not part of the suite: the well-tuned start has no headroom by design
 #: (a tuner must not make it worse).
 CONTROL_SCENARIOS = ("nominal",)
@@ -49,5 +57,9 @@ def register_all() -> None:
     ids = {ENV_ID: {}, **{env_id(s): {"scenario": s} for s in SCENARIOS + TRAINING_SCENARIOS}}
     for id_, kwargs in ids.items():
         if id_ not in registry:
-            register(id=id_, entry_point=_ENTRY_POINT, vector_entry_point=_VECTOR_ENTRY_POINT,
-                     kwargs=kwargs)  # fmt: skip
+            register(
+                id=id_,
+                entry_point=_ENTRY_POINT,
+                vector_entry_point=_VECTOR_ENTRY_POINT,
+                kwargs=kwargs,
+            )

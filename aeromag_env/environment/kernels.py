@@ -63,16 +63,42 @@ from aeromag_env.threads import run_chunks
 RUN_LOG_Q, RUN_LOG_R, RUN_SQ_ERR, RUN_N_ERR, RUN_LOG_QP, RUN_SQ_FLOWN, RUN_N_FLOWN = range(7)
 N_RUN = 7
 # environment parameters (float vector, see aeromag_env.environment.env.parameters)
-(PAR_K, PAR_LOG_S_MAX, PAR_LOG_LIMIT, PAR_ABSOLUTE, PAR_Q_LO, PAR_Q_HI, PAR_R_LO, PAR_R_HI,
- PAR_REWARD_NT, PAR_PENALTY, PAR_LN10, PAR_SPLIT_Q, PAR_QP_LO, PAR_QP_HI, PAR_REWARD_FORM,
- PAR_QP_GATE, PAR_RECENT) = range(17)  # fmt: skip
+(
+    PAR_K,
+    PAR_LOG_S_MAX,
+    PAR_LOG_LIMIT,
+    PAR_ABSOLUTE,
+    PAR_Q_LO,
+    PAR_Q_HI,
+    PAR_R_LO,
+    PAR_R_HI,
+    PAR_REWARD_NT,
+    PAR_PENALTY,
+    PAR_LN10,
+    PAR_SPLIT_Q,
+    PAR_QP_LO,
+    PAR_QP_HI,
+    PAR_REWARD_FORM,
+    PAR_QP_GATE,
+    PAR_RECENT,
+) = range(17)
 N_PAR = 17
 #: Reward forms of :class:`aeromag_env.environment.env.EnvConfig`, coded by their index in
 #: PAR_REWARD_FORM.
 REWARD_FORMS = ("log", "linear", "squared")
 # outcome of one step (float vector)
-(OUT_REWARD, OUT_RMSE, OUT_ROR, OUT_QOQ, OUT_Q_SCALE, OUT_R_SCALE, OUT_TERMINATED,
- OUT_TRUNCATED, OUT_EPISODE_RMSE, OUT_QP_SCALE) = range(10)  # fmt: skip
+(
+    OUT_REWARD,
+    OUT_RMSE,
+    OUT_ROR,
+    OUT_QOQ,
+    OUT_Q_SCALE,
+    OUT_R_SCALE,
+    OUT_TERMINATED,
+    OUT_TRUNCATED,
+    OUT_EPISODE_RMSE,
+    OUT_QP_SCALE,
+) = range(10)
 N_OUT = 10
 
 
@@ -209,9 +235,13 @@ def _reward(e: float, form: float) -> float:
 
 @njit(cache=True)
 def env_step(
-    mode: int, n: int, score_start: int, env_arrays: EnvArrays | Packed,
-    shared: EnvSettings | Packed, filter_arrays: FilterArrays | Packed,
-) -> None:  # fmt: skip
+    mode: int,
+    n: int,
+    score_start: int,
+    env_arrays: EnvArrays | Packed,
+    shared: EnvSettings | Packed,
+    filter_arrays: FilterArrays | Packed,
+) -> None:
     """One environment step for the finite action ``env.action``.
 
     ``mode`` is the filter's method, ``n`` the flight length, ``score_start`` the first scored
@@ -254,9 +284,16 @@ def env_step(
 
 @njit(cache=True, nogil=True)
 def _env_step_range(
-    lo: int, hi: int, active: np.ndarray, modes: np.ndarray, n: np.ndarray,
-    score_start: np.ndarray, env_arrays: Packed, shared: Packed, filter_arrays: Packed,
-) -> None:  # fmt: skip
+    lo: int,
+    hi: int,
+    active: np.ndarray,
+    modes: np.ndarray,
+    n: np.ndarray,
+    score_start: np.ndarray,
+    env_arrays: Packed,
+    shared: Packed,
+    filter_arrays: Packed,
+) -> None:
     """Environments ``lo ≤ i < hi`` of :func:`env_step_batch`."""
     envs, settings, filters = EnvArrays(*env_arrays), EnvSettings(*shared), named(filter_arrays)
     for i in range(lo, hi):
@@ -266,9 +303,14 @@ def _env_step_range(
 
 
 def env_step_batch(
-    active: np.ndarray, modes: np.ndarray, n: np.ndarray, score_start: np.ndarray,
-    envs: EnvArrays | Packed, settings: EnvSettings | Packed, filters: FilterArrays | Packed,
-) -> None:  # fmt: skip
+    active: np.ndarray,
+    modes: np.ndarray,
+    n: np.ndarray,
+    score_start: np.ndarray,
+    envs: EnvArrays | Packed,
+    settings: EnvSettings | Packed,
+    filters: FilterArrays | Packed,
+) -> None:
     """:func:`env_step` for every environment i with ``active[i]`` (N,) bool, on all cores.
 
     ``modes``, ``n``, ``score_start`` (N,) int64 and the arrays of ``envs`` and ``filters`` have
@@ -276,8 +318,17 @@ def env_step_batch(
     shared. Each group as a NamedTuple or already :func:`~aeromag_env.compensation.arrays.packed`
     (a caller stepping the same arrays again and again packs them once).
     """
-    run_chunks(_env_step_range, int(active.shape[0]), active, modes, n, score_start,
-               _packed(envs), _packed(settings), _packed(filters))  # fmt: skip
+    run_chunks(
+        _env_step_range,
+        int(active.shape[0]),
+        active,
+        modes,
+        n,
+        score_start,
+        _packed(envs),
+        _packed(settings),
+        _packed(filters),
+    )
 
 
 def _packed(arrays: tuple) -> Packed:

@@ -72,8 +72,9 @@ class FlightPrefetcher:
     def __init__(self) -> None:
         self._proc = subprocess.Popen(
             [sys.executable, "-c", f"from {__name__} import worker_main; worker_main()"],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-        )  # fmt: skip
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+        )
         self._lock = threading.Lock()
         self._queue: list[Future[FlightArrays]] = []  # requests sent, results not yet read
         self._pending: dict[int, tuple[FlightKey, Future[FlightArrays]]] = {}

@@ -15,8 +15,9 @@ def render_episode(env: Any) -> np.ndarray:
     k, f = env.filter.k, env.filter
     err = env.episode.truth_interf[:k] - f.est[:k]
     x = env.episode.flight.tt[:k]
-    return render_panels(env.scenario, x, "time [s]", err, f.ror[:k], f.qoq[:k], f.q_scale[:k],
-                         f.r_scale[:k])  # fmt: skip
+    return render_panels(
+        env.scenario, x, "time [s]", err, f.ror[:k], f.qoq[:k], f.q_scale[:k], f.r_scale[:k]
+    )
 
 
 def render_vector(scenarios: list[str], k: np.ndarray, truth: np.ndarray, filters: Any) -> tuple:
@@ -26,8 +27,18 @@ def render_vector(scenarios: list[str], k: np.ndarray, truth: np.ndarray, filter
     frames = []
     for i, n in enumerate(k.tolist()):
         err, f = truth[i, :n] - filters.est[i, :n], filters
-        frames.append(render_panels(scenarios[i], np.arange(n), "sample", err, f.ror[i, :n],
-                                    f.qoq[i, :n], f.q_scale[i, :n], f.r_scale[i, :n]))  # fmt: skip
+        frames.append(
+            render_panels(
+                scenarios[i],
+                np.arange(n),
+                "sample",
+                err,
+                f.ror[i, :n],
+                f.qoq[i, :n],
+                f.q_scale[i, :n],
+                f.r_scale[i, :n],
+            )
+        )
     return tuple(frames)
 
 

@@ -67,9 +67,13 @@ class AeroMagSB3VecEnv(VecEnv):
         **overrides: Any,
     ) -> None:
         self.venv = AeroMagCompensationVecEnv(
-            num_envs, config, autoreset_mode=AutoresetMode.DISABLED, prefetch=prefetch,
-            render_mode=render_mode, **overrides,
-        )  # fmt: skip
+            num_envs,
+            config,
+            autoreset_mode=AutoresetMode.DISABLED,
+            prefetch=prefetch,
+            render_mode=render_mode,
+            **overrides,
+        )
         if reset_seeds is not None and len(reset_seeds) != num_envs:
             raise ValueError(f"reset_seeds needs one iterator per environment ({num_envs})")
         self._seed_streams = list(reset_seeds) if reset_seeds is not None else None

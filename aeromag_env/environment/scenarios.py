@@ -75,9 +75,15 @@ STEP_STD_NT = 30.0
 #: Interference steps per flight (inclusive range): ``nonstationary`` and ``nonstationary_dense``.
 STEP_COUNTS = {"nonstationary": (1, 2), "nonstationary_dense": (4, 8)}
 #: Flight length of the scenarios flown for a fixed time [s] (the others fly their pattern).
-DURATION_S = {"misspecified": 1200.0, "nonstationary": 1200.0, "nonstationary_dense": 1200.0,
-              "calibration_then_survey": 1500.0, "noise_bursts": 1200.0, "degradation": 1200.0,
-              "manoeuvre_heavy": 1200.0}  # fmt: skip
+DURATION_S = {
+    "misspecified": 1200.0,
+    "nonstationary": 1200.0,
+    "nonstationary_dense": 1200.0,
+    "calibration_then_survey": 1500.0,
+    "noise_bursts": 1200.0,
+    "degradation": 1200.0,
+    "manoeuvre_heavy": 1200.0,
+}
 #: ``misspecified``: log10 range of the permanent field's drift per sample [nT] (random walk),
 #: of the size of the filter's variance errors (Q and R, each too large or too small by that
 #: many decades) and of its prior std on T_p [nT].
@@ -240,10 +246,14 @@ def _settings(name: str, rng: np.random.Generator) -> tuple[SimulationConfig, Fi
         sim = with_overrides(sim, {"trajectory.pattern": "calibration+survey"})
     if name == "manoeuvre_heavy":
         cal = sim.trajectory.calibration
-        sim = with_overrides(sim, {
-            f"trajectory.calibration.{k}_amplitude_deg":
-                SWING_FACTOR * getattr(cal, f"{k}_amplitude_deg") for k in ("roll", "pitch", "yaw")
-        })  # fmt: skip
+        sim = with_overrides(
+            sim,
+            {
+                f"trajectory.calibration.{k}_amplitude_deg": SWING_FACTOR
+                * getattr(cal, f"{k}_amplitude_deg")
+                for k in ("roll", "pitch", "yaw")
+            },
+        )
     base = FilterConfig()
     if name in DRIFTING:
         # the temperature drift, known to the filter: its Q for T_p is the drift's variance;

@@ -182,6 +182,14 @@ def _shown(value: object) -> str:
 
 
 def _kind_name(dtype: np.dtype) -> str:
-    names = {"c": "complex numbers", "b": "booleans", "O": "Python objects", "U": "text",
-             "S": "bytes", "M": "dates", "m": "time spans", "V": "raw records"}  # fmt: skip
+    names = {
+        "c": "complex numbers",
+        "b": "booleans",
+        "O": "Python objects",
+        "U": "text",
+        "S": "bytes",
+        "M": "dates",
+        "m": "time spans",
+        "V": "raw records",
+    }
     return names.get(dtype.kind, "values")

@@ -35,13 +35,24 @@ from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simula
 from aeromag_env.environment.spaces import action_size, check_actions
 
 #: Per-step info entries (as the single environment's ``info``) and their rows of the outcome.
-STEP_INFO = (("rmse_window_nt", OUT_RMSE), ("ror", OUT_ROR), ("qoq", OUT_QOQ),
-             ("q_scale", OUT_Q_SCALE), ("r_scale", OUT_R_SCALE),
-             ("q_permanent_scale", OUT_QP_SCALE))  # fmt: skip
+STEP_INFO = (
+    ("rmse_window_nt", OUT_RMSE),
+    ("ror", OUT_ROR),
+    ("qoq", OUT_QOQ),
+    ("q_scale", OUT_Q_SCALE),
+    ("r_scale", OUT_R_SCALE),
+    ("q_permanent_scale", OUT_QP_SCALE),
+)
 #: The keys of a step's info dict (:meth:`AeroMagCompensationVecEnv.step_rows`), in the single
 #: environment's order: the entries above, then the counts and totals.
-_ROW_KEYS = (*(key for key, _ in STEP_INFO), "sample", "flight_seed", "episode_rmse_nt",
-             "divergences", "outliers_rejected")  # fmt: skip
+_ROW_KEYS = (
+    *(key for key, _ in STEP_INFO),
+    "sample",
+    "flight_seed",
+    "episode_rmse_nt",
+    "divergences",
+    "outliers_rejected",
+)
 _STEP_COLS = np.array([col for _, col in STEP_INFO])
 #: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
 VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS)
@@ -129,8 +140,9 @@ class AeroMagCompensationVecEnv(VectorEnv):
             and not isinstance(max_episode_steps, bool)
             and max_episode_steps >= 1
         ):
-            raise ValueError(f"max_episode_steps must be an integer ≥ 1 or None, got "
-                             f"{max_episode_steps!r}")  # fmt: skip
+            raise ValueError(
+                f"max_episode_steps must be an integer ≥ 1 or None, got {max_episode_steps!r}"
+            )
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         template = AeroMagCompensationEnv(config, **overrides)
@@ -229,9 +241,14 @@ class AeroMagCompensationVecEnv(VectorEnv):
         active = self._restart_ended({})
         rewards, terminated, truncated = self._advance(actions, active)
         ints, out = self._need_filters().ints, self._out
-        columns = (*out[:, _STEP_COLS].T.tolist(), ints[:, INT_K].tolist(),
-                   self.flight_seeds.tolist(), out[:, OUT_EPISODE_RMSE].tolist(),
-                   ints[:, INT_DIV].tolist(), ints[:, INT_OUT].tolist())  # fmt: skip
+        columns = (
+            *out[:, _STEP_COLS].T.tolist(),
+            ints[:, INT_K].tolist(),
+            self.flight_seeds.tolist(),
+            out[:, OUT_EPISODE_RMSE].tolist(),
+            ints[:, INT_DIV].tolist(),
+            ints[:, INT_OUT].tolist(),
+        )
         rows = [dict(zip(_ROW_KEYS, values, strict=True)) for values in zip(*columns, strict=True)]
         return self._obs.copy(), rewards, terminated, truncated, rows
 
@@ -247,8 +264,9 @@ class AeroMagCompensationVecEnv(VectorEnv):
         if self._step_arrays is None:
             envs = EnvArrays(self._actions, self._run, self._truth, self._obs, self._out)
             self._step_arrays = packed(envs), packed(self._settings), packed(filters.arrays())
-        kernels.env_step_batch(active, filters.mode, filters.n, self._score_start,
-                               *self._step_arrays)  # fmt: skip
+        kernels.env_step_batch(
+            active, filters.mode, filters.n, self._score_start, *self._step_arrays
+        )
         out = self._out
         self._steps += active
         if self.max_episode_steps is not None:  # a TimeLimit's cut, as gym.make's
@@ -309,8 +327,9 @@ class AeroMagCompensationVecEnv(VectorEnv):
         flight = simulate(key) if self._prefetcher is None else self._prefetcher.take(i, key)
         if self.autoreset_mode != AutoresetMode.DISABLED:
             self.prefetch_next(i)  # the autoreset after this flight draws from the generator
-        state = FilterState(flight.filter_cfg, flight.y, flight.t_b, flight.tdot_b,
-                            store_states=False)  # fmt: skip
+        state = FilterState(
+            flight.filter_cfg, flight.y, flight.t_b, flight.tdot_b, store_states=False
+        )
         return state, flight.truth_interf
 
     def _load(self, i: int, state: FilterState, truth: np.ndarray) -> None:

@@ -247,6 +247,8 @@ def alias_table_markdown() -> str:
     """The alias table as Markdown (for the README), one row per :data:`ALIASES` entry."""
     rows = ["| name in the file | our name | source |", "|---|---|---|"]
     rows += [f"| `{a.original}` | `{a.canonical}` | {a.source} |" for a in ALIASES]
-    rows.append("| any case variant of one of our names (`TT`, `LAT`, `DIURNAL`, …) | "
-                "the name in lower case | all |")  # fmt: skip
+    rows.append(
+        "| any case variant of one of our names (`TT`, `LAT`, `DIURNAL`, …) | "
+        "the name in lower case | all |"
+    )
     return "\n".join(rows)

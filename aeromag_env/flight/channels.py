@@ -138,8 +138,11 @@ def choose_channels(
     Channels
     """
     warnings: list[str] = []
-    candidates = {"fluxgate": _flux_candidates(flight), "scalar": _scalar_candidates(flight),
-                  "altitude": ALTITUDE_CANDIDATES}  # fmt: skip
+    candidates = {
+        "fluxgate": _flux_candidates(flight),
+        "scalar": _scalar_candidates(flight),
+        "altitude": ALTITUDE_CANDIDATES,
+    }
     requested = {"fluxgate": flux, "scalar": scalar, "altitude": "auto"}
     chosen = {
         kind: _choose(kind, flight, requested[kind], candidates[kind], warnings)

@@ -52,12 +52,23 @@ from aeromag_env.flight.validation import (
 
 _SUPPORTED = ".h5, .hdf5, .csv, .xyz or .mat"
 _READERS: dict[str, Callable[[Path], RawFile]] = {
-    "hdf5": read_h5, "mat73": mat.read_mat73, "mat5": mat.read_mat5, "csv": read_csv,
+    "hdf5": read_h5,
+    "mat73": mat.read_mat73,
+    "mat5": mat.read_mat5,
+    "csv": read_csv,
     "xyz": xyz.read_xyz,
-}  # fmt: skip
+}
 #: What the readers of binary formats raise on a damaged file (beyond OSError, ValueError…).
-_READ_ERRORS = (OSError, ValueError, KeyError, TypeError, IndexError, EOFError, zlib.error,
-                MatReadError)  # fmt: skip
+_READ_ERRORS = (
+    OSError,
+    ValueError,
+    KeyError,
+    TypeError,
+    IndexError,
+    EOFError,
+    zlib.error,
+    MatReadError,
+)
 
 
 def read_flight(path: PathLike, needs: Iterable[str] = ("tt",)) -> Flight:
@@ -214,8 +225,9 @@ def convert_flight(source: PathLike, target: PathLike) -> tuple[Flight, list[str
         Unreadable input, unknown output suffix, output equal to the input, or a failed write.
     """
     if file_format(target) is None:
-        raise file_error(target, f"unsupported output type {Path(target).suffix!r} "
-                                 f"(use {_SUPPORTED})")  # fmt: skip
+        raise file_error(
+            target, f"unsupported output type {Path(target).suffix!r} (use {_SUPPORTED})"
+        )
     check_output_file(target, [source], FlightFileError)
     flight, problems = load_flight(source)
     write_flight(flight, target, inputs=[source])

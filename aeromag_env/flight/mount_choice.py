@@ -173,8 +173,15 @@ class MountChoice:
                 "angle_from_body_deg": Mount.identity().angle_to_deg(self.estimate),
                 "angle_to_used_deg": self.used.angle_to_deg(self.estimate),
             }
-        return {"fluxgate": self.fluxgate, "mode": self.mode, "applied": self.applied, **used,
-                "estimate": estimate, "reason": self.reason, "warning": self.warning}  # fmt: skip
+        return {
+            "fluxgate": self.fluxgate,
+            "mode": self.mode,
+            "applied": self.applied,
+            **used,
+            "estimate": estimate,
+            "reason": self.reason,
+            "warning": self.warning,
+        }
 
 
 def choose_mount(

@@ -55,8 +55,12 @@ class Gap:
         return self.t_end_s - self.t_start_s
 
     def to_dict(self) -> dict[str, float | int]:
-        return {"index": self.index, "t_start_s": self.t_start_s, "t_end_s": self.t_end_s,
-                "duration_s": self.duration_s}  # fmt: skip
+        return {
+            "index": self.index,
+            "t_start_s": self.t_start_s,
+            "t_end_s": self.t_end_s,
+            "duration_s": self.duration_s,
+        }
 
 
 def find_gaps(tt: np.ndarray) -> list[Gap]:

@@ -183,12 +183,24 @@ def random_crust(
     north, east = local_north_east(lat, lon, lat0, lon0)
     alt = np.asarray(alt_m, float)
     shape, spacing, origin = _grid(north, east, alt, depth_to_source_m, source_thickness_m)
-    grid = CrustField(spectrum=np.empty((0, 0), complex), shape=shape, spacing_m=spacing,
-                      origin_m=origin, lat0_rad=lat0, lon0_rad=lon0,
-                      depth_to_source_m=depth_to_source_m)  # fmt: skip
-    return draw_crust(grid, rng, rms_nt=rms_nt, reference_altitude_m=reference_altitude_m,
-                      source_thickness_m=source_thickness_m, fractal_exponent=fractal_exponent,
-                      main_field_ned=main_field_ned)  # fmt: skip
+    grid = CrustField(
+        spectrum=np.empty((0, 0), complex),
+        shape=shape,
+        spacing_m=spacing,
+        origin_m=origin,
+        lat0_rad=lat0,
+        lon0_rad=lon0,
+        depth_to_source_m=depth_to_source_m,
+    )
+    return draw_crust(
+        grid,
+        rng,
+        rms_nt=rms_nt,
+        reference_altitude_m=reference_altitude_m,
+        source_thickness_m=source_thickness_m,
+        fractal_exponent=fractal_exponent,
+        main_field_ned=main_field_ned,
+    )
 
 
 def draw_crust(
@@ -214,8 +226,9 @@ def draw_crust(
         source_thickness_m=source_thickness_m,
         fractal_exponent=fractal_exponent,
     )
-    crust = dataclasses.replace(grid, spectrum=np.fft.rfft2(rng.standard_normal(grid.shape))
-                                * np.sqrt(p))  # fmt: skip
+    crust = dataclasses.replace(
+        grid, spectrum=np.fft.rfft2(rng.standard_normal(grid.shape)) * np.sqrt(p)
+    )
     down = np.array([0.0, 0.0, 1.0])
     direction = down if main_field_ned is None else np.asarray(main_field_ned, float)
     direction = direction / np.linalg.norm(direction)
@@ -286,8 +299,9 @@ def field_at(
     periodic cubic splines; between levels a cubic Hermite in altitude.
     """
     alt = np.asarray(alt_m, float)
-    levels = _levels(float(np.min(alt)), float(np.max(alt)), crust.depth_to_source_m,
-                     crust.level_base_m)  # fmt: skip
+    levels = _levels(
+        float(np.min(alt)), float(np.max(alt)), crust.depth_to_source_m, crust.level_base_m
+    )
     j = np.clip(np.searchsorted(levels, alt, side="right") - 1, 0, levels.size - 2)
     origin = np.reshape(crust.origin_m, (2, 1))
     coords = np.stack([np.asarray(north_m, float), np.asarray(east_m, float)]) - origin

@@ -95,8 +95,13 @@ def check_area(geology: Any) -> None:
     require_positive(geology, "area_size_km")
     require_nonnegative(geology, "min_altitude_m")
     try:
-        area_grid(geology.area_size_km * 1e3, geology.min_altitude_m, geology.depth_to_source_m,
-                  geology.source_thickness_m, geology.reference_altitude_m)  # fmt: skip
+        area_grid(
+            geology.area_size_km * 1e3,
+            geology.min_altitude_m,
+            geology.depth_to_source_m,
+            geology.source_thickness_m,
+            geology.reference_altitude_m,
+        )
     except ValueError as e:
         raise ConfigError(f"GeologyConfig.area_size_km: {e}") from None
 
@@ -137,17 +142,29 @@ def area_ground(
     from aeromag_env.geo.earth import igrf_ned
 
     lat0, lon0 = np.deg2rad(center_deg[0]), np.deg2rad(center_deg[1])
-    shape, spacing, origin = area_grid(size_km * 1e3, min_altitude_m, depth_to_source_m,
-                                       source_thickness_m, reference_altitude_m)  # fmt: skip
-    grid = cr.CrustField(spectrum=np.empty((0, 0), complex), shape=shape, spacing_m=spacing,
-                         origin_m=origin, lat0_rad=float(lat0), lon0_rad=float(lon0),
-                         depth_to_source_m=depth_to_source_m,
-                         level_base_m=min_altitude_m)  # fmt: skip
+    shape, spacing, origin = area_grid(
+        size_km * 1e3, min_altitude_m, depth_to_source_m, source_thickness_m, reference_altitude_m
+    )
+    grid = cr.CrustField(
+        spectrum=np.empty((0, 0), complex),
+        shape=shape,
+        spacing_m=spacing,
+        origin_m=origin,
+        lat0_rad=float(lat0),
+        lon0_rad=float(lon0),
+        depth_to_source_m=depth_to_source_m,
+        level_base_m=min_altitude_m,
+    )
     main = igrf_ned(np.array([lat0]), np.array([lon0]), np.zeros(1), _EPOCH)[0]
-    crust = cr.draw_crust(grid, np.random.default_rng(seed), rms_nt=rms_nt,
-                          reference_altitude_m=reference_altitude_m,
-                          source_thickness_m=source_thickness_m,
-                          fractal_exponent=fractal_exponent, main_field_ned=main)  # fmt: skip
+    crust = cr.draw_crust(
+        grid,
+        np.random.default_rng(seed),
+        rms_nt=rms_nt,
+        reference_altitude_m=reference_altitude_m,
+        source_thickness_m=source_thickness_m,
+        fractal_exponent=fractal_exponent,
+        main_field_ned=main,
+    )
     crust.spectrum.flags.writeable = False
     return AreaGround(crust=crust, half_size_m=size_km * 500.0, min_altitude_m=min_altitude_m)
 

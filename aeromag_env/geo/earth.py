@@ -183,9 +183,13 @@ def igrf_ned_along_track(
 
 
 def _along_track(
-    tt: np.ndarray, lat: np.ndarray, lon: np.ndarray, alt_m: np.ndarray,
-    date: str | _dt.datetime, grid_spacing_s: float,
-) -> np.ndarray:  # fmt: skip
+    tt: np.ndarray,
+    lat: np.ndarray,
+    lon: np.ndarray,
+    alt_m: np.ndarray,
+    date: str | _dt.datetime,
+    grid_spacing_s: float,
+) -> np.ndarray:
     """:func:`igrf_ned_along_track` computed (float64 inputs, at least 4 samples)."""
     from scipy.interpolate import CubicSpline
 

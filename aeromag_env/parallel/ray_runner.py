@@ -49,8 +49,11 @@ class RayRunner:
     def __enter__(self) -> RayRunner:
         ray = self._ray = _import_ray()
         if not ray.is_initialized():
-            kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
-                                      "logging_level": logging.ERROR}  # fmt: skip
+            kwargs: dict[str, Any] = {
+                "include_dashboard": False,
+                "log_to_driver": False,
+                "logging_level": logging.ERROR,
+            }
             if self.address is None:  # a new local Ray, never another process's
                 kwargs["num_cpus"] = cores()
             else:
@@ -79,9 +82,12 @@ class RayRunner:
         ray = self._ray
         ray.get(self._log.reset.remote())  # counts per run: task indices start at 0 again
         remote = ray.remote(aeromag_task)
-        refs = [remote.options(num_cpus=t.num_cpus, max_retries=MAX_RETRIES,
-                               retry_exceptions=False).remote(self._log, i, _payload(t))
-                for i, t in enumerate(tasks)]  # fmt: skip
+        refs = [
+            remote.options(
+                num_cpus=t.num_cpus, max_retries=MAX_RETRIES, retry_exceptions=False
+            ).remote(self._log, i, _payload(t))
+            for i, t in enumerate(tasks)
+        ]
         index = {ref: i for i, ref in enumerate(refs)}
         outcomes: list[Outcome | None] = [None] * len(tasks)
         pending = list(refs)

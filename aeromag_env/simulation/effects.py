@@ -93,11 +93,19 @@ __all__ = [
 EFFECTS: dict[str, Effect] = {
     e.name: e
     for e in (
-        OnboardCurrent(), ExternalFieldVariation(), PermanentFieldDrift(), InducedSecondOrder(),
-        AltitudeGradient(), EddyTimeConstant(), SensorLag(),
-        FluxgateOffset(), FluxgateScale(), FluxgateNonorthogonality(), Misalignment(),
+        OnboardCurrent(),
+        ExternalFieldVariation(),
+        PermanentFieldDrift(),
+        InducedSecondOrder(),
+        AltitudeGradient(),
+        EddyTimeConstant(),
+        SensorLag(),
+        FluxgateOffset(),
+        FluxgateScale(),
+        FluxgateNonorthogonality(),
+        Misalignment(),
     )
-}  # fmt: skip
+}
 #: Effects the base model absorbs entirely (never reported as missing).
 ABSORBED = tuple(nm for nm, e in EFFECTS.items() if e.absorbed_by)
 #: Effects discovery can name.
@@ -162,8 +170,9 @@ def simulate_effects(ctx: EffectContext, configs: tuple[Any, ...]) -> np.ndarray
     """
     base = ctx.signal if ctx.signal is not None else ctx.t_b
     additive = [c for c in configs if c.name not in SIGNAL_EFFECTS]
-    signal_fx = sorted((c for c in configs if c.name in SIGNAL_EFFECTS),
-                       key=lambda c: SIGNAL_EFFECTS.index(c.name))  # fmt: skip
+    signal_fx = sorted(
+        (c for c in configs if c.name in SIGNAL_EFFECTS), key=lambda c: SIGNAL_EFFECTS.index(c.name)
+    )
     total = np.zeros((ctx.n, 3))
     for c in additive:
         total += effect(c.name).simulate(ctx, c.channel, c.parameters)

@@ -54,10 +54,14 @@ class ExternalFieldVariation(Effect):
             if ctx.rng is None or ctx.start is None:
                 raise ConfigError("external_field_variation: a random variation needs a simulation")
             d_n += external_variation_ned(
-                ctx.tt, ctx.start, float(daily), float(fogm_std),
-                float(params.get("fogm_tau_s", 600.0)), ctx.rng,
+                ctx.tt,
+                ctx.start,
+                float(daily),
+                float(fogm_std),
+                float(params.get("fogm_tau_s", 600.0)),
+                ctx.rng,
                 float(params.get("smoothing_s", 60.0)),
-            )  # fmt: skip
+            )
         if "spline_ned_nt" in params:
             knots = np.asarray(params["spline_knots_s"], float)
             coef = np.asarray(params["spline_ned_nt"], float).reshape(-1, 3)

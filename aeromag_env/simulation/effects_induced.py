@@ -48,8 +48,15 @@ class InducedSecondOrder(Effect):
             cols[:, i, i, :] = q
         names = [f"T{AXES[j]}T{AXES[k]}" for j, k in _PAIRS]
         labels = [f"{nm}/5e4·e_{a}" for a in AXES for nm in names]
-        return [Group(self.name, None, cols.reshape(ctx.n, 3, 18), labels,
-                      lambda b: {"coefficients": b.tolist()})], None  # fmt: skip
+        return [
+            Group(
+                self.name,
+                None,
+                cols.reshape(ctx.n, 3, 18),
+                labels,
+                lambda b: {"coefficients": b.tolist()},
+            )
+        ], None
 
 
 class EddyTimeConstant(Effect):
@@ -82,9 +89,15 @@ class EddyTimeConstant(Effect):
         for i in range(3):
             cols[:, i, i, :] = rate
         labels = [f"(L_τ Ṫ{b} − Ṫ{b})·e_{a}" for a in AXES for b in AXES]
-        return Group(self.name, None, cols.reshape(ctx.n, 3, 9), labels,
-                     lambda b: {"tau_s": tau, "eddy_s": b.tolist()}, tau,
-                     lambda v: self.group(ctx, v))  # fmt: skip
+        return Group(
+            self.name,
+            None,
+            cols.reshape(ctx.n, 3, 9),
+            labels,
+            lambda b: {"tau_s": tau, "eddy_s": b.tolist()},
+            tau,
+            lambda v: self.group(ctx, v),
+        )
 
     def groups(self, ctx: EffectContext) -> tuple[list[Group], str | None]:
         return [self.group(ctx, tau) for tau in EDDY_TAU_GRID_S], None

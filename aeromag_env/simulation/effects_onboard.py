@@ -36,10 +36,15 @@ class OnboardCurrent(Effect):
     def groups(self, ctx: EffectContext) -> tuple[list[Group], str | None]:
         chans = [c for c in ctx.aux if c.startswith(self.channel_prefixes)]
         out = [
-            Group(self.name, c, body_columns(ctx.aux[c][:, None]),
-                  [f"{c}·e_{a}" for a in AXES], lambda b: {"k_nt_per_unit": b.tolist()})
+            Group(
+                self.name,
+                c,
+                body_columns(ctx.aux[c][:, None]),
+                [f"{c}·e_{a}" for a in AXES],
+                lambda b: {"k_nt_per_unit": b.tolist()},
+            )
             for c in chans
-        ]  # fmt: skip
+        ]
         return out, None if chans else "no cur_* or vol_* channel in the file"
 
 
@@ -79,9 +84,15 @@ class PermanentFieldDrift(Effect):
         out = []
         for c in (c for c in ctx.aux if c.startswith("temp_")):
             theta = ctx.aux[c] - ctx.aux[c][0]
-            out.append(Group(self.name, c, body_columns(theta[:, None]),
-                             [f"({c}−{c}(t0))·e_{a}" for a in AXES],
-                             lambda b: {"k_nt_per_unit": b.tolist()}))  # fmt: skip
+            out.append(
+                Group(
+                    self.name,
+                    c,
+                    body_columns(theta[:, None]),
+                    [f"({c}−{c}(t0))·e_{a}" for a in AXES],
+                    lambda b: {"k_nt_per_unit": b.tolist()},
+                )
+            )
         span = ctx.span()
         cols = body_columns(legendre(ctx.tt, span, DRIFT_DEGREES))
         labels = [f"P{d}(t)·e_{a}" for d in DRIFT_DEGREES for a in AXES]

@@ -62,9 +62,15 @@ class SensorLag(Effect):
             cols, label, key = self._shift(ctx, ctx.t_b, lag), "T(t − τ) − T(t)", "field_gain"
         else:
             cols, label, key = self._shift(ctx, ctx.signal, lag), "S(t − τ) − S(t)", "signal_gain"
-        return Group(self.name, None, cols[:, :, None], [label],
-                     lambda b: {"lag_s": lag, key: float(b[0])}, lag,
-                     lambda v: self.group(ctx, v))  # fmt: skip
+        return Group(
+            self.name,
+            None,
+            cols[:, :, None],
+            [label],
+            lambda b: {"lag_s": lag, key: float(b[0])},
+            lag,
+            lambda v: self.group(ctx, v),
+        )
 
     def groups(self, ctx: EffectContext) -> tuple[list[Group], str | None]:
         return [self.group(ctx, lag) for lag in LAG_GRID_S], None

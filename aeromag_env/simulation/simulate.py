@@ -241,10 +241,17 @@ def _effects_field(
     """The field the configured effects add to the fluxgate (n, 3) [nT]."""
     traj = flown.traj
     ctx = EffectContext(
-        tt=traj.tt, c_nb=ambient.c_nb, t_b=ambient.t_b, tdot_b=ambient.tdot_b,
-        t2dot_b=time_derivative(ambient.tdot_b, traj.tt, "central"), alt=traj.alt,
-        aux=flown.aux, signal=ambient.t_b + interf, rng=r_fx, start=flown.start,
-    )  # fmt: skip
+        tt=traj.tt,
+        c_nb=ambient.c_nb,
+        t_b=ambient.t_b,
+        tdot_b=ambient.tdot_b,
+        t2dot_b=time_derivative(ambient.tdot_b, traj.tt, "central"),
+        alt=traj.alt,
+        aux=flown.aux,
+        signal=ambient.t_b + interf,
+        rng=r_fx,
+        start=flown.start,
+    )
     return simulate_effects(ctx, config.effects)
 
 
@@ -355,11 +362,16 @@ def _replayed_trajectory(flight: Flight) -> Trajectory:
     roll, pitch, yaw = flight.attitude_rad()
     zeros = np.zeros(flight.n)
     return Trajectory(
-        tt=flight.tt.copy(), lat=lat, lon=lon, alt=np.asarray(alt, float), roll=roll,
-        pitch=pitch, yaw=yaw,
+        tt=flight.tt.copy(),
+        lat=lat,
+        lon=lon,
+        alt=np.asarray(alt, float),
+        roll=roll,
+        pitch=pitch,
+        yaw=yaw,
         maneuver=flight.maneuver_ids(),
         line=np.nan_to_num(flight["line"]) if "line" in flight else zeros,
-    )  # fmt: skip
+    )
 
 
 def _aux_channels(

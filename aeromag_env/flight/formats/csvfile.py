@@ -137,9 +137,10 @@ def _parse_column(
     quoted = ", ".join(f"line {lines[i]} {_shown(cells[i])}" for i in bad[:MAX_CELLS_LISTED])
     if 2 * len(bad) > filled:
         raise file_error(
-            path, f"column {name} is not numeric: {len(bad)} of its {filled} cells are not "
-            f"numbers ({quoted}); fix or remove the column"
-        )  # fmt: skip
+            path,
+            f"column {name} is not numeric: {len(bad)} of its {filled} cells are not "
+            f"numbers ({quoted}); fix or remove the column",
+        )
     more = f" (first {MAX_CELLS_LISTED} shown)" if len(bad) > MAX_CELLS_LISTED else ""
     cells_are = "cell is not a number" if len(bad) == 1 else "cells are not numbers"
     return values, f"column {name}: {len(bad)} {cells_are}, read as missing (NaN): {quoted}{more}"

@@ -39,7 +39,7 @@ print("fluxgate:", [n for n in flight.names if n.startswith("flux_a")])
 
 # %%
 # Compensate: the paper's filter on the fluxgate, Tolles–Lawson on the scalar
-# --------------------------------------------------------------------------
+# ---------------------------------------------------------------------------
 vector = am.compensate_vector(flight, "fakf")
 scalar = am.compensate_scalar(flight, "flux_a", "mag_1_uc", am.TollesLawson())
 for comp in (vector, scalar):

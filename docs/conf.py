@@ -22,7 +22,7 @@ import aeromag_env  # noqa: E402
 
 project = "aeromag_env"
 author = "the aeromag_env authors"
-copyright = "the aeromag_env authors, MIT licence"  # noqa: A001 (Sphinx's name)
+copyright = "the aeromag_env authors, MIT licence"
 release = version = aeromag_env.__version__
 
 extensions = [

@@ -56,7 +56,10 @@ ax0.plot(t, flight["cur_pump"], lw=0.7, color="tab:gray")
 ax0.set(ylabel="cur_pump [A]")
 ax1.plot(t, found.series["residual_before"][:, 2], lw=0.5, label="model without the effect")
 ax1.plot(t, found.series["residual_after"][:, 2], lw=0.5, label="with the named effect")
-ax1.set(xlabel="time [s]", ylabel="residual, z [nT]", ylim=np.nanpercentile(
-    found.series["residual_before"][:, 2], [0.5, 99.5]))
+ax1.set(
+    xlabel="time [s]",
+    ylabel="residual, z [nT]",
+    ylim=np.nanpercentile(found.series["residual_before"][:, 2], [0.5, 99.5]),
+)
 ax1.legend(loc="upper right")
 plt.show()

@@ -17,11 +17,6 @@ import inspect
 from pathlib import Path
 from typing import Any
 
-from docutils import nodes
-from sphinx.application import Sphinx
-from sphinx.environment import BuildEnvironment
-
-import aeromag_env
 import docstrings
 import gen_api
 import gen_cli
@@ -29,6 +24,11 @@ import gen_envs
 import gen_fields
 import gen_report
 import sections
+from docutils import nodes
+from sphinx.application import Sphinx
+from sphinx.environment import BuildEnvironment
+
+import aeromag_env
 
 #: The root page's table of contents, found when the build starts.
 _ROOT_ENTRIES: list[str] = []
@@ -64,7 +64,7 @@ def _locate(target: str) -> tuple[Any, str] | None:
             obj: Any = importlib.import_module(modname)
         except ImportError:
             continue
-        except Exception:  # noqa: BLE001 (a module that fails on import is no target)
+        except Exception:
             return None
         try:
             for attr in parts[cut:]:
@@ -113,7 +113,9 @@ def resolve(
             )
             if ref is not None:
                 return ref
-        return domain.resolve_xref(env, node["refdoc"], app.builder, "mod", found[1], node, contnode)
+        return domain.resolve_xref(
+            env, node["refdoc"], app.builder, "mod", found[1], node, contnode
+        )
     return None
 
 
@@ -125,7 +127,11 @@ def _candidates(target: str, node: Any) -> list[str]:
     out = [target]
     # the context module and the packages above it (a package's docstring names its modules'
     # functions, a module's names its package's)
-    homes = [".".join(module.split(".")[:i]) for i in range(module.count(".") + 1, 0, -1)] if module else []
+    homes = (
+        [".".join(module.split(".")[:i]) for i in range(module.count(".") + 1, 0, -1)]
+        if module
+        else []
+    )
     documented = node.get("refdoc", "").rsplit("/", 1)[-1]
     for context in (f"{module}.{cls}" if module and cls else None, documented):
         found = _locate(context) if context else None

@@ -14,9 +14,10 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from rst import heading, indent, literal, remove_stale, text, write_if_changed
+
 import aeromag_env
 import agents
-from rst import heading, indent, literal, remove_stale, text, write_if_changed
 
 #: Names documented as data (values, not docstrings) rather than through autosummary.
 DATA_NAMES = ("ENV_ID", "SCENARIOS", "__version__")
@@ -91,7 +92,8 @@ def module_groups() -> dict[str, list[str]]:
 def _data_entry(name: str) -> str:
     value: Any = getattr(aeromag_env, name)
     doc = {
-        "ENV_ID": "The generic Gymnasium id (the scenario a keyword); see :doc:`../environments/index`.",
+        "ENV_ID": "The generic Gymnasium id (the scenario a keyword); see "
+        ":doc:`../environments/index`.",
         "SCENARIOS": "The scenarios that are evaluated and tabled, each with its own id "
         "(:doc:`../environments/index`).",
         "__version__": "The package's version.",
@@ -130,9 +132,7 @@ def api_page() -> str:
         for name in constants:
             value = getattr(module, name)
             shown = _shown_constant(value)
-            parts.append(
-                f".. autodata:: {name}\n   :no-value:\n\n   Value: ``{shown}``\n\n"
-            )
+            parts.append(f".. autodata:: {name}\n   :no-value:\n\n   Value: ``{shown}``\n\n")
         parts += [_autosummary(objects), "\n"]
     parts.append(".. currentmodule:: aeromag_env\n\n")
     parts += [

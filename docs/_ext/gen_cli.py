@@ -10,8 +10,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from aeromag_env.cli.parser import build_parser
 from rst import heading, indent, literal, text, write_if_changed
+
+from aeromag_env.cli.parser import build_parser
 
 PROGRAM = "aeromag"
 
@@ -88,13 +89,15 @@ def cli_page() -> str:
     parser = build_parser()
     commands = subcommands(parser)
     summaries = short_help(parser)
-    rows = "\n".join(f"* :ref:`{PROGRAM} {n} <cli-{n}>` — {text(summaries.get(n, ''))}"
-                     for n in commands)
+    rows = "\n".join(
+        f"* :ref:`{PROGRAM} {n} <cli-{n}>` — {text(summaries.get(n, ''))}" for n in commands
+    )
     top = [
         ".. _cli:\n\n",
         heading("Command line", "="),
         "\n",
-        f"``{PROGRAM}`` is installed with the package (also ``python -m aeromag_env.cli.main``). This "
+        f"``{PROGRAM}`` is installed with the package (also "
+        "``python -m aeromag_env.cli.main``). This "
         "page is generated from its argument parser (:func:`aeromag_env.cli.parser.build_parser`) "
         "when the documentation is built, so it lists every command and every option that "
         f"``{PROGRAM} COMMAND --help`` shows.\n\n",

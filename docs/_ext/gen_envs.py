@@ -16,14 +16,14 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from env_adapter import Entry, action_entries, all_observations_overrides, observation_entries
 from gymnasium.envs.registration import registry
 from numpydoc.docscrape import NumpyDocString
+from rst import heading, list_table, literal, remove_stale, text, write_if_changed
 
 import aeromag_env
 from aeromag_env.environment import ids, scenarios
 from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig
-from env_adapter import Entry, action_entries, all_observations_overrides, observation_entries
-from rst import heading, list_table, literal, remove_stale, text, write_if_changed
 
 #: The sections of a Gymnasium environment page, in order.
 SECTIONS = (
@@ -50,7 +50,8 @@ def _is_generic(env_id: str) -> bool:
 
 
 def page_name(env_id: str) -> str:
-    """The page of ``env_id`` (no folder, no suffix): ``AeroMag/NoiseBursts-v0`` → ``noise-bursts``."""
+    """The page of ``env_id`` (no folder, no suffix): ``AeroMag/NoiseBursts-v0`` →
+    ``noise-bursts``."""
     if _is_generic(env_id):
         return "generic"
     return str(registry[env_id].kwargs["scenario"]).replace("_", "-")
@@ -118,13 +119,20 @@ def env_page(env_id: str) -> str:
         None,
         [
             ["Make", literal(make)],
-            ["Vector form", literal(f'gym.make_vec("{env_id}", num_envs=8, '
-                                    'vectorization_mode="vector_entry_point")')],
-            ["Scenario", literal(scenario) + (" by default (``scenario=`` chooses)" if generic else "")],
+            [
+                "Vector form",
+                literal(
+                    f'gym.make_vec("{env_id}", num_envs=8, vectorization_mode="vector_entry_point")'
+                ),
+            ],
+            [
+                "Scenario",
+                literal(scenario) + (" by default (``scenario=`` chooses)" if generic else ""),
+            ],
             ["Role", "any scenario" if generic else text(_role(scenario))],
             ["Action space", literal(env.action_space)],
             ["Observation space", literal(env.observation_space)],
-            ["Entry point", f":class:`aeromag_env.AeroMagCompensationEnv`"],
+            ["Entry point", ":class:`aeromag_env.AeroMagCompensationEnv`"],
         ],
         "20 80",
     )
@@ -199,7 +207,7 @@ def _description(scenario: str, generic: bool) -> str:
         )
         return _here(scenarios) + (
             "The generic id: the scenario is a keyword, "
-            f"``gym.make(\"{ids.ENV_ID}\", scenario=\"nonstationary\")``, ``nominal`` by "
+            f'``gym.make("{ids.ENV_ID}", scenario="nonstationary")``, ``nominal`` by '
             "default; each scenario also has an id of its own (:doc:`index`).\n\n"
             + table
             + "\n"
@@ -246,9 +254,7 @@ def _action_section(env: Any) -> str:
         + ".\n\n"
     )
     return (
-        f"``{env.action_space}``, one entry per row (``gym.make`` of this id):\n\n"
-        + table
-        + note
+        f"``{env.action_space}``, one entry per row (``gym.make`` of this id):\n\n" + table + note
     )
 
 
@@ -263,10 +269,11 @@ def _observation_section(env_id: str, env: Any) -> str:
     settings = ", ".join(f"{k}={v}" for k, v in overrides.items())
     return (
         f"``{env.observation_space}`` with this id's defaults, one entry per row:\n\n"
-        + list_table(["index", "observation", "range", "meaning"], _entry_rows(entries, False),
-                     "8 22 12 58")
+        + list_table(
+            ["index", "observation", "range", "meaning"], _entry_rows(entries, False), "8 22 12 58"
+        )
         + "\nEvery observation the environment can give, in the order it gives them, and the "
-        f"setting that adds each (all of them: ``gym.make(\"{env_id}\", {settings})``):\n\n"
+        f'setting that adds each (all of them: ``gym.make("{env_id}", {settings})``):\n\n'
         + list_table(
             ["index", "observation", "range", "meaning", "added by"],
             _entry_rows(full, True),

@@ -11,8 +11,9 @@ import inspect
 from itertools import groupby
 from pathlib import Path
 
-from aeromag_env.flight import aliases, data, files
 from rst import heading, list_table, literal, text, write_if_changed
+
+from aeromag_env.flight import aliases, data, files
 
 
 def _module_prose(module: object) -> str:

@@ -19,11 +19,12 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from rst import heading, list_table, literal, text, write_if_changed
+
 import aeromag_env
 from aeromag_env.cli import compensate, discover
 from aeromag_env.cli.main import main
 from aeromag_env.compensation import paper
-from rst import heading, list_table, literal, text, write_if_changed
 
 #: The runs documented: command, its module (whose docstring is the prose), its arguments
 #: after the flight file and the output folder.
@@ -83,9 +84,8 @@ def key_rows(value: Any, path: str = "", depth: int = 0) -> list[tuple[str, str,
             rows.append((sub, _json_type(item), _shown(item)))
             if depth + 1 < _MAX_DEPTH and _is_record(item):
                 rows += key_rows(item, sub, depth + 1)
-            elif depth + 1 < _MAX_DEPTH and isinstance(item, list) and item:
-                if _is_record(item[0]):
-                    rows += key_rows(item[0], sub + "[]", depth + 1)
+            elif depth + 1 < _MAX_DEPTH and isinstance(item, list) and item and _is_record(item[0]):
+                rows += key_rows(item[0], sub + "[]", depth + 1)
     return rows
 
 
@@ -147,8 +147,7 @@ def report_page(cache: Path) -> str:
             "\n",
             f".. currentmodule:: {module.__name__}\n\n",
             prose + "\n\n",
-            f"``report_version`` {report.get('report_version', '–')}. "
-            f"Keys ({len(rows)} rows):\n\n",
+            f"``report_version`` {report.get('report_version', '–')}. Keys ({len(rows)} rows):\n\n",
             list_table(["key", "type", "value in the documented run"], rows, "38 17 45"),
             "\n",
         ]

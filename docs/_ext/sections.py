@@ -53,9 +53,7 @@ def write_section_pages(docs: Path) -> list[str]:
         elif path.is_dir() and _pages(path):
             page = docs / GENERATED / f"{where}.md"
             listing = "\n".join(f"../{where}/{p.stem}" for p in _pages(path))
-            write_if_changed(
-                page, f"# {title}\n\n```{{toctree}}\n:maxdepth: 1\n\n{listing}\n```\n"
-            )
+            write_if_changed(page, f"# {title}\n\n```{{toctree}}\n:maxdepth: 1\n\n{listing}\n```\n")
             written.add(page)
             entries.append(f"{GENERATED}/{where}")
     if (docs / GENERATED).exists():

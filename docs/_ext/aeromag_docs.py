@@ -1,6 +1,7 @@
 """Sphinx extension of the aeromag_env site: writes the generated pages, resolves references.
 
-* ``builder-inited`` (before autosummary reads the pages): the environment pages
+* ``config-inited`` (before Sphinx lists the pages and autosummary reads them): the
+  environment pages
   (``docs/environments/``), the API, command-line, flight-field and report.json references
   (``docs/reference/``), each written only when its text changed.
 * ``missing-reference``: a docstring names an object by the module that defines it
@@ -34,7 +35,7 @@ import aeromag_env
 _ROOT_ENTRIES: list[str] = []
 
 
-def generate(app: Sphinx) -> None:
+def generate(app: Sphinx, config: Any = None) -> None:
     docs = Path(app.srcdir)
     reference = docs / "reference"
     gen_envs.write_all(docs / "environments")
@@ -147,7 +148,8 @@ def _candidates(target: str, node: Any) -> list[str]:
 
 
 def setup(app: Sphinx) -> dict[str, Any]:
-    app.connect("builder-inited", generate, priority=100)
+    # config-inited: before Sphinx lists the source files (autosummary reads that list)
+    app.connect("config-inited", generate)
     app.connect("source-read", add_toctrees)
     # before numpydoc (priority 500) parses the sections
     app.connect("autodoc-process-docstring", docstrings.process, priority=100)

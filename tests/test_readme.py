@@ -2,14 +2,15 @@
 
 Every ```python block of ``README.md`` and ``docs/getting-started.md`` runs, in document order,
 in one temporary folder (a block may use a file an earlier block wrote), each in a fresh
-interpreter with the checkout on ``PYTHONPATH``. Every ``aeromag`` command in a ```bash block
-(and every ``$ aeromag`` line of a ```text transcript) of the README and the pages under ``docs/``
-(the lab notebook excepted: it records commands as they were run) is parsed by the real
-argument parser, so a subcommand or option that does not exist fails here.
+namespace of one interpreter per document with the checkout on ``PYTHONPATH``. Every ``aeromag``
+command in a ```bash block (and every ``$ aeromag`` line of a ```text transcript) of the README
+and the pages under ``docs/`` (the lab notebook excepted: it records commands as they were run)
+is parsed by the real argument parser, so a subcommand or option that does not exist fails here.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shlex
@@ -80,7 +81,8 @@ def test_the_command_extractor_finds_every_command_and_drops_comments() -> None:
         "aeromag train --scenario suite \\\n    --timesteps 10 --out r  # long\n"
         "ray stop\n"
     )
-    assert commands(text) == [["demo"], ["train", "--scenario", "suite", "--timesteps", "10", "--out", "r"]]
+    train = ["train", "--scenario", "suite", "--timesteps", "10", "--out", "r"]
+    assert commands(text) == [["demo"], train]
     assert commands("$ aeromag info f.xyz\nfile: f.xyz\n", prompt="$ ") == [["info", "f.xyz"]]
 
 
@@ -117,22 +119,34 @@ def test_the_readme_links_point_to_files_that_exist() -> None:
             assert (ROOT / target).exists(), f"README links to {target}, which is missing"
 
 
+#: Runs the blocks given as a JSON list on stdin, each in a fresh namespace of one interpreter
+#: (imports are paid once), and names the block that failed.
+RUNNER = """
+import json, sys, traceback
+for i, code in json.load(sys.stdin):
+    try:
+        exec(compile(code, f"<python block {i + 1}>", "exec"), {"__name__": "__main__"})
+    except BaseException:
+        sys.exit(f"python block {i + 1} failed:\\n{code}\\n{traceback.format_exc()}")
+"""
+
+
 @pytest.mark.parametrize("name", RUN_PYTHON)
 def test_every_python_block_runs(name: str, tmp_path: Path) -> None:
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg"}
-    waiting = []
+    runnable, waiting = [], []
     for i, code in enumerate(blocks(ROOT / name, "python")):
-        if any(call in code and not present for call, present in PENDING.items()):
-            waiting.append(i)
-            continue
-        run = subprocess.run(
-            [sys.executable, "-c", code],
-            cwd=tmp_path,
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=600,
-        )
-        assert run.returncode == 0, f"{name}, python block {i + 1}:\n{code}\n{run.stderr[-3000:]}"
+        pending = any(call in code and not present for call, present in PENDING.items())
+        (waiting if pending else runnable).append((i, code))
+    run = subprocess.run(
+        [sys.executable, "-c", RUNNER],
+        input=json.dumps(runnable),
+        cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg"},
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, f"{name}: {run.stderr[-4000:]}"
     if waiting:
-        pytest.skip(f"{name}: python block(s) {waiting} call aeromag_env.compensate, not built yet")
+        numbers = [i + 1 for i, _ in waiting]
+        pytest.skip(f"{name}: python block(s) {numbers} call aeromag_env.compensate, not built yet")

@@ -133,7 +133,8 @@ for i, code in json.load(sys.stdin):
 
 @pytest.mark.parametrize("name", RUN_PYTHON)
 def test_every_python_block_runs(name: str, tmp_path: Path) -> None:
-    runnable, waiting = [], []
+    runnable: list[tuple[int, str]] = []
+    waiting: list[tuple[int, str]] = []
     for i, code in enumerate(blocks(ROOT / name, "python")):
         pending = any(call in code and not present for call, present in PENDING.items())
         (waiting if pending else runnable).append((i, code))

@@ -36,3 +36,46 @@ def test_the_guides_alias_table_is_the_readers() -> None:
     assert shown, "the guide's alias table was not found"
     assert shown - applied == set(), "the guide shows renamings the reader does not apply"
     assert applied - shown == set(), "the reader applies renamings the guide does not show"
+
+
+DOCS = GUIDE.parents[1]
+
+
+def first_column(page: Path, heading: str) -> set[str]:
+    """The code names in the first column of the first table under ``heading`` on ``page``."""
+    section = page.read_text().split(heading, 1)[1]
+    names: set[str] = set()
+    started = False
+    for line in section.splitlines():
+        if line.startswith("|"):
+            started = True
+            names |= set(re.findall(r"`([^`]+)`", line.strip("|").split("|")[0]))
+        elif started:
+            break
+    return names
+
+
+def test_the_scenario_table_lists_every_scenario() -> None:
+    from aeromag_env import SCENARIOS
+
+    page = DOCS / "background" / "benchmark-methodology.md"
+    assert first_column(page, "## Scenarios") == set(SCENARIOS)
+
+
+def test_the_guide_lists_every_registered_id() -> None:
+    import gymnasium as gym
+
+    import aeromag_env  # noqa: F401  (registers the ids)
+
+    text = (DOCS / "howto" / "train-and-evaluate.md").read_text()
+    listed = set(re.findall(r"`(AeroMag[\w/]*-v\d+)`", text))
+    registered = {k for k in gym.registry if k.startswith("AeroMag")}
+    assert registered <= listed, f"not in the guide: {sorted(registered - listed)}"
+    assert listed <= registered, f"not registered: {sorted(listed - registered)}"
+
+
+def test_the_effects_table_names_every_effect_of_the_library() -> None:
+    from aeromag_env.simulation.effects import EFFECTS
+
+    page = DOCS / "background" / "discovery.md"
+    assert first_column(page, "## The effects library") == set(EFFECTS)

@@ -31,6 +31,7 @@ def test_serial_runner_reports_a_raising_task_and_completes_the_rest() -> None:
     assert bad.label == "x=3" and bad.error == "ValueError: three is bad (3)"  # one line
     assert "Traceback" in bad.details
     assert seen == [t.label for t in TASKS]
+    assert [o.attempts for o in out] == [1] * len(TASKS) and retry_note(r) is None
 
 
 def test_nothing_imports_ray_without_the_flag() -> None:

@@ -18,7 +18,7 @@ import pickle
 import socket
 import traceback
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, cast
 
 from aeromag_env.errors import AeromagError
 from aeromag_env.parallel.tasks import Outcome, Task, one_line
@@ -96,7 +96,7 @@ class RayRunner:
     ) -> list[Outcome]:
         ray = self._ray
         self._runs += 1
-        self._start_log(self._runs)
+        logged = self._start_log(self._runs)
         remote = ray.remote(aeromag_task)
         refs = [
             remote.options(
@@ -113,23 +113,28 @@ class RayRunner:
             outcomes[i] = self._outcome(tasks[i], done[0])
             if progress is not None:
                 progress(outcomes[i])  # type: ignore[arg-type]
-        attempts = self._attempts(self._runs)
+        attempts = self._attempts(self._runs) if logged else None
         if attempts is None:
             self.retries_known = False
-        for i, o in enumerate(outcomes):
-            o.attempts = None if attempts is None else attempts.get(i, 0)  # type: ignore[union-attr]
-        self.retried += [o.label for o in outcomes if (o.attempts or 0) > 1]  # type: ignore[union-attr]
-        return outcomes  # type: ignore[return-value]
+        finished = cast("list[Outcome]", outcomes)  # every task has ended
+        for i, o in enumerate(finished):
+            o.attempts = None if attempts is None else attempts.get(i, 0)
+        self.retried += [o.label for o in finished if (o.attempts or 0) > 1]
+        return finished
 
-    def _start_log(self, run: int) -> None:
-        """Point the attempt log at run ``run`` (its counts start afresh); a log that does not
-        answer is replaced by a new one."""
+    def _start_log(self, run: int) -> bool:
+        """Point the attempt log at run ``run`` (its counts start afresh), replacing a log that
+        is dead or does not answer by a new one; False when no log answered (the run goes on,
+        its attempts unknown)."""
         ray = self._ray
-        try:
-            ray.get(self._log.reset.remote(run), timeout=LOG_TIMEOUT_S)
-        except ray.exceptions.RayError:
-            self._log = self._new_log()
-            ray.get(self._log.reset.remote(run), timeout=LOG_TIMEOUT_S)
+        for last in (False, True):
+            try:
+                ray.get(self._log.reset.remote(run), timeout=LOG_TIMEOUT_S)
+                return True
+            except ray.exceptions.RayError:
+                if not last:
+                    self._log = self._new_log()
+        return False
 
     def _attempts(self, run: int) -> dict[int, int] | None:
         """Task index → attempts of run ``run``, or None when they are unknown: the log died

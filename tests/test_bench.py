@@ -8,6 +8,7 @@ import pytest
 from aeromag_env.cli.bench import _rows, peak_rss_mb
 from aeromag_env.cli.bench_filters import bench_filters
 from aeromag_env.compensation.compensate import earth_model
+from tests._helpers import experiment
 
 
 def test_filter_figures_are_positive_rates(nominal_box):
@@ -131,7 +132,8 @@ def test_zero_cost_env_ends_episodes_as_sb3_expects():
 
 
 def test_bench_table_joins_runs_and_counts_met_targets(tmp_path):
-    from experiments.bench_table import join_cells, load_runs, table
+    script = experiment("bench_table")
+    join_cells, load_runs, table = (script[n] for n in ("join_cells", "load_runs", "table"))
 
     assert join_cells(["1.2× filterpy", "1.35× filterpy"]) == "1.2 / 1.35× filterpy"
     assert join_cells(["1,000 /s", "1,000 /s"]) == "1,000 /s"

@@ -33,6 +33,7 @@ from aeromag_env.noise import fogm
 from aeromag_env.simulation.config import EffectConfig, SimulationConfig
 from aeromag_env.simulation.effects import ABSORBED, EFFECTS, IDENTIFIABLE, simulate_effects
 from aeromag_env.simulation.simulate import simulate_flight
+from tests._helpers import assert_one_line_error
 
 
 @pytest.fixture(scope="module")
@@ -280,7 +281,7 @@ def test_bad_input_gives_one_line_errors(null_flight: Flight) -> None:
     no_att = Flight({k: v for k, v in null_flight.fields.items() if k != "ins_yaw"}, {})
     with pytest.raises(AeromagError, match="attitude") as e:
         discover(no_att)
-    assert "\n" not in str(e.value)
+    assert_one_line_error(e)
     with pytest.raises(AeromagError, match="at least 300 s"):
         discover(null_flight, calibration_window=(0.0, 100.0))
     with pytest.raises(AeromagError, match="T0 < T1"):

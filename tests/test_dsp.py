@@ -4,6 +4,7 @@ from scipy.signal import butter
 
 from aeromag_env.compensation.dsp import bandpass, bandpass_finite, highpass, lowpass, min_length
 from aeromag_env.errors import AeromagError
+from tests._helpers import assert_one_line_error
 
 FS = 10.0  # [Hz], the SGL / simulator rate
 
@@ -109,24 +110,33 @@ def test_bandpass_finite_filters_each_run():
     assert np.isnan(y[100]) and np.all(np.isnan(y[290:]))
 
 
-def _one_line_error(match: str, fn, *args) -> str:
-    with pytest.raises(AeromagError, match=match) as info:
-        fn(*args)
-    assert "\n" not in str(info.value)
-    return str(info.value)
-
-
 def test_errors_are_one_line():
     x = np.ones(500)
     x[3] = np.nan
-    _one_line_error("non-finite", bandpass, x, FS, 0.1, 0.9)
+    with pytest.raises(AeromagError, match="non-finite") as e:
+        bandpass(x, FS, 0.1, 0.9)
+    assert_one_line_error(e)
     sos = butter(4, [0.1, 0.9], btype="bandpass", fs=FS, output="sos")
-    msg = _one_line_error("too short", bandpass, np.arange(10.0), FS, 0.1, 0.9)
+    with pytest.raises(AeromagError, match="too short") as e:
+        bandpass(np.arange(10.0), FS, 0.1, 0.9)
+    msg = assert_one_line_error(e)
     assert f"need ≥ {min_length(sos)}" in msg
     bandpass(np.arange(float(min_length(sos))), FS, 0.1, 0.9)  # the named minimum is enough
-    _one_line_error("low < high", bandpass, np.arange(500.0), FS, 0.9, 0.1)
-    _one_line_error("shape", bandpass, np.zeros((50, 2, 2)), FS, 0.1, 0.9)
-    _one_line_error("sample rate", bandpass, np.arange(500.0), 0.0, 0.1, 0.9)
-    _one_line_error("order", bandpass, np.arange(500.0), FS, 0.1, 0.9, 0)
-    _one_line_error("cutoff", highpass, np.arange(500.0), FS, FS)
-    _one_line_error("cutoff", lowpass, np.arange(500.0), FS, 0.0)
+    with pytest.raises(AeromagError, match="low < high") as e:
+        bandpass(np.arange(500.0), FS, 0.9, 0.1)
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="shape") as e:
+        bandpass(np.zeros((50, 2, 2)), FS, 0.1, 0.9)
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="sample rate") as e:
+        bandpass(np.arange(500.0), 0.0, 0.1, 0.9)
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="order") as e:
+        bandpass(np.arange(500.0), FS, 0.1, 0.9, 0)
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="cutoff") as e:
+        highpass(np.arange(500.0), FS, FS)
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="cutoff") as e:
+        lowpass(np.arange(500.0), FS, 0.0)
+    assert_one_line_error(e)

@@ -130,7 +130,7 @@ def test_the_shipped_policy_makes_its_own_environment():
     with its env_kwargs, and a whole (short) episode runs; the bare id is refused with the way
     out in the message, not a broadcast error."""
     from agents.numpy_policy import NumpyPPOPolicy
-    from experiments.fault_cases import SHIPPED
+    from tests._helpers import SHIPPED
 
     policy = NumpyPPOPolicy.load(SHIPPED["policy"])
     env = policy.make_env(duration_s=60.0, max_episode_steps=40)

@@ -1,20 +1,21 @@
+"""The experiment scripts, each run as a script (``--quick`` or a small case) or, for tests of
+their functions, loaded by path: ``experiments`` is not a package the tests import."""
+
 import numpy as np
 import pytest
 
-from experiments.compare_methods import main as compare_main
+from tests._helpers import SHIPPED, experiment, run_experiment
 
 
 def test_compare_methods_quick(tmp_path, capsys):
-    assert compare_main(["--quick", "--out", str(tmp_path)]) == 0
+    assert run_experiment("compare_methods", "--quick", "--out", str(tmp_path)) == 0
     text = (tmp_path / "table.md").read_text()
     assert text.count("\n| `") == 7  # one row per method
     assert "`tl`" in capsys.readouterr().out
 
 
 def test_evaluate_all_quick(tmp_path):
-    from experiments.evaluate_all import main as evaluate_all
-
-    assert evaluate_all(["--quick", "--out", str(tmp_path)]) == 0
+    assert run_experiment("evaluate_all", "--quick", "--out", str(tmp_path)) == 0
     matrix = (tmp_path / "matrix.md").read_text()
     assert "| fis |" in matrix and "paper" in matrix and "nominal" in matrix
     assert (tmp_path / "paper" / "results.json").exists()
@@ -27,17 +28,16 @@ def test_design_study_rule_sets_the_scales_it_states():
     import gymnasium as gym
     import numpy as np
 
-    from experiments.ppo_design_study import DETECTOR_ENV, _mean_innovation_rule
-
+    study = experiment("ppo_design_study")
     cfg = {
-        **DETECTOR_ENV,
+        **study["DETECTOR_ENV"],
         "scenario": "nonstationary",
         "innovation_power": True,
         "scale_limit": 1e10,
     }
     env = gym.make("AeroMagCompensation-v0", config=cfg)
     obs, _ = env.reset(seed=100_000)
-    rule = _mean_innovation_rule(20.0, 1.5**2)
+    rule = study["_mean_innovation_rule"](20.0, 1.5**2)
     fired = quiet = 0
     for _ in range(400):
         action = rule(obs[None])[0]
@@ -51,13 +51,10 @@ def test_design_study_rule_sets_the_scales_it_states():
 
 
 def test_import_time_quick(capsys):
-    from experiments.import_time import STATEMENTS
-    from experiments.import_time import main as import_time
-
-    assert import_time(["--quick"]) == 0
+    assert run_experiment("import_time", "--quick") == 0
     out = capsys.readouterr().out
     rows = [line for line in out.splitlines() if line.endswith(" ms")]
-    assert [r[:45].strip() for r in rows] == list(STATEMENTS)
+    assert [r[:45].strip() for r in rows] == list(experiment("import_time")["STATEMENTS"])
     assert all(float(r.split()[-2]) > 0 for r in rows)
 
 
@@ -66,9 +63,8 @@ def test_own_flight_file_walkthrough(tmp_path):
     fluxgate is found, TL is fitted on the detected box and beats the vendor's channel, and the
     vendor's field is kept."""
     from aeromag_env.flight.files import read_flight
-    from experiments.own_flight_file import walkthrough
 
-    result = walkthrough(tmp_path)
+    result = experiment("own_flight_file")["walkthrough"](tmp_path)
     info = result["printed"]["info"]["printed"]
     for words in (
         "1 time gap(s)",
@@ -91,9 +87,7 @@ def test_own_flight_file_walkthrough(tmp_path):
 
 def test_fault_effects_table(capsys):
     """The README's gap/spike/NaN table: every method within 10 % of its clean RMSE."""
-    from experiments.fault_effects import main as fault_effects
-
-    assert fault_effects(["--methods", "tl,kf"]) == 0
+    assert run_experiment("fault_effects", "--methods", "tl,kf") == 0
     rows = [
         line
         for line in capsys.readouterr().out.splitlines()
@@ -109,12 +103,9 @@ def test_seed_table_tables_each_seed_and_the_iqm(tmp_path, capsys):
     with the same numbers, and the IQM line (the score of both)."""
     import shutil
 
-    from experiments.fault_cases import SHIPPED
-    from experiments.seed_table import main as seed_table
-
     copy = shutil.copy(SHIPPED["policy"], tmp_path / "seed1.npz")
     argv = [str(SHIPPED["policy"]), str(copy), "--episodes", "8", "--out", str(tmp_path)]
-    assert seed_table(argv) == 0
+    assert run_experiment("seed_table", *argv) == 0
     table = (tmp_path / "table.md").read_text()
     rows = [line for line in table.splitlines() if line.startswith(("| 0 |", "| 1 |"))]
     assert len(rows) == 2 and rows[0].split("|")[3:] == rows[1].split("|")[3:]
@@ -128,9 +119,6 @@ def test_seed_table_checks_a_policy_across_scenarios(tmp_path):
     ``fis``'s and the scenarios where the policy is worse than ``tuned_constant`` beyond the
     paired interval — here the shipped ``nonstationary`` policy, which on ``paper`` keeps the
     paper's tiny R and is far worse than the tuned constant."""
-    from experiments.fault_cases import SHIPPED
-    from experiments.seed_table import main as seed_table
-
     argv = [
         str(SHIPPED["policy"]),
         "--scenarios",
@@ -140,7 +128,7 @@ def test_seed_table_checks_a_policy_across_scenarios(tmp_path):
         "--out",
         str(tmp_path),
     ]
-    assert seed_table(argv) == 0
+    assert run_experiment("seed_table", *argv) == 0
     table = (tmp_path / "table.md").read_text()
     row = next(line for line in table.splitlines() if line.startswith("| 0 | ") and "%" in line)
     assert "paper (+" in row  # ppo keeps paper's tiny R: 20 nT against the tuned 1.1
@@ -152,7 +140,8 @@ def test_the_bootstrap_interval_flags_what_a_few_bad_flights_hide_from_the_t_int
     """Differences that are small and positive on most flights and large on two: the t interval
     spans zero, the percentile bootstrap does not; a single flight has no interval."""
     from agents.evaluate import ci95
-    from experiments.seed_table import _bootstrap_low
+
+    _bootstrap_low = experiment("seed_table")["_bootstrap_low"]
 
     diff = np.array([0.1] * 28 + [5.0, 6.0])
     assert ci95(diff)[0] < 0 < _bootstrap_low(diff)
@@ -162,7 +151,7 @@ def test_the_bootstrap_interval_flags_what_a_few_bad_flights_hide_from_the_t_int
 
 
 def _suite_row(kind, effect=None, snr=None, named=(), duration_s=1800.0, decoys=()):
-    """A hand-made row of ``experiments.hidden_effects`` (the fields ``summarise`` reads)."""
+    """A hand-made row of ``experiments/hidden_effects.py`` (the fields ``summarise`` reads)."""
     truth = [[effect, None]] if effect else []
     named = [list(t) for t in named]
     return {
@@ -185,7 +174,8 @@ def test_hidden_effects_counts_power_against_duration_apart_from_the_snr_claims(
     with a decoy) change none of the SNR claims."""
     import json
 
-    from experiments.hidden_effects import SINGLE, markdown, summarise
+    hidden_effects = experiment("hidden_effects")
+    SINGLE, markdown, summarise = (hidden_effects[n] for n in ("SINGLE", "markdown", "summarise"))
 
     nm = "external_field_variation"
     base = [_suite_row("single", e, 2.0, [(e, None)]) for e in SINGLE]
@@ -219,11 +209,12 @@ def test_hidden_effects_counts_power_against_duration_apart_from_the_snr_claims(
 
 
 def test_same_verdicts_flags_a_changed_named_list_and_counts_unmatched(tmp_path, capsys):
-    """experiments.same_verdicts: equal named sets (in any order) pass; a changed one fails
+    """experiments/same_verdicts.py: equal named sets (in any order) pass; a changed one fails
     with exit 1 and is printed; a case only in the new run is counted, not compared."""
     import json
 
-    from experiments.same_verdicts import main as same_verdicts
+    def same_verdicts(argv: list[str]) -> int:
+        return run_experiment("same_verdicts", *argv)
 
     def row(seed, named, gap=1.0):
         return {
@@ -254,8 +245,7 @@ def test_lagged_privileged_pays_for_knowing_the_noise_one_window_late(capsys):
     """On manoeuvre_heavy the privileged policy that sets R from the window just flown is worse
     than the one that knows the coming window (the flex noise moves within a second), and the
     table has a row per decision window."""
-    from experiments.lagged_privileged import main as lagged
-
+    lagged = experiment("lagged_privileged")["main"]  # returns its rows, which the test reads
     rows = lagged(["--windows", "10", "--episodes", "2"])
     assert [r["window"] for r in rows] == [10]
     assert rows[0]["late"] > rows[0]["privileged"]
@@ -265,8 +255,7 @@ def test_lagged_privileged_pays_for_knowing_the_noise_one_window_late(capsys):
 def test_lagged_privileged_with_a_floor_on_r_keeps_a_late_burst_out(capsys):
     """On noise_bursts the late policy lets the first window of each burst in at a small R;
     held at R ≥ 10² R(0) it loses far less (the teacher the general policy's cloning follows)."""
-    from experiments.lagged_privileged import main as lagged
-
+    lagged = experiment("lagged_privileged")["main"]
     rows = lagged(
         ["--scenario", "noise_bursts", "--windows", "10", "--episodes", "2", "--floors", "2"]
     )

@@ -25,6 +25,7 @@ from aeromag_env.flight.files import load_flight, write_flight
 from aeromag_env.simulation.config import preset, with_overrides
 from agents.ppo import HYPERPARAMS, load_hyperparams
 from tests._flights import simulated
+from tests._helpers import assert_one_line_error
 
 DEBUG_HINT = "(a bug: please report it with the command line; AEROMAG_DEBUG=1 shows the traceback)"
 
@@ -364,7 +365,7 @@ def test_hyperparameters_of_absurd_size_are_refused(tmp_path, change, pretrain, 
     path = _hp_file(tmp_path, change, pretrain)
     with pytest.raises(HyperparameterError) as info:
         load_hyperparams("nonstationary", path)
-    assert "\n" not in str(info.value) and str(path) in str(info.value) and words in str(info.value)
+    assert_one_line_error(info, str(path), words)
 
 
 def test_hyperparameters_at_the_upper_bounds_are_accepted(tmp_path):

@@ -34,6 +34,7 @@ from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 from aeromag_env.errors import AeromagError, ConfigError
 from aeromag_env.flight.data import Flight
 from tests._flights import simulated
+from tests._helpers import assert_one_line_error
 
 #: A 600-s nominal flight (6000 samples at 10 Hz) and where the faults go: the spike at its
 #: middle, the burst and the step from there on.
@@ -265,7 +266,8 @@ def test_batch_scale_noise_refuses_what_the_single_filter_refuses(inputs, bad):
     for args in ((bad, 1.0), (1.0, bad), (one_bad, 1.0)):
         with pytest.raises(ConfigError, match=r"scale_noise: s_[qr](\[1\])? must be a finite") as e:
             batch.scale_noise(*args)
-        assert "\n" not in str(e.value) and isinstance(e.value, AeromagError)
+        assert_one_line_error(e)
+        assert isinstance(e.value, AeromagError)
     for shape_or_type in (np.ones(3), np.array([True, True])):
         with pytest.raises(ConfigError, match=r"2 real numbers \(one per flight\), got shape"):
             batch.scale_noise(shape_or_type, 1.0)

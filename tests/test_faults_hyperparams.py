@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import copy
 import json
-import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ from aeromag_env.cli.main import main
 from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS
 from aeromag_env.errors import HyperparameterError
 from agents.ppo import HYPERPARAMS, VEC_ENVS, _ppo_kwargs, load_hyperparams
+from tests._helpers import assert_one_line_error
 
 SHIPPED = json.loads(HYPERPARAMS.read_text(encoding="utf-8"))
 SCHEMA = json.loads(HYPERPARAMS.with_name("ppo.schema.json").read_text(encoding="utf-8"))
@@ -272,11 +272,7 @@ def _write(tmp_path: Path, case: str, data: str | bytes) -> Path:
 def _refused(path: Path, problem: str) -> str:
     with pytest.raises(HyperparameterError) as info:
         load_hyperparams("nonstationary", path)
-    msg = str(info.value)
-    assert "\n" not in msg, msg
-    assert str(path) in msg, msg
-    assert re.search(problem, msg), msg
-    return msg
+    return assert_one_line_error(info, str(path), patterns=(problem,))
 
 
 @pytest.mark.parametrize(("case", "mutate", "problem"), DOC_FAULTS, ids=[c[0] for c in DOC_FAULTS])
@@ -399,6 +395,6 @@ def test_any_value_for_any_key_loads_or_names_the_key(tmp_path, key, value):
     try:
         hp = load_hyperparams("nonstationary", path)
     except HyperparameterError as e:
-        assert "\n" not in str(e) and key in str(e), str(e)
+        assert_one_line_error(e, key)
         return
     assert hp[key] == value

@@ -12,7 +12,6 @@ from __future__ import annotations
 import io
 import json
 import pickle
-import re
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -26,6 +25,7 @@ from aeromag_env.cli.main import main
 from aeromag_env.errors import AeromagError, PolicyFileError
 from agents import DEFAULT_PPO, make_policy, policy_env_kwargs
 from agents.numpy_policy import NumpyPPOPolicy
+from tests._helpers import assert_one_line_error
 
 Arrays = dict[str, np.ndarray]
 
@@ -192,11 +192,7 @@ BYTE_FAULTS: list[tuple[str, bytes, str]] = [
 def _refused(path: Path, problem: str) -> str:
     with pytest.raises(PolicyFileError) as info:
         NumpyPPOPolicy.load(path)
-    msg = str(info.value)
-    assert "\n" not in msg, msg
-    assert str(path) in msg, msg
-    assert re.search(problem, msg), msg
-    return msg
+    return assert_one_line_error(info, str(path), patterns=(problem,))
 
 
 @pytest.mark.parametrize(
@@ -292,7 +288,7 @@ def test_any_corrupted_byte_loads_or_is_refused(tmp_path, position, value):
     try:
         policy = NumpyPPOPolicy.load(path)
     except PolicyFileError as e:
-        assert "\n" not in str(e) and str(path) in str(e)
+        assert_one_line_error(e, str(path))
         return
     action, _ = policy.predict(np.zeros(policy.n_obs, np.float32))
     assert np.all(np.isfinite(action)) and np.all(np.abs(action) <= 1.0)
@@ -302,7 +298,7 @@ def test_predict_checks_the_observation_size_and_survives_extremes():
     policy = NumpyPPOPolicy.load(DEFAULT_PPO)
     with pytest.raises(ValueError, match=r"10 observations.*\(7,\)") as info:
         policy.predict(np.zeros(7, np.float32))
-    assert "\n" not in str(info.value)
+    assert_one_line_error(info)
     with pytest.raises(ValueError, match="10 observations"):
         policy.predict(np.zeros((4, 3), np.float32))
     extremes = np.array([1e308, -1e308, np.inf, -np.inf, 0.0, 8.0, -8.0, 1.0, -1.0, 3e38])

@@ -21,18 +21,12 @@ from aeromag_env.flight import files as flightfile
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.files import load_flight, read_flight, write_flight
 from aeromag_env.flight.validation import FlightFileWarning
+from tests._helpers import assert_one_line_error
 from tests._synthetic_flights import only, turning_flight, with_fields
 
 
 def sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def assert_one_line_error(exc: pytest.ExceptionInfo[FlightFileError], *words: str) -> None:
-    message = str(exc.value)
-    assert "\n" not in message
-    for word in words:
-        assert word in message, f"{word!r} not in {message!r}"
 
 
 def assert_bit_identical(a: Flight, b: Flight, *, nan_payload: bool = True) -> None:

@@ -24,6 +24,7 @@ from aeromag_env.compensation.fuzzy import (
     zoomed_scale,
 )
 from aeromag_env.errors import ConfigError
+from tests._helpers import assert_one_line_error
 
 TOLS = [EPSILON_R, ETA_Q]
 
@@ -183,7 +184,7 @@ def test_bad_parameters(kwargs, name):
     zoom = params.pop("zoom", 1.0)
     with pytest.raises(ConfigError, match=rf"^{name} ") as info:
         fis_scale_array([1.0], zoom=zoom, **params)
-    assert "\n" not in str(info.value)
+    assert_one_line_error(info)
     if "zoom" not in kwargs:
         with pytest.raises(ConfigError, match=rf"^{name} "):
             fis_scale_reference(1.0, **params)

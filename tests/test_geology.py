@@ -27,6 +27,7 @@ from aeromag_env.simulation.config import (
     with_overrides,
 )
 from aeromag_env.simulation.simulate import simulate_flight
+from tests._helpers import assert_one_line_error
 
 SPECTRUM = {"depth_to_source_m": 200.0, "source_thickness_m": 3000.0, "fractal_exponent": 2.0}
 LAT0, LON0 = np.deg2rad(45.3), np.deg2rad(-76.0)
@@ -246,7 +247,7 @@ def test_tracks_the_grid_cannot_serve_are_refused():
 def test_geology_config_errors_are_one_line(field, value, words):
     with pytest.raises(ConfigError, match=words) as err:
         GeologyConfig(**{field: value})
-    assert "\n" not in str(err.value)
+    assert_one_line_error(err)
 
 
 def test_geology_config_round_trip_and_overrides():
@@ -477,7 +478,7 @@ def test_a_seeded_ground_is_drawn_once_for_many_flights():
 def test_a_track_the_area_does_not_serve_is_refused(geology, trajectory, words):
     with pytest.raises(ValueError, match=words) as err:
         _flight("nominal", 0, geology, **trajectory)
-    assert "\n" not in str(err.value)
+    assert_one_line_error(err)
 
 
 @pytest.mark.parametrize(
@@ -498,7 +499,7 @@ def test_a_track_the_area_does_not_serve_is_refused(geology, trajectory, words):
 def test_geology_area_errors_are_one_line(fields, words):
     with pytest.raises(ConfigError, match=words) as err:
         GeologyConfig(**fields)
-    assert "\n" not in str(err.value)
+    assert_one_line_error(err)
 
 
 def test_geology_area_round_trip():

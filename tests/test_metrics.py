@@ -12,14 +12,9 @@ from aeromag_env.compensation.metrics import (
 )
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.errors import AeromagError
+from tests._helpers import assert_one_line_error
 
 FS = 10.0  # [Hz]
-
-
-def _one_line_error(match: str, fn, *args, **kwargs) -> None:
-    with pytest.raises(AeromagError, match=match) as info:
-        fn(*args, **kwargs)
-    assert "\n" not in str(info.value)
 
 
 # --- compensation_rmse ------------------------------------------------------------------------
@@ -52,10 +47,18 @@ def test_rmse_ignores_non_finite_rows_and_honours_mask():
 
 
 def test_rmse_errors():
-    _one_line_error("alike", compensation_rmse, np.zeros(5), np.zeros(6))
-    _one_line_error("no finite", compensation_rmse, np.zeros(3), np.full(3, np.nan))
-    _one_line_error("mask", compensation_rmse, np.zeros(3), np.zeros(3), np.ones(3))
-    _one_line_error("per-axis", compensation_rmse_per_axis, np.zeros(3), np.zeros(3))
+    with pytest.raises(AeromagError, match="alike") as e:
+        compensation_rmse(np.zeros(5), np.zeros(6))
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="no finite") as e:
+        compensation_rmse(np.zeros(3), np.full(3, np.nan))
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="mask") as e:
+        compensation_rmse(np.zeros(3), np.zeros(3), np.ones(3))
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="per-axis") as e:
+        compensation_rmse_per_axis(np.zeros(3), np.zeros(3))
+    assert_one_line_error(e)
 
 
 # --- residual_std -----------------------------------------------------------------------------
@@ -73,8 +76,12 @@ def test_residual_std_removes_each_line_mean():
 
 
 def test_residual_std_errors():
-    _one_line_error("shape", residual_std, np.zeros(4), np.zeros(5))
-    _one_line_error("no finite", residual_std, np.full(4, np.nan))
+    with pytest.raises(AeromagError, match="shape") as e:
+        residual_std(np.zeros(4), np.zeros(5))
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="no finite") as e:
+        residual_std(np.full(4, np.nan))
+    assert_one_line_error(e)
 
 
 # --- improvement_ratio ------------------------------------------------------------------------
@@ -170,14 +177,24 @@ def test_fom_of_a_compensated_flight_drops(nominal_box):
 def test_fom_errors():
     field, t, maneuver = _box(np.ones(12))
     cut = np.where(np.isin(maneuver, [3, 11]), 0.0, maneuver)
-    _one_line_error(r"window\(s\) 3, 11 absent", figure_of_merit, field, t, cut, FS)
-    _one_line_error("median interval", fom_terms, field, t * 2, maneuver, FS)
-    _one_line_error("cutoff", fom_terms, field, t, maneuver, FS, highpass_hz=FS)
-    _one_line_error("shape", fom_terms, field, t, maneuver[:-1], FS)
+    with pytest.raises(AeromagError, match=r"window\(s\) 3, 11 absent") as e:
+        figure_of_merit(field, t, cut, FS)
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="median interval") as e:
+        fom_terms(field, t * 2, maneuver, FS)
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="cutoff") as e:
+        fom_terms(field, t, maneuver, FS, highpass_hz=FS)
+    assert_one_line_error(e)
+    with pytest.raises(AeromagError, match="shape") as e:
+        fom_terms(field, t, maneuver[:-1], FS)
+    assert_one_line_error(e)
     gappy = field.copy()
     gappy[maneuver == 5] = np.nan
     gappy[np.flatnonzero(maneuver == 7)[40]] = np.inf
-    _one_line_error(r"window\(s\) 5, 7 contain non-finite", fom_terms, gappy, t, maneuver, FS)
+    with pytest.raises(AeromagError, match=r"window\(s\) 5, 7 contain non-finite") as e:
+        fom_terms(gappy, t, maneuver, FS)
+    assert_one_line_error(e)
 
 
 # --- ratio statistics -------------------------------------------------------------------------
@@ -201,4 +218,6 @@ def test_ratio_statistics_ignores_non_finite_and_masks():
     assert s["fraction_finite"] == pytest.approx(0.8)
     half = np.arange(100) >= 50
     assert ratio_statistics(r, mask=half)["fraction_finite"] == pytest.approx(40 / 50)
-    _one_line_error("no finite", ratio_statistics, np.full(5, np.nan))
+    with pytest.raises(AeromagError, match="no finite") as e:
+        ratio_statistics(np.full(5, np.nan))
+    assert_one_line_error(e)

@@ -4,7 +4,7 @@ import numpy as np
 
 from aeromag_env.compensation.model import STATE_SCALE
 from aeromag_env.compensation.paper import convergence_time_s
-from experiments.reproduce_paper import main as reproduce_main
+from tests._helpers import run_experiment
 
 
 def test_convergence_time_closed_form():
@@ -21,7 +21,7 @@ def test_convergence_time_closed_form():
 
 
 def test_quick_reproduction_writes_report_and_figures(tmp_path):
-    assert reproduce_main(["--quick", "--out", str(tmp_path)]) == 0
+    assert run_experiment("reproduce_paper", "--quick", "--out", str(tmp_path)) == 0
     report = json.loads((tmp_path / "report.json").read_text())
     for name in ("fakf", "kf"):
         r = report[name]

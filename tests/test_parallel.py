@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
 import pytest
 
-from aeromag_env.parallel import SerialRunner, Task, failures, runner
+from aeromag_env.parallel import Outcome, SerialRunner, Task, failures, retry_note, runner
 
 
 def square(x: int) -> int:
@@ -30,6 +31,7 @@ def test_serial_runner_reports_a_raising_task_and_completes_the_rest() -> None:
     assert bad.label == "x=3" and bad.error == "ValueError: three is bad (3)"  # one line
     assert "Traceback" in bad.details
     assert seen == [t.label for t in TASKS]
+    assert [o.attempts for o in out] == [1] * len(TASKS) and retry_note(r) is None
 
 
 def test_nothing_imports_ray_without_the_flag() -> None:
@@ -55,3 +57,39 @@ def test_ray_runner_equals_serial_and_counts_attempts(local_ray: None) -> None:
     ]
     assert sorted(progress) == sorted(t.label for t in TASKS)
     assert [o.attempts for o in out] == [1] * len(TASKS)  # nothing died, nothing retried
+
+
+def slow_square(x: int) -> int:
+    time.sleep(0.3)  # long enough that tasks still start after the attempt log was killed
+    return x * x
+
+
+@pytest.mark.ray
+@pytest.mark.parametrize("restart", [True, False], ids=["restarted", "gone"])
+def test_losing_the_attempt_log_loses_only_the_attempt_counts(
+    local_ray: None, restart: bool
+) -> None:
+    """The attempt log killed after the first task ended, restarted by Ray or gone for good:
+    every task still gives its value, the run's attempts are unknown, and the next run on the
+    same runner counts them again."""
+    import ray
+
+    tasks = [Task(f"x={i}", slow_square, (i,)) for i in range(8)]
+    with runner("local") as r:
+        killed: list[str] = []
+
+        def kill_log_once(outcome: Outcome) -> None:
+            if not killed:
+                killed.append(outcome.label)
+                ray.kill(r._log, no_restart=not restart)
+
+        out = r.run(tasks, progress=kill_log_once)
+        assert [o.value for o in out] == [i * i for i in range(8)] and not failures(out)
+        assert [o.attempts for o in out] == [None] * 8
+        assert not r.retries_known and r.retried == []
+        note = retry_note(r)
+        assert note is not None and note.startswith("retries unknown")
+        again = r.run(tasks)
+        assert [o.attempts for o in again] == [1] * 8 and [o.value for o in again] == [
+            o.value for o in out
+        ]

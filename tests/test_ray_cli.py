@@ -1,5 +1,6 @@
 """``--ray`` on evaluate and train: the same results as the serial run, bit for bit; a worker
-killed mid-run is retried and every episode still arrives; a second Ray node joins by address.
+killed mid-run is retried and every episode still arrives, and so do they all when the worker
+keeping the attempt counts is killed; a second Ray node joins by address.
 
 All marked ``ray`` (``pytest -m ray``, its own step in ``.ci/run``)."""
 
@@ -138,6 +139,33 @@ def test_a_killed_worker_is_retried_and_every_episode_arrives(tmp_path: Path) ->
     serial = json.loads((tmp_path / "serial" / "results.json").read_text())
     assert ray_results == serial
     assert all(len(p["rmse_nt"]) == 48 for p in ray_results["policies"].values())
+
+
+def test_a_killed_attempt_log_loses_only_the_retry_count(tmp_path: Path) -> None:
+    """``aeromag evaluate --ray`` in its own process; the worker hosting the attempt log
+    (``ray::AttemptLog``) is killed (SIGKILL) while a task runs: the run completes, says its
+    retries are unknown, and its results equal the serial run's."""
+    args = [*EVALUATE, "--scenario", "nonstationary", "--episodes", "16"]  # 8 tasks
+    cmd = [*AEROMAG, *args, "--out", str(tmp_path / "ray"), "--ray"]
+    run = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    killed, deadline = None, time.monotonic() + 120
+    while killed is None and run.poll() is None and time.monotonic() < deadline:
+        workers = _descendants(run.pid)
+        busy = [p for p, c in workers.items() if c.startswith("ray::aeromag_task")]
+        logs = [p for p, c in workers.items() if c.startswith("ray::AttemptLog")]
+        if busy and logs:  # a task running: the run has not yet asked the log for its counts
+            os.kill(logs[0], signal.SIGKILL)
+            killed = logs[0]
+        time.sleep(0.1)
+    _, err = run.communicate(timeout=600)
+    assert killed is not None, "no attempt log seen while a task ran"
+    assert run.returncode == 0, err
+    assert "aeromag evaluate: retries unknown" in err and "internal error" not in err
+    assert main([*args, "--out", str(tmp_path / "serial")]) == 0
+    ray_results = json.loads((tmp_path / "ray" / "results.json").read_text())
+    serial = json.loads((tmp_path / "serial" / "results.json").read_text())
+    assert ray_results == serial
+    assert all(len(p["rmse_nt"]) == 16 for p in ray_results["policies"].values())
 
 
 @pytest.fixture

@@ -16,6 +16,7 @@ from aeromag_env.simulation.tolles_lawson_terms import (
     design_matrix,
 )
 from tests._flights import simulated
+from tests._helpers import assert_one_line_error
 
 
 def test_design_matrix_columns_closed_form():
@@ -217,7 +218,7 @@ def test_non_finite_samples():
     assert m.n_samples_ == 1000 - 4
     with pytest.raises(AeromagError, match="non-finite") as info:
         TollesLawson().fit(b, y, FS_HZ)
-    assert "\n" not in str(info.value)
+    assert_one_line_error(info)
 
 
 def test_errors_are_one_line():
@@ -234,4 +235,4 @@ def test_errors_are_one_line():
     for call, match in cases:
         with pytest.raises(AeromagError, match=match) as info:
             call()
-        assert "\n" not in str(info.value)
+        assert_one_line_error(info)

@@ -16,7 +16,7 @@ from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.cli.compensate import _jsonable
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError
-from aeromag_env.parallel import runner
+from aeromag_env.parallel import retry_note, runner
 
 #: The output set of ``aeromag evaluate``, in the folder ``--out``.
 OUTPUTS = ("results.json", "evaluation.png")
@@ -71,12 +71,8 @@ def run_evaluate(
         ) as bar,
     ):
         results = evaluate_scenarios(scenarios, policies, seeds, progress=bar.update, runner=tasks)
-    if tasks.retried:
-        print(
-            f"aeromag evaluate: {len(tasks.retried)} task(s) ran again after their Ray worker "
-            f"died (same results): {'; '.join(tasks.retried)}",
-            file=sys.stderr,
-        )
+    if note := retry_note(tasks):
+        print(f"aeromag evaluate: {note}", file=sys.stderr)
     from aeromag_env.cli.plots import plot_evaluation
 
     for s, folder in outs.items():

@@ -128,14 +128,16 @@ def seed_table(summary: dict[str, Any]) -> str:
     for r in summary["seeds"]:
         rmse = r["best_validation_rmse_nt"]
         shown = "—" if rmse is None else f"{rmse:.3g}"
+        attempts = "unknown" if r["attempts"] is None else r["attempts"]
         lines.append(
-            f"| {r['seed']} | {shown} | {r['timesteps'] or '—'} | {r['attempts']} | "
-            f"{r['error'] or ''} |"
+            f"| {r['seed']} | {shown} | {r['timesteps'] or '—'} | {attempts} | {r['error'] or ''} |"
         )
     mean, sd = summary["validation_rmse_nt_mean"], summary["validation_rmse_nt_sd"]
     if sd is not None:
         lines += ["", f"over {len(summary['seeds'])} seeds: mean {mean:.3g} nT, SD {sd:.2g} nT"]
-    retried = [str(r["seed"]) for r in summary["seeds"] if r["attempts"] > 1]
+    retried = [str(r["seed"]) for r in summary["seeds"] if (r["attempts"] or 0) > 1]
     if retried:
         lines.append(f"retried after a worker died: seed(s) {', '.join(retried)}")
+    if any(r["attempts"] is None for r in summary["seeds"]):
+        lines.append("retries unknown: the Ray actor counting attempts died during the run")
     return "\n".join(lines) + "\n"

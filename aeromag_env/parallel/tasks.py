@@ -32,8 +32,9 @@ class Outcome:
     label: str
     value: Any = None
     error: str | None = None
-    #: times the task was started (more than 1: its worker died and Ray retried it)
-    attempts: int = 1
+    #: times the task was started (more than 1: its worker died and Ray retried it); None:
+    #: unknown (the Ray actor counting attempts died during the run)
+    attempts: int | None = 1
     details: str = field(default="", repr=False)  # the traceback, for AEROMAG_DEBUG
     #: the exception itself (the task's own, also from a Ray worker), to re-raise unchanged
     exception: BaseException | None = field(default=None, repr=False)
@@ -49,6 +50,8 @@ class Runner(Protocol):
     name: str
     #: labels of the tasks that were started more than once (their worker died), so far
     retried: list[str]
+    #: False once a run lost its attempt counts: other tasks may have been retried too
+    retries_known: bool
 
     def run(
         self, tasks: Sequence[Task], progress: Callable[[Outcome], None] | None = None
@@ -67,6 +70,7 @@ class SerialRunner:
     name = "serial"
     #: labels of the tasks run again after their worker died (never, here)
     retried: list[str] = []  # noqa: RUF012  (always empty)
+    retries_known = True
 
     def __enter__(self) -> SerialRunner:
         return self
@@ -89,6 +93,23 @@ class SerialRunner:
             if progress is not None:
                 progress(outcome)
         return outcomes
+
+
+def retry_note(runner: Runner) -> str | None:
+    """One line on the tasks run again after their Ray worker died, or on retries that are
+    unknown because the attempt counts were lost; None when there is nothing to say."""
+    notes = []
+    if runner.retried:
+        notes.append(
+            f"{len(runner.retried)} task(s) ran again after their Ray worker died (same "
+            f"results): {'; '.join(runner.retried)}"
+        )
+    if not runner.retries_known:
+        notes.append(
+            "retries unknown: the Ray actor counting task attempts died during the run (the "
+            "results are complete)"
+        )
+    return "; ".join(notes) or None
 
 
 def failures(outcomes: Sequence[Outcome]) -> list[Outcome]:

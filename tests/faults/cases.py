@@ -15,6 +15,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tests._helpers import SHIPPED
+
 FORMATS = ("h5", "csv", "xyz", "mat")
 ATTITUDE = ("ins_roll", "ins_pitch", "ins_yaw")
 FLUX = ("flux_a_x", "flux_a_y", "flux_a_z")
@@ -22,11 +24,6 @@ POSITION = ("tt", "lat", "lon", "alt", "date", *ATTITUDE)
 #: The fields the commands need (``date``: the attribute, or the fields ``year`` and ``doy``).
 CHANNELS = (*POSITION, *FLUX, "mag_1_uc")
 OK, BAD = "warned|clean", "refused|warned"
-ROOT = Path(__file__).resolve().parents[1]
-SHIPPED = {
-    "policy": ROOT / "agents" / "trained" / "ppo_nonstationary.npz",
-    "hyperparams": ROOT / "agents" / "hyperparams" / "ppo.json",
-}
 
 # ---------------------------------------------------------------------------------------------
 # Commands and cases

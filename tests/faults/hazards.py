@@ -9,13 +9,13 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from experiments.fault_cases import (
+from tests._helpers import SHIPPED
+from tests.faults.cases import (
     BAD,
     FLIGHT_RUNNERS,
     FORMATS,
     OK,
     RUNNERS,
-    SHIPPED,
     Case,
     _case,
     _input,

@@ -338,7 +338,7 @@ class PrivilegedPolicy(_Bound):
         env: Any,
         after: int = 1,
         cautious_start: bool = False,
-        r_floor: dict[str, float] | None = None,
+        r_floor: Mapping[str, float] | None = None,
     ) -> None:
         super().__init__(env)
         c = self.config

@@ -36,8 +36,9 @@ class QuickPreset:
         per trial and validations per trial, at most
     bench_repeats : repeats of the fast benchmarks
     bench_filter_samples : samples of the filter benchmarks
-    bench_ppo_timesteps, bench_ppo64_timesteps : PPO steps measured with 8 and 64 environments
-        (once each)
+    bench_ppo_timesteps : PPO steps measured with 8 environments (once)
+    bench_ppo64 : whether PPO with 64 environments is measured (simulating 4 × 64 flights and
+        a rollout of 64 × n_steps steps for each variant: most of a quick run)
     bench_flight_hours : the benchmarks' flight [h] (discovery on it; the simulation figures
         are per flight-hour either way)
     bench_memory : whether the 10-hour memory figure is measured (a fresh process: half a
@@ -59,7 +60,7 @@ class QuickPreset:
     bench_repeats: int = 3
     bench_filter_samples: int = 1000
     bench_ppo_timesteps: int = 2048
-    bench_ppo64_timesteps: int = 4096
+    bench_ppo64: bool = False
     bench_flight_hours: float = 0.25
     bench_memory: bool = False
     bench_ray_flights: int = 16

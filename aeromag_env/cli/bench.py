@@ -198,13 +198,14 @@ def run_benchmarks(
     figures |= bench_ppo(
         q.bench_ppo_timesteps if quick else 49152, 1 if quick else PPO_REPEATS, **sizes
     )
-    figures |= bench_ppo(
-        q.bench_ppo64_timesteps if quick else 163840,
-        1 if quick else PPO64_REPEATS,
-        n_envs=64,
-        prefix="ppo64",
-        **sizes,
-    )
+    if not quick or q.bench_ppo64:
+        figures |= bench_ppo(
+            4096 if quick else 163840,
+            1 if quick else PPO64_REPEATS,
+            n_envs=64,
+            prefix="ppo64",
+            **sizes,
+        )
     figures |= bench_discover(hour, 1 if quick else 3)
     if not quick or q.bench_memory:
         figures |= bench_memory()
@@ -220,6 +221,8 @@ def _report(
     load_before: float | None,
 ) -> dict[str, Any]:
     """Print the table, write ``bench.json``; return its content."""
+    from agents.quick import QUICK
+
     _print_table(rows)
     result = {
         "figures": figures,
@@ -229,7 +232,7 @@ def _report(
         ],
         "repeats": repeats,
         "ppo_repeats": 1 if quick else PPO_REPEATS,
-        "ppo64_repeats": 1 if quick else PPO64_REPEATS,
+        "ppo64_repeats": (1 if QUICK.bench_ppo64 else 0) if quick else PPO64_REPEATS,
         "statistic": "median",
         "quick": quick,
         "machine": _machine(),
@@ -341,7 +344,10 @@ def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
     """Batched + prefetch (with the 1.5× target and the range of its ratio over the repeats),
     batched alone, DummyVecEnv, and the zero-cost environment (PPO alone: the ceiling) when
     measured (from 2026-11-23 on); then the environment's share of the time (with its target
-    at 8 environments) when measured."""
+    at 8 environments) when measured; none when the figures were not measured (``--quick``
+    skips the 64 environments)."""
+    if f"{prefix}_n_envs" not in f:
+        return []
     n, dummy = f[f"{prefix}_n_envs"], f[f"{prefix}_dummyvec_steps_per_s"]
     rows: list[Row] = []
     for variant, label in (

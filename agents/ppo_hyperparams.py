@@ -16,7 +16,7 @@ import copy
 import json
 import sys
 from collections.abc import Mapping
-from dataclasses import MISSING, dataclass, field, fields, replace
+from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -323,7 +323,9 @@ class PPOHyperparams:
             self, "env_kwargs", MappingProxyType(copy.deepcopy(dict(self.env_kwargs)))
         )
         if isinstance(self.pretrain, Mapping):
-            object.__setattr__(self, "pretrain", Pretrain(**self.pretrain))
+            object.__setattr__(self, "pretrain", _built(Pretrain, self.pretrain, "pretrain."))
+        if not (self.pretrain is None or isinstance(self.pretrain, Pretrain)):
+            raise ConfigError(f"pretrain: must be an object, got {type(self.pretrain).__name__}")
         _check_fields(self, "")
         try:
             from_dict(EnvConfig, dict(self.env_kwargs))
@@ -334,22 +336,33 @@ class PPOHyperparams:
     def from_entry(cls, entry: Mapping[str, Any], version: int = 0) -> PPOHyperparams:
         """The hyperparameters of a scenario's entry of a hyperparameter file (a JSON object;
         one-line ConfigError for an unknown key or a bad value)."""
-        known = {f.name for f in fields(cls)} - {"version"}
-        unknown = sorted(set(entry) - known)
-        if unknown:
-            raise ConfigError(f"unknown hyperparameter(s) {', '.join(unknown)}")
-        return cls(**entry, version=version)
+        return _built(cls, {**entry, "version": version}, "")
 
     def with_values(self, **changes: Any) -> PPOHyperparams:
         """A copy with ``changes`` (a ``pretrain`` change is a dict merged into its own)."""
         if isinstance(changes.get("pretrain"), Mapping) and self.pretrain is not None:
-            changes["pretrain"] = replace(self.pretrain, **changes["pretrain"])
-        return replace(self, **changes)
+            merged = {**_values(self.pretrain), **changes["pretrain"]}
+            changes["pretrain"] = _built(Pretrain, merged, "pretrain.")
+        return _built(PPOHyperparams, {**_values(self), **changes}, "")
 
     def to_entry(self) -> dict[str, Any]:
         """The entry as JSON values (defaults included; not ``version``; an optional field that
         is None left out, as a file says it)."""
         return _entry(self)
+
+
+def _values(obj: Any) -> dict[str, Any]:
+    """The fields of the dataclass ``obj`` by name (not copied)."""
+    return {f.name: getattr(obj, f.name) for f in fields(obj)}
+
+
+def _built(cls: Any, values: Mapping[str, Any], prefix: str) -> Any:
+    """``cls(**values)``; a one-line ConfigError for a key that is no field of ``cls``."""
+    unknown = sorted(set(values) - {f.name for f in fields(cls)})
+    if unknown:
+        valid = ", ".join(f.name for f in fields(cls) if f.name != "version")
+        raise ConfigError(f"unknown hyperparameter(s) {prefix}{', '.join(unknown)}; valid: {valid}")
+    return cls(**values)
 
 
 def _check_fields(obj: Any, prefix: str) -> None:

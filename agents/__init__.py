@@ -2,11 +2,12 @@
 ``predict`` shape: ``constant``, ``fis`` (the paper's rules), classical adaptive (``sage_husa``,
 ``ding``), ``tuned_constant``, ``oracle``, ``privileged`` (knows the noise and the steps),
 ``ppo`` (the shipped numpy export of a trained stable-baselines3 policy, trained on
-``nonstationary``) and ``general`` (one PPO policy trained across the scenario suite, shipped the
-same way). :mod:`.policies` holds the hand-written ones, :mod:`.numpy_policy` the exported PPO,
-:mod:`.ppo` its training, :mod:`.tuning` and :mod:`.tuned_table` the tuned constants,
-:mod:`.evaluate` the one evaluation path. Imports ``aeromag_env`` (its environment and below);
-only ``aeromag_env.cli`` imports ``agents``, never the rest of ``aeromag_env``.
+``nonstationary``) and ``general`` (one PPO policy trained across the scenario suite, shipped
+the same way); each is a :class:`~agents.protocol.TuningPolicy`. :mod:`.policies` holds the
+hand-written ones, :mod:`.numpy_policy` the exported PPO, :mod:`.ppo` its training,
+:mod:`.tuning` and :mod:`.tuned_table` the tuned constants, :mod:`.evaluate` the one evaluation
+path. Imports ``aeromag_env`` (its environment and below); only ``aeromag_env.cli`` imports
+``agents``, never the rest of ``aeromag_env``.
 
 Note: the import name ``agents`` is also used by unrelated PyPI packages; do not install those
 into the same environment.
@@ -14,11 +15,13 @@ into the same environment.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.errors import ConfigError
+from agents.protocol import TuningPolicy
 
 POLICIES = (
     "constant",
@@ -65,8 +68,10 @@ def _load_ppo(name: str) -> Any:
     return NumpyPPOPolicy.load(SHIPPED[name] if name in SHIPPED else name.split(":", 1)[1])
 
 
-def make_policy(name: str, env: Any) -> Any:
-    """The policy ``name`` for environment ``env``; unknown names give a one-line error."""
+def make_policy(name: str, env: Any) -> TuningPolicy:
+    """The policy ``name`` for environment ``env`` (an ``AeroMagCompensation-v0``, wrapped or
+    not; the privileged policies read its truth, none changes it); unknown names give a
+    one-line error."""
     from agents import policies as p
 
     if name.startswith("ppo:"):
@@ -76,7 +81,7 @@ def make_policy(name: str, env: Any) -> Any:
     s_max = env.unwrapped.config.s_max
     # the FIS adapts once per statistics window M, as the fakf filter does
     interval = max(1, FilterConfig().window // env.unwrapped.config.decision_window)
-    makers = {
+    makers: dict[str, Callable[[], TuningPolicy]] = {
         "constant": lambda: p.ConstantPolicy(),
         "fis": lambda: p.FisPolicy(s_max=s_max, interval=interval),
         "sage_husa": lambda: p.ClassicalPolicy("sage-husa", env),

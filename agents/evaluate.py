@@ -18,6 +18,8 @@ from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS, che
 from aeromag_env.errors import AeromagError
 from aeromag_env.parallel import Runner, SerialRunner, Task, failures
 from agents import make_policy, policy_env_kwargs
+from agents.policies import BasePolicy
+from agents.protocol import TuningPolicy
 
 #: The normalized score's anchors: 0 is the best constant tuning found offline, 1 the policy
 #: that knows the true noise and the steps (``privileged``); score = (RMSE₀ − RMSE) /
@@ -32,11 +34,13 @@ TEST_SEED_START = 100_000
 CHUNK = 8
 
 
-def run_episode(env: gym.Env, policy: Any, seed: int) -> dict[str, float]:
-    """One episode; returns ``rmse_nt`` (truth, after ``score_from``), ``reward``,
-    ``divergences``, ``outliers_rejected`` (samples the filter's outlier gate skipped) and
-    ``log_ror_abs_median`` (|log10 ROR| over the scored part)."""
-    obs, _ = env.reset(seed=seed)
+def run_episode(env: gym.Env, policy: TuningPolicy, seed: int) -> dict[str, float]:
+    """One episode (reset with the policy's ``reset_options``, if it has any); returns ``rmse_nt``
+    (truth, after ``score_from``), ``reward``, ``divergences``, ``outliers_rejected``
+    (samples the filter's outlier gate skipped) and ``log_ror_abs_median`` (|log10 ROR| over
+    the scored part)."""
+    options = dict(policy.reset_options) if isinstance(policy, BasePolicy) else None
+    obs, _ = env.reset(seed=seed, options=options or None)
     inner: Any = env.unwrapped
     state, start, done, total = None, np.array([True]), False, 0.0
     log_ror: list[float] = []

@@ -78,6 +78,16 @@ def read_checked(path: str | Path, schema: Path, what: str) -> Any:
     return doc
 
 
+def schema_problem(value: Any, schema: dict[str, Any]) -> str | None:
+    """What is wrong with the JSON value ``value`` under the JSON Schema ``schema`` (its
+    ``description`` says what is allowed: ``must be a number in (0, 1], got 1.5``), or None."""
+    try:
+        _check_schema(value, _validator(schema))
+    except _Problem as e:
+        return str(e).removeprefix("the document: ")
+    return None
+
+
 def value_problem(key: str, value: Any) -> str | None:
     """What is wrong with ``value`` as the hyperparameter ``key`` of a scenario entry (its
     range in :data:`SCHEMA`, e.g. ``must be a number in (0, 1], got 1.5``), or None."""

@@ -17,6 +17,7 @@ from aeromag_env.atomic import atomic_path
 from aeromag_env.environment.env import EnvConfig
 from aeromag_env.errors import AeromagError
 from agents.evaluate import TRAIN_SEEDS
+from agents.ppo_hyperparams import PPOHyperparams, Pretrain
 
 
 def seed_stream(rank: int, n_envs: int, offset: int) -> Iterator[int]:
@@ -29,10 +30,10 @@ def seed_stream(rank: int, n_envs: int, offset: int) -> Iterator[int]:
 
 
 def behaviour_clone(
-    model: Any, venv: Any, hp: dict[str, Any], scenario: str = "nonstationary", seed: int = 0
+    model: Any, venv: Any, hp: PPOHyperparams, scenario: str = "nonstationary", seed: int = 0
 ) -> Demonstrations:
     """Pretrain ``model``'s actor to imitate a demonstrator and its critic to the discounted
-    returns of the demonstrator's rollouts (``hp["pretrain"]``: ``steps`` environment steps
+    returns of the demonstrator's rollouts (``hp.pretrain``: ``steps`` environment steps
     of the training environments, ``epochs`` passes of Adam at ``learning_rate`` over them,
     ``demonstrator``: ``innovation_detector`` (the default,
     :class:`agents.policies.InnovationDetectorPolicy` with ``threshold_nt``) or ``privileged``
@@ -48,16 +49,16 @@ def behaviour_clone(
     Returns the demonstrations (all rounds' raw observations and the demonstrated actions), for
     the behaviour-cloning steps that keep PPO near them (:class:`CloningTerm`).
     """
-    spec = hp["pretrain"]
-    steps = int(spec["steps"])
-    if spec.get("demonstrator", "innovation_detector") != "privileged":
+    spec = _pretrain(hp)
+    steps = spec.steps
+    train_scenario = hp.train_scenario or scenario
+    if spec.demonstrator != "privileged":
         parts = [_with_returns(_detector_rollouts(venv, hp, steps), hp)]
         _fit(model, venv, hp, parts)
-        scenarios = np.full(parts[0][0].shape[0], hp.get("train_scenario", scenario))
+        scenarios = np.full(parts[0][0].shape[0], train_scenario)
         return Demonstrations.of(parts, [scenarios])
-    train_scenario = hp.get("train_scenario", scenario)
     parts, flown, actor = [], [], None
-    for round_ in range(int(spec.get("dagger_rounds", 1))):
+    for round_ in range(spec.dagger_rounds):
         # each round and training seed flies flights of its own
         offset = TRAIN_SEEDS.stop // 2 + 5_000 * round_ + 1_000 * seed
         rollout = _privileged_rollouts(venv, hp, train_scenario, steps, actor, offset)
@@ -114,23 +115,23 @@ class CloningTerm:
     """
 
     def __init__(
-        self, model: Any, venv: Any, hp: dict[str, Any], demos: Demonstrations, seed: int
+        self, model: Any, venv: Any, hp: PPOHyperparams, demos: Demonstrations, seed: int
     ) -> None:
         import torch
 
-        spec = hp["pretrain"]
-        if "bc_scenarios" in spec:
-            demos = demos.only(list(spec["bc_scenarios"]))
+        spec = _pretrain(hp)
+        if spec.bc_scenarios is not None:
+            demos = demos.only(list(spec.bc_scenarios))
         if not demos.obs.shape[0]:
             raise AeromagError(
-                f"pretrain.bc_scenarios {spec.get('bc_scenarios')}: no "
+                f"pretrain.bc_scenarios {list(spec.bc_scenarios or [])}: no "
                 "demonstration was flown in these scenarios"
             )
         self.model, self.venv, self.demos = model, venv, demos
-        self.minibatches, self.batch = int(spec.get("bc_minibatches", 0)), int(hp["batch_size"])
+        self.minibatches, self.batch = spec.bc_minibatches, hp.batch_size
         policy = model.policy
         actor = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]
-        self.optimiser = torch.optim.Adam(actor, lr=float(spec.get("bc_learning_rate", 1e-4)))
+        self.optimiser = torch.optim.Adam(actor, lr=float(spec.bc_learning_rate))
         self.generator = torch.Generator().manual_seed(seed)
 
     def step(self) -> float:
@@ -151,19 +152,26 @@ class CloningTerm:
         return float(loss.detach())
 
 
-def _with_returns(rollout: tuple[list, list, list, list], hp: dict[str, Any]) -> tuple:
+def _pretrain(hp: PPOHyperparams) -> Pretrain:
+    """``hp.pretrain``; an error if the hyperparameters have none."""
+    if hp.pretrain is None:
+        raise AeromagError("behaviour cloning needs the hyperparameters' pretrain")
+    return hp.pretrain
+
+
+def _with_returns(rollout: tuple[list, list, list, list], hp: PPOHyperparams) -> tuple:
     """Observations, actions and the discounted returns of one rollout."""
     raw_obs, actions, rewards, dones = rollout
-    returns = _discounted(np.array(rewards), np.array(dones), float(hp["gamma"]))
+    returns = _discounted(np.array(rewards), np.array(dones), float(hp.gamma))
     return np.concatenate(raw_obs), np.concatenate(actions), returns.reshape(-1)
 
 
-def _fit(model: Any, venv: Any, hp: dict[str, Any], parts: list[tuple]) -> None:
+def _fit(model: Any, venv: Any, hp: PPOHyperparams, parts: list[tuple]) -> None:
     """Adam on the actor's mean (to the demonstrated actions) and the critic (to the returns)
     over all ``parts`` so far, ``epochs`` passes."""
     import torch
 
-    spec = hp["pretrain"]
+    spec = _pretrain(hp)
     x = torch.as_tensor(
         venv.normalize_obs(np.concatenate([p[0] for p in parts])), dtype=torch.float32
     )
@@ -171,9 +179,9 @@ def _fit(model: Any, venv: Any, hp: dict[str, Any], parts: list[tuple]) -> None:
     returns = np.concatenate([p[2] for p in parts])
     g = torch.as_tensor(venv.normalize_reward(returns), dtype=torch.float32)
     policy = model.policy
-    optimiser = torch.optim.Adam(policy.parameters(), lr=float(spec.get("learning_rate", 1e-3)))
-    for _ in range(int(spec["epochs"])):
-        for idx in torch.randperm(x.shape[0]).split(int(hp["batch_size"])):
+    optimiser = torch.optim.Adam(policy.parameters(), lr=float(spec.learning_rate))
+    for _ in range(spec.epochs):
+        for idx in torch.randperm(x.shape[0]).split(hp.batch_size):
             latent_pi, latent_vf = policy.mlp_extractor(policy.extract_features(x[idx]))
             mean, value = policy.action_net(latent_pi), policy.value_net(latent_vf).flatten()
             loss = ((mean - a[idx]) ** 2).mean() + 0.5 * ((value - g[idx]) ** 2).mean()
@@ -192,15 +200,14 @@ def _student(model: Any, venv: Any) -> Any:
     return act
 
 
-def _detector_rollouts(venv: Any, hp: dict[str, Any], steps: int) -> tuple[list, list, list, list]:
+def _detector_rollouts(venv: Any, hp: PPOHyperparams, steps: int) -> tuple[list, list, list, list]:
     """Raw observations, actions, rewards and dones of the innovation detector driving the
     training environments ``venv`` for ``steps`` steps (their normalisation statistics are
     updated as PPO's own rollouts would)."""
     from agents.policies import InnovationDetectorPolicy
 
-    spec = hp["pretrain"]
     demo = InnovationDetectorPolicy(
-        EnvConfig(**hp["env_kwargs"]), threshold_nt=float(spec.get("threshold_nt", 20.0))
+        EnvConfig(**hp.env_kwargs), threshold_nt=float(_pretrain(hp).threshold_nt)
     )
     raw_obs, actions, rewards, dones = [], [], [], []
     venv.reset()
@@ -218,7 +225,7 @@ def _detector_rollouts(venv: Any, hp: dict[str, Any], steps: int) -> tuple[list,
 
 def _privileged_rollouts(
     venv: Any,
-    hp: dict[str, Any],
+    hp: PPOHyperparams,
     scenario: str,
     steps: int,
     actor: Any = None,
@@ -239,11 +246,11 @@ def _privileged_rollouts(
 
     n = venv.num_envs
     envs = [
-        gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"]) for _ in range(n)
+        gym.make("AeroMagCompensation-v0", scenario=scenario, **hp.env_kwargs) for _ in range(n)
     ]
     seeds = [seed_stream(rank, n, offset=offset) for rank in range(n)]
-    after = teacher_after(EnvConfig(**hp["env_kwargs"]).decision_window)
-    floor = hp["pretrain"].get("teacher_r_floor")
+    after = teacher_after(EnvConfig(**hp.env_kwargs).decision_window)
+    floor = _pretrain(hp).teacher_r_floor
     teachers = [
         PrivilegedPolicy(env, after=after, cautious_start=True, r_floor=floor) for env in envs
     ]
@@ -264,7 +271,7 @@ def _privileged_rollouts(
         rewards.append(reward)
         dones.append(done)
         venv.obs_rms.update(obs)
-        returns = returns * float(hp["gamma"]) + reward  # as VecNormalize tracks the return
+        returns = returns * float(hp.gamma) + reward  # as VecNormalize tracks the return
         venv.ret_rms.update(returns)
         returns[done] = 0.0
         obs = nxt

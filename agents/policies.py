@@ -1,30 +1,39 @@
-"""Tuning policies for ``AeroMagCompensation-v0``, all with stable-baselines3's ``predict`` shape.
+"""Tuning policies for ``AeroMagCompensation-v0``, all :class:`agents.protocol.TuningPolicy`.
 
 ``predict(obs, state=None, episode_start=None, deterministic=True) -> (action, state)``, so one
-evaluation loop serves every policy, learned or not. Actions are ``[a_q, a_r]`` in [-1, 1]; the
-environment maps them to scale factors ``s = s_max ** a`` on Q and R.
+evaluation loop serves every policy, learned or not; :class:`BasePolicy` writes it once and
+each policy says only how it acts (:meth:`BasePolicy.act`). Actions are ``[a_q, a_r]`` in
+[-1, 1]; the environment maps them to scale factors ``s = s_max ** a`` on Q and R.
 
 * ``constant`` — no adaptation (the filter keeps its initial Q and R).
 * ``fis`` — the paper's fuzzy rules (§3.4, :mod:`aeromag_env.compensation.fuzzy`, the code the
-``fakf`` filter
-  uses) on the observed ROR and QOQ, once per statistics window (every M / K steps), as ``fakf``.
-* ``sage_husa``, ``ding`` — the classical adaptive filters: they switch the environment's filter
-  to its built-in adaptation (the same compiled code as ``aeromag compensate --method``) and
-  output zero actions. Privileged: they need the environment object (evaluation, not training).
+  ``fakf`` filter uses) on the observed ROR and QOQ, once per statistics window (every M / K
+  steps), as ``fakf``.
+* ``sage_husa``, ``ding`` — the classical adaptive filters: the environment runs its filter with
+  that built-in adaptation (``reset``'s ``filter_method`` option, which these policies name in
+  :attr:`BasePolicy.reset_options`; the same compiled code as ``aeromag compensate --method``)
+  and they output zero actions.
 * ``tuned_constant`` — the best constant Q and R scale found offline on training seeds
   (:mod:`agents.tuning`), applied at the start of the episode, then held.
 * ``oracle`` — knows the true noise variance (simulation only) and steers R to it.
+
+The policies that know more than the observations (``oracle``, ``privileged``,
+``tuned_constant``, the classical ones) read one environment's
+:func:`~aeromag_env.environment.truth.flight_truth`, a read-only view: they never change the
+environment.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import Any, ClassVar
 
 import numpy as np
 
 from aeromag_env.compensation.fuzzy import zoomed_scale
-from aeromag_env.compensation.model import MODE
 from aeromag_env.environment.spaces import (
     ACT_Q,
     ACT_QP,
@@ -35,10 +44,49 @@ from aeromag_env.environment.spaces import (
     OBS_LOG_ROR,
     observation_index,
 )
+from aeromag_env.environment.truth import FlightTruth, flight_truth
 from aeromag_env.errors import ConfigError
+from agents.protocol import State
 from agents.tuned_table import load_tuned
 
-State = Any
+
+class BasePolicy(ABC):
+    """The :class:`~agents.protocol.TuningPolicy` plumbing of the hand-written policies: one
+    observation or a batch in, float32 actions clipped to [-1, 1] out.
+
+    A policy bound to one environment (``single_env``: it reads that environment's truth)
+    refuses a batch with a ``ValueError``.
+    """
+
+    name: str = ""
+    #: Options of the environment's ``reset`` the policy needs (passed by
+    #: :func:`agents.evaluate.run_episode`); none by default.
+    reset_options: Mapping[str, Any] = MappingProxyType({})
+    #: Whether the policy reads one environment's truth (then it takes one observation).
+    single_env: ClassVar[bool] = False
+
+    def predict(
+        self,
+        obs: np.ndarray,
+        state: State = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, State]:
+        """See :meth:`agents.protocol.TuningPolicy.predict`."""
+        batch, single = _batch(obs)
+        if self.single_env and not single:
+            raise ValueError(
+                f"policy {self.name!r} is bound to one environment; it takes one observation"
+            )
+        actions, state = self.act(batch, state, episode_start)
+        return _out(actions, single), state
+
+    @abstractmethod
+    def act(
+        self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
+    ) -> tuple[np.ndarray, State]:
+        """Actions (N, n_act), before clipping, for observations ``obs`` (N, n_obs) float64,
+        and the state for the next call."""
 
 
 def _batch(obs: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -51,23 +99,18 @@ def _out(actions: np.ndarray, single: bool) -> np.ndarray:
     return actions[0] if single else actions
 
 
-class ConstantPolicy:
+class ConstantPolicy(BasePolicy):
     """No adaptation: zero actions."""
 
     name = "constant"
 
-    def predict(
-        self,
-        obs: np.ndarray,
-        state: State = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
+    def act(
+        self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
     ) -> tuple[np.ndarray, State]:
-        batch, single = _batch(obs)
-        return _out(np.zeros((batch.shape[0], len(BASE_ACTIONS))), single), state
+        return np.zeros((obs.shape[0], len(BASE_ACTIONS))), state
 
 
-class FisPolicy:
+class FisPolicy(BasePolicy):
     """The paper's fuzzy rules: ``s_r = FIS(ROR)^b_r``, ``s_a = FIS(QOQ)^b_a`` (eq. 21).
 
     Parameters
@@ -92,24 +135,19 @@ class FisPolicy:
         self.interval, self.eps, self.eta = interval, epsilon, eta
         self.zoom_r, self.zoom_q = zoom_r, zoom_q
 
-    def predict(
-        self,
-        obs: np.ndarray,
-        state: State = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
+    def act(
+        self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
     ) -> tuple[np.ndarray, State]:
-        batch, single = _batch(obs)
-        steps = _step_counter(state, episode_start, batch.shape[0])
-        actions = np.zeros((batch.shape[0], len(BASE_ACTIONS)))
-        for i, row in enumerate(batch):
+        steps = _step_counter(state, episode_start, obs.shape[0])
+        actions = np.zeros((obs.shape[0], len(BASE_ACTIONS)))
+        for i, row in enumerate(obs):
             if steps[i] > 0 and steps[i] % self.interval == 0 and row[OBS_LOG_ROR] != 0.0:
                 ror, qoq = 10.0 ** row[OBS_LOG_ROR], 10.0 ** row[OBS_LOG_QOQ]
                 s_a = zoomed_scale(qoq, self.eta, self.zoom_q)
                 s_r = zoomed_scale(ror, self.eps, self.zoom_r)
                 actions[i, ACT_Q] = math.log(s_a) / self.log_s_max
                 actions[i, ACT_R] = math.log(s_r) / self.log_s_max
-        return _out(actions, single), steps + 1
+        return actions, steps + 1
 
 
 def _step_counter(state: State, episode_start: Any, n: int) -> np.ndarray:
@@ -120,60 +158,65 @@ def _step_counter(state: State, episode_start: Any, n: int) -> np.ndarray:
     return steps
 
 
-def _single_env(obs: np.ndarray, name: str) -> None:
-    """Privileged policies read one environment's internals: no batches."""
-    if np.asarray(obs).ndim != 1:
-        raise ValueError(f"policy {name!r} is bound to one environment; it takes one observation")
+class _Bound(BasePolicy):
+    """A policy bound to one environment, whose truth it reads (never changes)."""
+
+    single_env = True
+
+    def __init__(self, env: Any) -> None:
+        self._env = env.unwrapped
+        self.config = self._env.config  # frozen
+
+    def truth(self) -> FlightTruth:
+        """The read-only view of the bound environment's flight and filter."""
+        return flight_truth(self._env)
 
 
-class ClassicalPolicy:
-    """Sage–Husa or Ding et al. 2007: the filter's own adaptation, switched on in the env."""
+class ClassicalPolicy(_Bound):
+    """Sage–Husa or Ding et al. 2007: the filter's own adaptation, which the environment runs
+    when reset with this policy's :attr:`reset_options`; zero actions."""
 
     def __init__(self, method: str, env: Any) -> None:
+        super().__init__(env)
         self.name = method.replace("-", "_")
-        self.mode = int(MODE[method])
-        self.env = env.unwrapped
+        self.method = method
+        self.reset_options = MappingProxyType({"filter_method": method})
 
-    def predict(
-        self,
-        obs: np.ndarray,
-        state: State = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
+    def act(
+        self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
     ) -> tuple[np.ndarray, State]:
-        _single_env(obs, self.name)
-        self.env.filter.mode = self.mode  # idempotent; the env builds a new filter on reset
-        return np.zeros(len(BASE_ACTIONS), np.float32), state
+        if self.truth().filter_method != self.method:
+            raise ConfigError(
+                f"policy {self.name!r} needs the environment reset with "
+                f"options={dict(self.reset_options)} (agents.evaluate.run_episode passes them)"
+            )
+        return np.zeros((1, len(BASE_ACTIONS))), state
 
 
-class TargetScalePolicy:
+class TargetScalePolicy(_Bound):
     """Steer the cumulative log Q and log R scales to targets (within the per-step limit)."""
 
     name = "target"
 
     def __init__(self, env: Any, log_q: float = 0.0, log_r: float = 0.0) -> None:
-        self.env = env.unwrapped
+        super().__init__(env)
         self.log_q, self.log_r = log_q, log_r
 
-    def targets(self) -> tuple[float, float]:
+    def targets(self, truth: FlightTruth) -> tuple[float, float]:
+        """The natural logs of the Q and R scales to steer to, given ``truth``."""
         return self.log_q, self.log_r
 
-    def predict(
-        self,
-        obs: np.ndarray,
-        state: State = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
+    def act(
+        self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
     ) -> tuple[np.ndarray, State]:
-        _single_env(obs, self.name)
-        env = self.env
-        log_s_max = math.log(env.config.s_max)
-        tq, tr = self.targets()
-        log_q, log_r = env.log_scales
+        truth = self.truth()
+        log_s_max = math.log(self.config.s_max)
+        tq, tr = self.targets(truth)
+        log_q, log_r = truth.log_scales
         action = np.zeros((1, len(BASE_ACTIONS)))
         action[0, ACT_Q] = (tq - log_q) / log_s_max
         action[0, ACT_R] = (tr - log_r) / log_s_max
-        return _out(action, np.asarray(obs).ndim == 1), state
+        return action, state
 
 
 class TunedConstantPolicy(TargetScalePolicy):
@@ -198,14 +241,12 @@ class OraclePolicy(TargetScalePolicy):
 
     name = "oracle"
 
-    def targets(self) -> tuple[float, float]:
-        env = self.env
-        k = min(env.filter.k, env.episode.n - 1)
-        r0 = float(np.mean(np.diag(env.filter.r0)))
-        return 0.0, math.log(env.episode.noise_var[k] / r0)
+    def targets(self, truth: FlightTruth) -> tuple[float, float]:
+        k = min(truth.sample, truth.n - 1)
+        return 0.0, math.log(truth.noise_var[k] / truth.r0_nt2)
 
 
-class InnovationDetectorPolicy:
+class InnovationDetectorPolicy(BasePolicy):
     """A hand-written step detector (``experiments/ppo_design_study.py detector``): T_p's Q at
     10^10 × Q(0) for the next window when the mean innovation over the last decision window
     exceeds ``threshold_nt``, else at Q(0); the other 18 states' Q at Q(0) and R at 100 × R(0).
@@ -248,20 +289,15 @@ class InnovationDetectorPolicy:
         self.quiet[ACT_QP] = quiet_qp
         self.raise_qp = 1.0 if c.qp_gate else _to_action(log_qp, c.absolute_qp_log10)
 
-    def predict(
-        self,
-        obs: np.ndarray,
-        state: State = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
+    def act(
+        self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
     ) -> tuple[np.ndarray, State]:
-        batch, single = _batch(obs)
-        actions = np.repeat(self.quiet[None, :], batch.shape[0], axis=0)
-        actions[batch[:, self.column] > self.log_threshold, ACT_QP] = self.raise_qp
-        return _out(actions, single), state
+        actions = np.repeat(self.quiet[None, :], obs.shape[0], axis=0)
+        actions[obs[:, self.column] > self.log_threshold, ACT_QP] = self.raise_qp
+        return actions, state
 
 
-class PrivilegedPolicy:
+class PrivilegedPolicy(_Bound):
     """Knows what no real tuner can: the true noise variance of the coming decision window (R
     set to its largest: a burst that starts within the window is not let in at a small R), the
     Q the truth implies (``Episode.q_log10_true``: the package's well-tuned Q for the induced and
@@ -302,44 +338,39 @@ class PrivilegedPolicy:
         env: Any,
         after: int = 1,
         cautious_start: bool = False,
-        r_floor: dict[str, float] | None = None,
+        r_floor: Mapping[str, float] | None = None,
     ) -> None:
-        self.env = env.unwrapped
-        c = self.env.config
+        super().__init__(env)
+        c = self.config
         if not (c.split_q and c.action_mode == "absolute"):
             raise ConfigError("privileged needs split_q and action_mode='absolute'")
         self.after, self.cautious_start = after, cautious_start
         self.r_floor = dict(r_floor or {})
 
-    def predict(
-        self,
-        obs: np.ndarray,
-        state: State = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
+    def act(
+        self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
     ) -> tuple[np.ndarray, State]:
-        _single_env(obs, self.name)
-        env, c = self.env, self.env.config
-        ep, k, width = env.episode, env.filter.k, c.decision_window
-        q_blocks, q_tp = ep.q_log10_true
+        truth, c = self.truth(), self.config
+        k, width = truth.sample, c.decision_window
+        q_blocks, q_tp = truth.q_log10_true
         action = np.zeros((1, len(ACTIONS)))
         action[0, ACT_Q] = _to_action(q_blocks, c.absolute_q_log10)
-        action[0, ACT_R] = self.r_action(ep.noise_var[min(k, ep.n - 1) : k + width])
+        action[0, ACT_R] = self.r_action(truth.noise_var[min(k, truth.n - 1) : k + width], truth)
         if self.cautious_start and k == 0:
             action[0, ACT_R] = 1.0
-        steps = ep.step_samples
+        steps = truth.step_samples
         near = (steps < k + width) & (steps >= k - self.after * width)
         quiet = -1.0 if c.qp_gate else _to_action(q_tp, c.absolute_qp_log10)
         action[0, ACT_QP] = 1.0 if near.any() else quiet
-        return _out(action, np.asarray(obs).ndim == 1), state
+        return action, state
 
-    def r_action(self, noise_var: np.ndarray) -> float:
+    def r_action(self, noise_var: np.ndarray, truth: FlightTruth) -> float:
         """The R action for a window whose true noise variances are ``noise_var``: R at their
-        largest, or at the floor of ``r_floor`` for the flight's scenario when that is higher."""
-        env = self.env
-        log_r = math.log10(noise_var.max() / float(np.mean(np.diag(env.filter.r0))))
-        floor = self.r_floor.get(env.episode.scenario, -math.inf)
-        return _to_action(max(log_r, floor), env.config.absolute_r_log10)
+        largest, or at the floor of ``r_floor`` for the flight's scenario (``truth``) when that
+        is higher."""
+        log_r = math.log10(noise_var.max() / truth.r0_nt2)
+        floor = self.r_floor.get(truth.scenario, -math.inf)
+        return _to_action(max(log_r, floor), self.config.absolute_r_log10)
 
 
 def _to_action(log10_scale: float, lo_hi: tuple[float, ...]) -> float:

@@ -2,12 +2,14 @@
 
 Hyperparameters live in ``agents/hyperparams/ppo.json`` (versioned, RL Zoo style: one entry per
 scenario, with the environment keyword arguments the policy is trained with), apart from the
-environment's own configuration. Training resets every environment with seeds from the training
-range only (``[0, 50 000)``); validation uses ``[50 000, 100 000)``; tests use ``≥ 100 000``.
-The training environments are stepped together by the batched environment
-(:mod:`aeromag_env.environment.sb3`), or by SB3's ``DummyVecEnv`` with ``"vec_env": "dummy"``.
-Checkpoints (model + observation normalisation) are written periodically and training resumes
-from the latest one. torch and stable-baselines3 are imported here only (extra ``rl``).
+environment's own configuration; in Python they are a
+:class:`~agents.ppo_hyperparams.PPOHyperparams`, which holds the defaults. Training resets
+every environment with seeds from the training range only (``[0, 50 000)``); validation uses
+``[50 000, 100 000)``; tests use ``≥ 100 000``. The training environments are stepped together
+by the batched environment (:mod:`aeromag_env.environment.sb3`), or by SB3's ``DummyVecEnv``
+with ``"vec_env": "dummy"``. Checkpoints (model + observation normalisation) are written
+periodically and training resumes from the latest one. torch and stable-baselines3 are
+imported here only (extra ``rl``).
 """
 
 from __future__ import annotations
@@ -26,11 +28,13 @@ import numpy as np
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
-from aeromag_env.errors import AeromagError, HyperparameterError
+from aeromag_env.errors import AeromagError, ConfigError, HyperparameterError
 from agents.hyperparams_file import read_hyperparams
 from agents.imitation import CloningTerm, Demonstrations, behaviour_clone, seed_stream
 from agents.numpy_policy import NumpyPPOPolicy
 from agents.policy_file import export_policy
+from agents.ppo_hyperparams import PPOHyperparams
+from agents.quick import QUICK, quick_hyperparams, sized
 from agents.validation import Validator, validation_rmse
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.json"
@@ -39,9 +43,11 @@ CHECKPOINT = ("checkpoint.zip", "vecnormalize.pkl", "curve.json")
 #: The other outputs in ``--out``: the best policy, the latest candidate, the summary, and the
 #: demonstrations the cloning term keeps PPO near (``pretrain.bc_minibatches``; read on resume).
 OUTPUTS = ("policy.npz", "candidate.npz", "training.json", "demonstrations.npz")
+#: Environment steps of a training run by default (the shipped policies').
+TIMESTEPS = 3_000_000
 
 
-def load_hyperparams(scenario: str, path: Path = HYPERPARAMS) -> dict[str, Any]:
+def load_hyperparams(scenario: str, path: Path = HYPERPARAMS) -> PPOHyperparams:
     """The hyperparameters of ``scenario`` from the file ``path``, validated against its schema
     (:mod:`agents.hyperparams_file`); a one-line HyperparameterError for a bad file or an
     absent scenario."""
@@ -51,7 +57,12 @@ def load_hyperparams(scenario: str, path: Path = HYPERPARAMS) -> dict[str, Any]:
         raise HyperparameterError(
             f"no PPO hyperparameters for {scenario!r} in {path}; available: {available}"
         )
-    return {**table["scenarios"][scenario], "version": table["version"]}
+    try:
+        return PPOHyperparams.from_entry(table["scenarios"][scenario], table["version"])
+    except ConfigError as e:  # what the schema cannot say (none today)
+        raise HyperparameterError(
+            f"bad hyperparameters in {path}: scenarios.{scenario}.{e}"
+        ) from None
 
 
 class TrainingSeeds(gym.Wrapper):
@@ -72,17 +83,17 @@ class TrainingSeeds(gym.Wrapper):
 VEC_ENVS = ("batched", "dummy")
 
 
-def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
-    """``n_envs`` training environments under ``VecNormalize``; ``hp["vec_env"]`` (one of
-    :data:`VEC_ENVS`, default ``batched``) chooses the vectorisation, ``hp["prefetch"]``
-    (default true) whether the batched one simulates flights ahead in a worker process.
-    Environment ``rank`` resets with the seeds of ``seed_stream(rank, …)`` either way.
-    ``hp["train_scenario"]`` (optional) trains on another scenario than the one validated and
-    evaluated (e.g. ``nonstationary_dense``: the same flights with more interference steps)."""
+def make_training_env(scenario: str, hp: PPOHyperparams, seed: int) -> Any:
+    """``n_envs`` training environments under ``VecNormalize``; ``hp.vec_env`` (one of
+    :data:`VEC_ENVS`) chooses the vectorisation, ``hp.prefetch`` whether the batched one
+    simulates flights ahead in a worker process. Environment ``rank`` resets with the seeds of
+    ``seed_stream(rank, …)`` either way. ``hp.train_scenario`` trains on another scenario than
+    the one validated and evaluated (e.g. ``nonstationary_dense``: the same flights with more
+    interference steps)."""
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    n_envs, kind = int(hp["n_envs"]), hp.get("vec_env", "batched")
-    scenario = check_scenario(hp.get("train_scenario", scenario))
+    n_envs, kind = hp.n_envs, hp.vec_env
+    scenario = check_scenario(hp.train_scenario or scenario)
     if kind not in VEC_ENVS:
         raise AeromagError(f"vec_env must be one of {', '.join(VEC_ENVS)}; got {kind!r}")
     streams = [seed_stream(rank, n_envs, offset=1000 * seed) for rank in range(n_envs)]
@@ -93,14 +104,14 @@ def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
             n_envs,
             scenario=scenario,
             reset_seeds=streams,
-            prefetch=bool(hp.get("prefetch", True)),
-            **hp["env_kwargs"],
+            prefetch=hp.prefetch,
+            **hp.env_kwargs,
         )
     else:
 
         def factory(rank: int) -> Any:
             def make() -> gym.Env:
-                env = gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"])
+                env = gym.make("AeroMagCompensation-v0", scenario=scenario, **hp.env_kwargs)
                 return TrainingSeeds(env, streams[rank])
 
             return make
@@ -109,15 +120,15 @@ def make_training_env(scenario: str, hp: dict[str, Any], seed: int) -> Any:
     return normalized(venv, hp)
 
 
-def normalized(venv: Any, hp: dict[str, Any]) -> Any:
+def normalized(venv: Any, hp: PPOHyperparams) -> Any:
     """``venv`` under the observation (and, by ``hp``, reward) normalisation of training."""
     from stable_baselines3.common.vec_env import VecNormalize
 
     return VecNormalize(
         venv,
         norm_obs=True,
-        norm_reward=bool(hp["normalize_reward"]),
-        gamma=float(hp["gamma"]),
+        norm_reward=hp.normalize_reward,
+        gamma=float(hp.gamma),
         clip_obs=10.0,
     )
 
@@ -129,7 +140,7 @@ def validate(policy: NumpyPPOPolicy, scenario: str, episodes: int) -> float:
 
 def train_ppo(
     scenario: str,
-    timesteps: int,
+    timesteps: int | None,
     seed: int,
     out: Path,
     quick: bool = False,
@@ -139,12 +150,15 @@ def train_ppo(
 ) -> dict[str, Any]:
     """Train (or resume) PPO; keep the best validated policy as ``out/policy.npz``.
 
-    A resumed run trains ``timesteps`` more steps, or with ``total`` up to ``timesteps`` in all
+    ``timesteps`` None: :data:`TIMESTEPS`, or with ``quick`` ``QUICK.train_timesteps``;
+    ``quick``: the sizes of :data:`agents.quick.QUICK` (about a minute). A resumed run trains
+    ``timesteps`` more steps, or with ``total`` up to ``timesteps`` in all
     (what a retried task wants: a run killed and restarted ends where an unbroken one would).
     The checkpoint (:data:`CHECKPOINT`) is written as a set, so a kill leaves the previous
     checkpoint or the new one; the run is refused before training if a file it writes is an
     input."""
     check_output_set(out, (*CHECKPOINT, *OUTPUTS), [hyperparams])
+    timesteps = sized(timesteps, TIMESTEPS, quick, QUICK.train_timesteps)
     with training_torch():
         return _train_ppo(scenario, timesteps, seed, out, quick, progress, hyperparams, total)
 
@@ -164,16 +178,7 @@ def _train_ppo(
 
     hp = load_hyperparams(scenario, hyperparams)
     if quick:
-        hp = {
-            **hp,
-            "n_envs": 2,
-            "n_steps": 64,
-            "batch_size": 64,
-            "eval_every": 512,
-            "prefetch": False,
-        }
-        if "pretrain" in hp:
-            hp["pretrain"] = {**hp["pretrain"], "steps": 256, "epochs": 1}
+        hp = quick_hyperparams(hp)
     venv = make_training_env(scenario, hp, seed)
     ckpt, stats = out / "checkpoint.zip", out / "vecnormalize.pkl"
     if ckpt.exists() and stats.exists():  # resume (pickle files this run wrote itself)
@@ -192,7 +197,9 @@ def _train_ppo(
     callback = _Callback(out, venv, scenario, hp, seed, curve, timesteps, progress)
     t0 = time.perf_counter()
     demos = None
-    if "pretrain" in hp and not ckpt.exists():  # a fresh run: imitate, then validate at step 0
+    if (
+        hp.pretrain is not None and not ckpt.exists()
+    ):  # a fresh run: imitate, then validate at step 0
         demos = behaviour_clone(model, venv, hp, scenario, seed)
         if _clones(hp):
             demos.save(out / "demonstrations.npz")  # for a resumed run
@@ -212,16 +219,16 @@ def _train_ppo(
         "train_seconds_this_run": time.perf_counter() - t0,
         "best_validation_rmse_nt": callback.best_rmse,
         "best_validation_score": callback.best,
-        "hyperparams": hp,
+        "hyperparams": {**hp.to_entry(), "version": hp.version},
         "curve": curve,
     }
     write_text(out / "training.json", json.dumps(summary, indent=2))
     return summary
 
 
-def _clones(hp: dict[str, Any]) -> bool:
+def _clones(hp: PPOHyperparams) -> bool:
     """Whether behaviour cloning stays on during PPO (``pretrain.bc_minibatches`` > 0)."""
-    return int(hp.get("pretrain", {}).get("bc_minibatches", 0)) > 0
+    return hp.pretrain is not None and hp.pretrain.bc_minibatches > 0
 
 
 def _demonstrations(out: Path) -> Demonstrations:
@@ -257,7 +264,7 @@ def training_torch() -> Iterator[None]:
         Distribution.set_default_validate_args(checks)
 
 
-def make_ppo(venv: Any, hp: dict[str, Any], seed: int) -> Any:
+def make_ppo(venv: Any, hp: PPOHyperparams, seed: int) -> Any:
     """A fresh stable-baselines3 PPO (MLP policy, CPU) with the hyperparameters ``hp``."""
     from stable_baselines3 import PPO
 
@@ -273,7 +280,7 @@ def _quiet(model: Any) -> Any:
     return model
 
 
-def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
+def _ppo_kwargs(hp: PPOHyperparams) -> dict[str, Any]:
     keys = (
         "n_steps",
         "batch_size",
@@ -284,16 +291,15 @@ def _ppo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
         "ent_coef",
         "clip_range",
     )
-    kwargs = {k: hp[k] for k in keys}
-    kwargs["learning_rate"] = _schedule(hp["learning_rate"])
+    kwargs = {k: getattr(hp, k) for k in keys}
+    kwargs["learning_rate"] = _schedule(hp.learning_rate)
     # SB3's Adam (eps 1e-5) stepping all parameters in one foreach call: the same numbers
     # (tested bitwise), a third less optimizer time per minibatch on the CPU
     kwargs["policy_kwargs"] = {
-        "net_arch": list(hp["net_arch"]),
+        "net_arch": list(hp.net_arch),
         "optimizer_kwargs": {"eps": 1e-5, "foreach": True},
+        "log_std_init": float(hp.log_std_init),  # initial exploration noise of the Gaussian
     }
-    if "log_std_init" in hp:  # initial exploration noise of the Gaussian policy (SB3 default 0)
-        kwargs["policy_kwargs"]["log_std_init"] = float(hp["log_std_init"])
     return kwargs
 
 
@@ -340,7 +346,7 @@ class _Callback(_callback_base()):  # type: ignore[misc]
         out: Path,
         venv: Any,
         scenario: str,
-        hp: dict[str, Any],
+        hp: PPOHyperparams,
         seed: int,
         curve: list,
         total: int,
@@ -352,7 +358,7 @@ class _Callback(_callback_base()):  # type: ignore[misc]
         best = min(curve, key=_selection_score, default=None)
         self.best = float("inf") if best is None else _selection_score(best)
         self.best_rmse = float("inf") if best is None else best["validation_rmse_nt"]
-        self.validator = Validator(hp.get("select_by", "rmse"), scenario, int(hp["eval_episodes"]))
+        self.validator = Validator(hp.select_by, scenario, hp.eval_episodes)
         self.next_eval = 0
         self.t0 = time.perf_counter()
         self.bar: Any = None
@@ -364,7 +370,7 @@ class _Callback(_callback_base()):  # type: ignore[misc]
         self.bar = tqdm(
             total=self.total, unit="step", desc="train", disable=not self.progress or None
         )
-        self.next_eval = self.model.num_timesteps + int(self.hp["eval_every"])
+        self.next_eval = self.model.num_timesteps + self.hp.eval_every
 
     def _on_rollout_start(self) -> None:
         if self.cloning is not None:  # after PPO's update (and once before the first rollout)
@@ -373,7 +379,7 @@ class _Callback(_callback_base()):  # type: ignore[misc]
     def _on_step(self) -> bool:
         self.bar.update(self.training_env.num_envs)
         if self.model.num_timesteps >= self.next_eval:
-            self.next_eval += int(self.hp["eval_every"])
+            self.next_eval += self.hp.eval_every
             self._validate()
             self.checkpoint(self.model)
         return True
@@ -386,10 +392,10 @@ class _Callback(_callback_base()):  # type: ignore[misc]
     def _validate(self) -> None:
         meta = {
             "scenario": self.scenario,
-            "env_kwargs": self.hp["env_kwargs"],
+            "env_kwargs": dict(self.hp.env_kwargs),
             "seed": self.seed,
             "timesteps": int(self.model.num_timesteps),
-            "hyperparams_version": self.hp["version"],
+            "hyperparams_version": self.hp.version,
         }
         candidate = export_policy(self.model, self.venv, self.out / "candidate.npz", meta)
         point = {

@@ -37,6 +37,8 @@ from aeromag_env.parallel.tasks import one_line
 from aeromag_env.threads import cores
 from agents.hyperparams_file import read_hyperparams
 from agents.ppo import HYPERPARAMS, load_hyperparams, training_torch
+from agents.ppo_hyperparams import PPOHyperparams
+from agents.quick import QUICK, quick_hyperparams, sized
 from agents.tune_space import plain, read_space, tune_domains
 from agents.validation import validation_seeds
 
@@ -44,13 +46,13 @@ from agents.validation import validation_seeds
 OUTPUTS = ("ppo.json", "tune.json")
 #: What Tune minimises: the mean validation RMSE of the policy so far [nT].
 METRIC = "validation_rmse_nt"
-#: Validations per trial (``--quick``: 3); ASHA's time unit.
-REPORTS, QUICK_REPORTS = 8, 3
+#: Validations per trial (``--quick``: ``QUICK.tune_reports``); ASHA's time unit.
+REPORTS = 8
+#: Trials and environment steps per trial by default (``--quick``: ``QUICK``'s).
+SAMPLES, TIMESTEPS = 16, 500_000
 #: ASHA's rungs: first after this many reports, then every ``REDUCTION``-fold; it keeps the
 #: best ``1 / REDUCTION`` of the trials at each rung.
 GRACE, REDUCTION = 1, 2
-#: ``--quick``: tiny rollouts and 2 validation flights (tests).
-QUICK = {"n_envs": 2, "n_steps": 64, "batch_size": 64, "eval_episodes": 2}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -59,7 +61,7 @@ class TuneJob:
     replace theirs), the training seed, the environment steps and validations per trial."""
 
     scenario: str
-    hp: dict[str, Any]
+    hp: PPOHyperparams
     seed: int
     timesteps: int
     reports: int
@@ -68,8 +70,8 @@ class TuneJob:
 def tune_ppo(
     scenario: str,
     space_path: Path,
-    samples: int,
-    timesteps: int,
+    samples: int | None,
+    timesteps: int | None,
     out: Path,
     *,
     seed: int = 0,
@@ -85,16 +87,18 @@ def tune_ppo(
         The scenario whose entry of ``hyperparams`` is tuned (and validated on).
     space_path : Path
         The search space (:func:`agents.tune_space.read_space`).
-    samples : int
-        Trials (configurations drawn).
-    timesteps : int
-        Environment steps per trial (ASHA stops bad trials earlier).
+    samples : int or None
+        Trials (configurations drawn); None: :data:`SAMPLES` (``quick``: ``QUICK``'s).
+    timesteps : int or None
+        Environment steps per trial (ASHA stops bad trials earlier); None: :data:`TIMESTEPS`
+        (``quick``: ``QUICK``'s).
     out : Path
         Output folder.
     seed : int
         Seed of the sampling and of every trial's training.
     quick : bool
-        Tiny rollouts, 3 validations on 2 flights each (tests).
+        The sizes of :data:`agents.quick.QUICK` (about a minute): its samples and timesteps
+        unless given, tiny rollouts, a few validations on 2 flights each.
     ray_address : str or None
         A Ray cluster to join (``host:port`` or ``ray://…``); None: the Ray session of this
         process if there is one, else a local Ray with this machine's cores.
@@ -107,6 +111,8 @@ def tune_ppo(
         The content of ``tune.json``.
     """
     check_output_set(out, OUTPUTS, [space_path, hyperparams])
+    samples = sized(samples, SAMPLES, quick, QUICK.tune_samples)
+    timesteps = sized(timesteps, TIMESTEPS, quick, QUICK.tune_timesteps)
     space = read_space(space_path)
     job = _job(scenario, hyperparams, seed, timesteps, quick)
     t0 = time.perf_counter()
@@ -122,7 +128,7 @@ def tune_ppo(
         "quick": quick,
         "reports_per_trial": job.reports,
         "metric": METRIC,
-        "validation_episodes": int(job.hp["eval_episodes"]),
+        "validation_episodes": job.hp.eval_episodes,
         "space_file": str(space_path),
         "space": space,
         "hyperparams": str(hyperparams),
@@ -137,13 +143,10 @@ def tune_ppo(
 
 
 def _job(scenario: str, hyperparams: Path, seed: int, timesteps: int, quick: bool) -> TuneJob:
-    hp = {**load_hyperparams(scenario, hyperparams), "prefetch": False}  # one CPU per trial
+    hp = load_hyperparams(scenario, hyperparams).with_values(prefetch=False)  # a CPU a trial
     if quick:
-        hp.update(QUICK)
-        if "pretrain" in hp:
-            rounds = {"dagger_rounds": 1} if "dagger_rounds" in hp["pretrain"] else {}
-            hp["pretrain"] = {**hp["pretrain"], "steps": 256, "epochs": 1, **rounds}
-    reports = QUICK_REPORTS if quick else REPORTS
+        hp = quick_hyperparams(hp)
+    reports = min(REPORTS, QUICK.tune_reports) if quick else REPORTS
     return TuneJob(scenario=scenario, hp=hp, seed=seed, timesteps=timesteps, reports=reports)
 
 
@@ -239,20 +242,20 @@ def run_trial(config: dict[str, Any], job: TuneJob) -> None:
     from agents.imitation import behaviour_clone
     from agents.ppo import make_ppo, make_training_env
 
-    hp = {**job.hp, **plain(config)}
+    hp = job.hp.with_values(**plain(config))
     best = math.inf
     with training_torch(), tempfile.TemporaryDirectory(prefix="aeromag-trial-") as tmp:
         venv = make_training_env(job.scenario, hp, job.seed)
         try:
             model = make_ppo(venv, hp, job.seed)
-            if "pretrain" in hp:
+            if hp.pretrain is not None:
                 behaviour_clone(model, venv, hp, job.scenario, job.seed)
             for i in range(1, job.reports + 1):
                 target = job.timesteps * i // job.reports
                 model.learn(max(1, target - model.num_timesteps), reset_num_timesteps=False)
                 rmse = _validate(model, venv, hp, job, Path(tmp))
                 best = min(best, rmse)
-                seeds = validation_seeds(int(hp["eval_episodes"]))
+                seeds = validation_seeds(hp.eval_episodes)
                 tune.report(
                     {
                         METRIC: rmse,
@@ -265,7 +268,7 @@ def run_trial(config: dict[str, Any], job: TuneJob) -> None:
             venv.close()
 
 
-def _validate(model: Any, venv: Any, hp: dict[str, Any], job: TuneJob, tmp: Path) -> float:
+def _validate(model: Any, venv: Any, hp: PPOHyperparams, job: TuneJob, tmp: Path) -> float:
     """Mean RMSE [nT] of the policy so far on the validation flights, through its numpy export
     (the policy ``aeromag train`` would keep)."""
     from agents.numpy_policy import NumpyPPOPolicy
@@ -274,13 +277,13 @@ def _validate(model: Any, venv: Any, hp: dict[str, Any], job: TuneJob, tmp: Path
 
     meta = {
         "scenario": job.scenario,
-        "env_kwargs": hp["env_kwargs"],
+        "env_kwargs": dict(hp.env_kwargs),
         "seed": job.seed,
         "timesteps": int(model.num_timesteps),
-        "hyperparams_version": hp["version"],
+        "hyperparams_version": hp.version,
     }
     policy = NumpyPPOPolicy.load(export_policy(model, venv, tmp / "candidate.npz", meta))
-    return float(validation_rmse(policy, job.scenario, int(hp["eval_episodes"])).mean())
+    return float(validation_rmse(policy, job.scenario, hp.eval_episodes).mean())
 
 
 def _tuned_table(entry: dict[str, Any], summary: dict[str, Any]) -> dict[str, Any]:

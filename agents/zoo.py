@@ -25,6 +25,7 @@ from typing import Any
 
 from aeromag_env.environment.ids import env_id
 from agents.hyperparams_file import read_hyperparams
+from agents.ppo_hyperparams import PPOHyperparams
 
 HYPERPARAMS = Path(__file__).parent / "hyperparams"
 #: Timesteps of the shipped policy's training run (``aeromag train --timesteps``).
@@ -48,19 +49,21 @@ CLIP_OBS = 10.0
 def zoo_hyperparams(hyperparams: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """The rl_zoo3 hyperparameters (one entry per env id) of a checked ``ppo.json``."""
     out: dict[str, dict[str, Any]] = {}
-    for scenario, hp in hyperparams["scenarios"].items():
+    for scenario, given in hyperparams["scenarios"].items():
+        hp = PPOHyperparams.from_entry(given)
         entry: dict[str, Any] = {"policy": "MlpPolicy", "n_timesteps": float(ZOO_TIMESTEPS)}
-        entry.update({key: hp[key] for key in _PPO_KEYS})
+        entry.update({key: getattr(hp, key) for key in _PPO_KEYS})
         entry["normalize"] = (
-            f"dict(norm_obs=True, norm_reward={bool(hp['normalize_reward'])}, clip_obs={CLIP_OBS})"
+            f"dict(norm_obs=True, norm_reward={hp.normalize_reward}, clip_obs={CLIP_OBS})"
         )
-        policy = f"net_arch={list(hp['net_arch'])}, optimizer_kwargs=dict(eps=1e-05)"
-        if "log_std_init" in hp:
-            policy += f", log_std_init={float(hp['log_std_init'])}"
+        policy = (
+            f"net_arch={list(hp.net_arch)}, optimizer_kwargs=dict(eps=1e-05), "
+            f"log_std_init={float(hp.log_std_init)}"
+        )
         entry["policy_kwargs"] = f"dict({policy})"
         entry["monitor_kwargs"] = "dict(info_keywords=('episode_rmse_nt', 'divergences'))"
-        entry["env_kwargs"] = dict(hp.get("env_kwargs", {}))
-        out[env_id(hp.get("train_scenario", scenario))] = entry
+        entry["env_kwargs"] = hp.to_entry()["env_kwargs"]
+        out[env_id(hp.train_scenario or scenario)] = entry
     return out
 
 

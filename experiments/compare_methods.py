@@ -28,6 +28,7 @@ from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
+from agents.quick import QUICK
 
 METRICS = ("compensation_rmse_nt", "improvement_ratio", "fom_nt", "residual_std_nt", "divergences")
 
@@ -79,7 +80,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--out", default="results/methods")
     args = parser.parse_args(argv)
-    seeds, duration = (range(2), 527.2) if args.quick else (range(args.seeds), 1800.0)
+    seeds, duration = (range(QUICK.seeds), 527.2) if args.quick else (range(args.seeds), 1800.0)
     values = run(list(seeds), duration)
     out = Path(args.out)
     text = table(values, len(seeds), duration)

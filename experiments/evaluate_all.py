@@ -19,6 +19,7 @@ from aeromag_env.atomic import write_text
 from aeromag_env.cli.evaluate import evaluation_table, run_evaluate
 from aeromag_env.environment.scenarios import SCENARIOS
 from agents import available_policies
+from agents.quick import QUICK
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -27,8 +28,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="2 episodes of 2 scenarios (tests)")
     parser.add_argument("--out", default="results/evaluate_all")
     args = parser.parse_args(argv)
-    scenarios = SCENARIOS[:2] if args.quick else SCENARIOS
-    episodes = 2 if args.quick else args.episodes
+    scenarios = SCENARIOS[: QUICK.scenarios] if args.quick else SCENARIOS
+    episodes = QUICK.episodes if args.quick else args.episodes
     out = Path(args.out)
     tables, results = [], {}
     for scenario in scenarios:

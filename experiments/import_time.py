@@ -15,6 +15,8 @@ import subprocess
 import sys
 from collections.abc import Sequence
 
+from agents.quick import QUICK
+
 STATEMENTS = {
     "import numpy": "import numpy",
     "import gymnasium": "import gymnasium",
@@ -37,7 +39,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=15)
     parser.add_argument("--quick", action="store_true", help="3 repeats (tests)")
     args = parser.parse_args(argv)
-    repeats = 3 if args.quick else args.repeats
+    repeats = QUICK.bench_repeats if args.quick else args.repeats
     print(f"median of {repeats} fresh interpreters (interleaved)")
     times: dict[str, list[float]] = {name: [] for name in STATEMENTS}
     for _ in range(repeats):  # interleaved, so a slow minute of the host hits every row alike

@@ -46,10 +46,11 @@ class LatePrivileged(PrivilegedPolicy):
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
         action, state = super().predict(obs, state, episode_start, deterministic)
-        k, width = self.env.filter.k, self.env.config.decision_window
+        truth = self.truth()
+        k, width = truth.sample, self.config.decision_window
         if k >= width:  # the first window keeps the cautious start
             action = action.copy()
-            action[..., ACT_R] = self.r_action(self.env.episode.noise_var[k - width : k])
+            action[..., ACT_R] = self.r_action(truth.noise_var[k - width : k], truth)
         return action, state
 
 

@@ -250,7 +250,7 @@ def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: 
     env_kwargs = {"extras": not paper_obs, "s_max": s_max, "action_mode": action_mode}
     if split_q:
         env_kwargs["split_q"] = True
-    hp = {**hp, "env_kwargs": env_kwargs}
+    hp = hp.with_values(env_kwargs=env_kwargs)
     venv = make_training_env("nonstationary", hp, seed=0)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", **_ppo_kwargs(hp))
     model.learn(steps)

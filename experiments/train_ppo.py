@@ -22,11 +22,12 @@ from pathlib import Path
 from aeromag_env.atomic import write_text
 from aeromag_env.cli.evaluate import evaluation_table, run_evaluate
 from agents import DEFAULT_PPO, POLICIES
+from agents.quick import QUICK
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--timesteps", type=int, default=3_000_000)
+    parser.add_argument("--timesteps", type=int, help="default 3e6 (--quick: agents.quick)")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--skip-training", action="store_true")
     parser.add_argument("--ship", action="store_true", help="copy the policy into agents/trained")
@@ -41,14 +42,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.skip_training:
         from agents.ppo import train_ppo
 
-        steps = 1024 if args.quick else args.timesteps
-        summary = train_ppo("nonstationary", steps, 0, train_dir, quick=args.quick, progress=False)
+        summary = train_ppo(  # --quick: agents.quick.QUICK's sizes
+            "nonstationary", args.timesteps, 0, train_dir, quick=args.quick, progress=False
+        )
         print(f"training: {summary['timesteps']} steps, {summary['train_seconds_this_run']:.0f} s")
     policy = Path(args.policy) if args.policy else train_dir / "policy.npz"
     if args.ship:
         DEFAULT_PPO.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(policy, DEFAULT_PPO)
-    episodes = 2 if args.quick else args.episodes
+    episodes = QUICK.episodes if args.quick else args.episodes
     names = [p if p != "ppo" else f"ppo:{policy}" for p in POLICIES]
     tables = []
     for scenario in ("nonstationary", "nominal"):

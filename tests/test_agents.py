@@ -8,11 +8,13 @@ import pytest
 import aeromag_env  # noqa: F401
 from aeromag_env.cli.main import main
 from aeromag_env.compensation.kalman import run_filter
+from aeromag_env.compensation.model import MODE
 from aeromag_env.environment.spaces import ACT_Q, ACT_R
 from aeromag_env.errors import AeromagError, ConfigError
 from agents import POLICIES, make_policy
 from agents.evaluate import evaluate, run_episode
 from agents.policies import TunedConstantPolicy
+from agents.protocol import TuningPolicy
 
 
 def _env(scenario="paper"):
@@ -29,8 +31,10 @@ def test_unknown_policy_is_a_one_line_error():
 )
 def test_predict_shape(name):
     env = _env()
-    obs, _ = env.reset(seed=100_000)
     policy = make_policy(name, env)
+    assert isinstance(policy, TuningPolicy)
+    options = getattr(policy, "reset_options", {})
+    obs, _ = env.reset(seed=100_000, options=dict(options) or None)
     action, _ = policy.predict(obs, episode_start=np.array([True]))
     assert action.shape == (2,) and action.dtype == np.float32 and np.all(np.abs(action) <= 1)
     if name in ("constant", "fis"):  # observation-only policies take batches (vectorised envs)
@@ -201,3 +205,67 @@ def test_the_privileged_floor_on_r_holds_on_its_scenarios_only():
             obs, *_ = env.step(a)
         assert below > 0  # the floor was tested where it binds
         assert (held > 0) == (floor is not None)
+
+
+def _env_state(env):
+    """What a policy must not change: the configuration, the filter's mode, progress and
+    arrays, the flight's truth, the cumulative scales."""
+    from aeromag_env.compensation.arrays import CORE_ARRAYS
+
+    inner = env.unwrapped
+    f, ep = inner.filter, inner.episode
+    plain = (inner.config, int(f.mode), f.k, inner.log_scales, inner.scenario)
+    arrays = [getattr(f, name).copy() for name in CORE_ARRAYS]
+    return plain, [*arrays, ep.noise_var.copy(), ep.step_samples.copy()]
+
+
+@pytest.mark.parametrize("name", ["oracle", "privileged", "tuned_constant", "sage_husa"])
+def test_the_privileged_policies_leave_the_environment_untouched(name):
+    """Predicting reads the environment (its truth, its filter's progress) and changes none of
+    it: the state is equal before and after predictions without a step."""
+    from agents import policy_env_kwargs
+
+    env = gym.make("AeroMagCompensation-v0", scenario="nominal", **policy_env_kwargs(name))
+    policy = make_policy(name, env)
+    obs, _ = env.reset(seed=100_000, options=dict(getattr(policy, "reset_options", {})) or None)
+    for steps in (0, 3):  # right after reset, and within the flight
+        for _ in range(steps):
+            obs, *_ = env.step(policy.predict(obs)[0])
+        plain, arrays = _env_state(env)
+        for _ in range(5):
+            policy.predict(obs)
+        plain_after, arrays_after = _env_state(env)
+        assert plain_after == plain
+        assert len(arrays) > 5
+        for before, after in zip(arrays, arrays_after, strict=True):
+            np.testing.assert_array_equal(after, before)
+
+
+def test_the_flight_truth_is_read_only():
+    from aeromag_env.environment.truth import flight_truth
+
+    env = gym.make("AeroMagCompensation-v0", scenario="nonstationary")
+    env.reset(seed=100_000)
+    truth = flight_truth(env)
+    with pytest.raises(ValueError, match="read-only"):
+        truth.noise_var[0] = 0.0
+    with pytest.raises(ValueError, match="read-only"):
+        truth.step_samples[...] = 0
+    with pytest.raises(AttributeError):
+        truth.sample = 5  # type: ignore[misc]
+    assert env.unwrapped.episode.noise_var.flags.writeable  # the environment's own arrays stay
+
+
+def test_a_classical_policy_asks_for_its_filter_method():
+    """sage_husa runs the environment's filter in its own method, which the environment offers
+    as a reset option; without it the policy refuses in one line, never switching the filter."""
+    env = _env()
+    policy = make_policy("sage_husa", env)
+    obs, _ = env.reset(seed=100_000)
+    with pytest.raises(ConfigError, match="needs the environment reset with"):
+        policy.predict(obs)
+    assert env.unwrapped.filter.mode == MODE[env.unwrapped.episode.filter_cfg.method]  # as it was
+    env.reset(seed=100_000, options={"filter_method": "sage-husa"})
+    assert env.unwrapped.filter.mode == MODE["sage-husa"] != MODE["kf"]
+    with pytest.raises(ConfigError, match="method must be one of"):
+        env.reset(seed=100_000, options={"filter_method": "bogus"})

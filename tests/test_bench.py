@@ -241,7 +241,7 @@ def test_zero_cost_env_episodes_are_as_long_in_steps_as_the_flights():
     from aeromag_env.cli.bench_envs import _free_env_like
     from agents import ppo
 
-    hp = {**ppo.load_hyperparams("nonstationary"), "n_envs": 2, "prefetch": False}
+    hp = ppo.load_hyperparams("nonstationary").with_values(n_envs=2, prefetch=False)
     venv = ppo.make_training_env("nonstationary", hp, seed=0)
     venv.reset()
     batched = venv.venv.venv

@@ -379,7 +379,7 @@ def test_hyperparameters_at_the_upper_bounds_are_accepted(tmp_path):
         "eval_episodes": 10_000,
     }
     hp = load_hyperparams("nonstationary", _hp_file(tmp_path, change))
-    assert {k: hp[k] for k in change} == change
+    assert {k: hp.to_entry()[k] for k in change} == change
 
 
 # 6. found by the fault-injection suite (experiments/fault_suite.py)

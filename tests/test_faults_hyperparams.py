@@ -313,11 +313,17 @@ def test_missing_file_directory_and_device(tmp_path):
 )
 def test_values_at_the_bounds_are_accepted(tmp_path, key, value):
     path = _write(tmp_path, "ok", json.dumps(_hp(key, value)(copy.deepcopy(SHIPPED))))
-    assert load_hyperparams("nonstationary", path)[key] == value
+    assert load_hyperparams("nonstationary", path).to_entry()[key] == value
 
 
 def test_the_shipped_file_loads_unchanged(tmp_path):
-    assert load_hyperparams("nonstationary") == {**HP, "version": SHIPPED["version"]}
+    shipped = load_hyperparams("nonstationary")
+    assert shipped.version == SHIPPED["version"]
+    entry = shipped.to_entry()  # the file's values, and the defaults of what it leaves out
+    assert {k: entry[k] for k in HP if k != "pretrain"} == {
+        k: v for k, v in HP.items() if k != "pretrain"
+    }
+    assert {k: entry["pretrain"][k] for k in HP["pretrain"]} == HP["pretrain"]
     bom = _write(tmp_path, "bom", "\ufeff" + GOOD_TEXT)  # as some editors save it
     assert load_hyperparams("nonstationary", bom) == load_hyperparams("nonstationary")
 
@@ -336,7 +342,7 @@ def test_the_schema_names_what_the_code_knows():
     ]
     # hyperparameters per evaluated scenario, and for the general policy validated on the suite
     assert SCHEMA["properties"]["scenarios"]["propertyNames"]["enum"] == [*SCENARIOS, "suite"]
-    read = set(_ppo_kwargs(HP)) - {"policy_kwargs"} | {
+    read = set(_ppo_kwargs(load_hyperparams("nonstationary"))) - {"policy_kwargs"} | {
         "net_arch",
         "n_envs",
         "normalize_reward",
@@ -397,4 +403,73 @@ def test_any_value_for_any_key_loads_or_names_the_key(tmp_path, key, value):
     except HyperparameterError as e:
         assert_one_line_error(e, key)
         return
-    assert hp[key] == value
+    assert hp.to_entry()[key] == value
+
+
+def test_the_committed_schema_is_the_one_made_from_the_dataclass():
+    """``ppo.schema.json`` is :func:`agents.ppo_hyperparams.schema_text` (``python -m
+    agents.ppo_hyperparams`` rewrites it): a field changed in the dataclass alone fails here."""
+    from agents.ppo_hyperparams import ppo_schema, schema_text
+
+    committed = HYPERPARAMS.with_name("ppo.schema.json").read_text(encoding="utf-8")
+    assert committed == schema_text()
+    assert json.loads(committed) == ppo_schema() == SCHEMA
+
+
+def test_the_dataclass_holds_the_file_and_the_defaults():
+    """The shipped entries load to the same values; what a file leaves out takes the
+    dataclass's default, the one training uses."""
+    from agents.ppo_hyperparams import PPOHyperparams, Pretrain
+
+    for scenario, entry in SHIPPED["scenarios"].items():
+        hp = load_hyperparams(scenario)
+        assert hp == PPOHyperparams.from_entry(entry, SHIPPED["version"])
+        for key, value in entry.items():
+            got = hp.to_entry()[key]
+            assert got == value if key != "pretrain" else {k: got[k] for k in value} == value
+    left_out = ("vec_env", "prefetch", "pretrain", "train_scenario")
+    lean = {k: v for k, v in HP.items() if k not in left_out}
+    hp = PPOHyperparams.from_entry(lean)
+    assert (hp.vec_env, hp.prefetch, hp.select_by, hp.pretrain, hp.train_scenario) == (
+        "batched",
+        True,
+        "rmse",
+        None,
+        None,
+    )
+    spec = Pretrain(steps=1, epochs=1)
+    assert (spec.demonstrator, spec.dagger_rounds, spec.threshold_nt) == (
+        "innovation_detector",
+        1,
+        20.0,
+    )
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"gamma": 1.5}, r"^gamma: must be a number in \(0, 1\], got 1\.5$"),
+        ({"n_envs": 0}, r"^n_envs: must be an integer ≥ 1 and ≤ 256"),
+        ({"learning_rate": "cos_1"}, r"^learning_rate: must be a number > 0, or"),
+        ({"net_arch": [64, 0]}, r"^net_arch\.1: must be an integer ≥ 1"),
+        ({"vec_env": "subproc"}, r"^vec_env: must be batched or dummy"),
+        ({"env_kwargs": {"split_q": 3}}, r"^env_kwargs: "),
+        ({"pretrain": {"steps": 0}}, r"^pretrain\.steps: must be an integer ≥ 1"),
+    ],
+)
+def test_a_bad_value_is_a_one_line_config_error_naming_the_field(change, message):
+    from aeromag_env.errors import ConfigError
+
+    hp = load_hyperparams("nonstationary")
+    with pytest.raises(ConfigError, match=message) as info:
+        hp.with_values(**change)
+    assert "\n" not in str(info.value)
+    with pytest.raises(Exception, match="cannot assign"):
+        hp.gamma = 0.5  # frozen
+
+
+def test_the_dataclass_is_keyword_only():
+    from agents.ppo_hyperparams import PPOHyperparams
+
+    with pytest.raises(TypeError):
+        PPOHyperparams(2, 64)  # type: ignore[misc]

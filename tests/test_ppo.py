@@ -1,4 +1,5 @@
 import json
+from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
@@ -19,12 +20,13 @@ from agents.ppo import (
     make_training_env,
     train_ppo,
 )
+from agents.ppo_hyperparams import Pretrain
 
 
 def test_numpy_export_reproduces_sb3_actions(tmp_path):
     from stable_baselines3 import PPO
 
-    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "n_steps": 64, "batch_size": 64}
+    hp = load_hyperparams("nonstationary").with_values(n_envs=2, n_steps=64, batch_size=64)
     venv = make_training_env("nonstationary", hp, seed=0)
     model = PPO(
         "MlpPolicy",
@@ -36,7 +38,7 @@ def test_numpy_export_reproduces_sb3_actions(tmp_path):
         policy_kwargs={"net_arch": [64, 64]},
     )
     model.learn(256)  # non-trivial weights and observation statistics
-    path = export_policy(model, venv, tmp_path / "p.npz", {"env_kwargs": hp["env_kwargs"]})
+    path = export_policy(model, venv, tmp_path / "p.npz", {"env_kwargs": dict(hp.env_kwargs)})
     policy = NumpyPPOPolicy.load(path)
     obs = np.random.default_rng(0).uniform(-3, 3, (50, venv.observation_space.shape[0]))
     ours, _ = policy.predict(obs.astype(np.float32))
@@ -51,27 +53,29 @@ def test_numpy_export_reproduces_sb3_actions(tmp_path):
 def test_train_scenario_trains_on_its_own_scenario_only(kind):
     """``train_scenario`` sets the training environments' scenario (both vectorisations); an
     unknown one is a one-line error."""
-    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "vec_env": kind, "prefetch": False}
-    venv = make_training_env("nonstationary", {**hp, "train_scenario": "nonstationary_dense"}, 0)
+    hp = load_hyperparams("nonstationary").with_values(n_envs=2, vec_env=kind, prefetch=False)
+    venv = make_training_env(
+        "nonstationary", hp.with_values(train_scenario="nonstationary_dense"), 0
+    )
     venv.reset()
     inner = venv.venv
     scenarios = inner.venv.scenarios if kind == "batched" else inner.get_attr("_scenario")
     assert list(scenarios) == ["nonstationary_dense"] * 2
     venv.close()
-    with pytest.raises(AeromagError, match="unknown scenario 'windy'"):
-        make_training_env("nonstationary", {**hp, "train_scenario": "windy"}, 0)
+    with pytest.raises(AeromagError, match="train_scenario: must be a scenario name: paper"):
+        make_training_env("nonstationary", hp.with_values(train_scenario="windy"), 0)
 
 
 def test_linear_learning_rate_schedule_reaches_sb3_and_bad_rates_are_one_line_errors():
-    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "prefetch": False}
+    hp = load_hyperparams("nonstationary").with_values(n_envs=2, prefetch=False)
     venv = make_training_env("nonstationary", hp, 0)
-    model = make_ppo(venv, {**hp, "learning_rate": "lin_0.001"}, seed=0)
+    model = make_ppo(venv, hp.with_values(learning_rate="lin_0.001"), seed=0)
     assert model.lr_schedule(1.0) == pytest.approx(1e-3)
     assert model.lr_schedule(0.25) == pytest.approx(2.5e-4)
-    assert make_ppo(venv, hp, seed=0).lr_schedule(0.25) == pytest.approx(hp["learning_rate"])
+    assert make_ppo(venv, hp, seed=0).lr_schedule(0.25) == pytest.approx(hp.learning_rate)
     for bad in ("lin_fast", "lin_-1", "cos_0.001", 0.0, True):
         with pytest.raises(AeromagError, match="learning_rate"):
-            make_ppo(venv, {**hp, "learning_rate": bad}, seed=0)
+            make_ppo(venv, hp.with_values(learning_rate=bad), seed=0)
     venv.close()
 
 
@@ -131,11 +135,15 @@ def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     from agents.policies import InnovationDetectorPolicy
 
     torch.manual_seed(0)
-    hp = {**load_hyperparams("nonstationary"), "n_envs": 4, "prefetch": False}
-    hp["pretrain"] = {"threshold_nt": 20.0, "steps": 4000, "epochs": 50}
+    hp = replace(
+        load_hyperparams("nonstationary"),
+        n_envs=4,
+        prefetch=False,
+        pretrain=Pretrain(threshold_nt=20.0, steps=4000, epochs=50),
+    )
     venv = make_training_env("nonstationary", hp, seed=0)
     model = make_ppo(venv, hp, seed=0)
-    demo = InnovationDetectorPolicy(EnvConfig(**hp["env_kwargs"]))
+    demo = InnovationDetectorPolicy(EnvConfig(**hp.env_kwargs))
 
     def gap() -> float:
         obs = venv.get_original_obs()
@@ -166,14 +174,9 @@ def test_training_setup_changes_no_result_and_restores_torch():
 
     from agents.ppo import _ppo_kwargs, training_torch
 
-    hp = {
-        **load_hyperparams("nonstationary"),
-        "n_envs": 2,
-        "n_steps": 64,
-        "batch_size": 64,
-        "vec_env": "batched",
-        "prefetch": False,
-    }
+    hp = load_hyperparams("nonstationary").with_values(
+        n_envs=2, n_steps=64, batch_size=64, vec_env="batched", prefetch=False
+    )
     venv = lambda: make_training_env("nonstationary", hp, seed=3)  # noqa: E731
 
     def learned(model: PPO) -> list[np.ndarray]:
@@ -211,12 +214,12 @@ def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teac
     from agents.imitation import _privileged_rollouts, behaviour_clone
 
     torch.manual_seed(0)
-    hp = {**load_hyperparams("suite"), "n_envs": 2, "prefetch": False}
+    hp = load_hyperparams("suite").with_values(n_envs=2, prefetch=False)
     venv = make_training_env("suite", hp, seed=0)
     zeros = lambda obs: np.zeros((obs.shape[0], 3), np.float32)  # noqa: E731
     obs, labels, _, _, drawn = _privileged_rollouts(venv, hp, "suite", 400, zeros)
     # the flights followed the zero actions: the same as flying them with zero actions alone
-    env = gym.make("AeroMagCompensation-v0", scenario="suite", **hp["env_kwargs"])
+    env = gym.make("AeroMagCompensation-v0", scenario="suite", **hp.env_kwargs)
     first = env.reset(seed=next(iter(_first_seed())))[0]
     np.testing.assert_array_equal(obs[0][0], first)
     assert drawn[0][0] == env.unwrapped.episode.scenario != "suite"  # the scenario drawn
@@ -233,7 +236,7 @@ def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teac
         return float(np.abs(np.clip(mean, -1, 1) - np.concatenate(held_out[1])).mean())
 
     before = gap()
-    hp["pretrain"] = {**hp["pretrain"], "steps": 3000, "epochs": 20, "dagger_rounds": 2}
+    hp = hp.with_values(pretrain={"steps": 3000, "epochs": 20, "dagger_rounds": 2})
     behaviour_clone(model, venv, hp, "suite")
     assert gap() < 0.6 * before, (before, gap())
     venv.close()
@@ -244,14 +247,13 @@ def test_the_dagger_teacher_keeps_r_above_its_floor_on_the_named_scenarios():
     is at or above the floor, and the same flights without it have labels below."""
     from agents.imitation import _privileged_rollouts
 
-    hp = {**load_hyperparams("suite"), "n_envs": 2, "prefetch": False}
+    hp = load_hyperparams("suite").with_values(n_envs=2, prefetch=False)
     venv = make_training_env("noise_bursts", hp, seed=0)
-    lo, hi = hp["env_kwargs"]["absolute_r_log10"]
+    lo, hi = hp.env_kwargs["absolute_r_log10"]
     floor = 2.0 * (2.0 - lo) / (hi - lo) - 1.0
-    labels, shipped = {}, load_hyperparams("suite")["pretrain"]
-    plain = {k: v for k, v in shipped.items() if k != "teacher_r_floor"}
-    for name, given in (("plain", {}), ("floored", {"teacher_r_floor": {"noise_bursts": 2.0}})):
-        hp["pretrain"] = {**plain, **given}
+    labels = {}
+    for name, given in (("plain", None), ("floored", {"noise_bursts": 2.0})):
+        hp = hp.with_values(pretrain={"teacher_r_floor": given})
         labels[name] = np.concatenate(_privileged_rollouts(venv, hp, "noise_bursts", 400)[1])
     venv.close()
     assert labels["plain"][:, ACT_R].min() < floor - 0.1
@@ -277,8 +279,12 @@ def test_the_cloning_term_pulls_the_actor_to_the_demonstrations():
 
     from agents.imitation import CloningTerm, Demonstrations
 
-    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "prefetch": False}
-    hp["pretrain"] = {"steps": 1, "epochs": 1, "bc_minibatches": 200, "bc_learning_rate": 1e-3}
+    hp = replace(
+        load_hyperparams("nonstationary"),
+        n_envs=2,
+        prefetch=False,
+        pretrain=Pretrain(steps=1, epochs=1, bc_minibatches=200, bc_learning_rate=1e-3),
+    )
     venv = make_training_env("nonstationary", hp, seed=0)
     model = make_ppo(venv, hp, seed=0)
     rng = np.random.default_rng(0)
@@ -354,7 +360,7 @@ def test_the_cloning_term_keeps_only_the_scenarios_named():
     are PPO's alone); naming only scenarios never flown is a one-line error."""
     from agents.imitation import CloningTerm, Demonstrations
 
-    hp = {**load_hyperparams("nonstationary"), "n_envs": 2, "prefetch": False}
+    hp = load_hyperparams("nonstationary").with_values(n_envs=2, prefetch=False)
     venv = make_training_env("nonstationary", hp, seed=0)
     model = make_ppo(venv, hp, seed=0)
     n_obs, n_act = venv.observation_space.shape[0], venv.action_space.shape[0]
@@ -364,16 +370,12 @@ def test_the_cloning_term_keeps_only_the_scenarios_named():
         np.zeros((4, n_act), np.float32),
         flown,
     )
-    hp["pretrain"] = {
-        "steps": 1,
-        "epochs": 1,
-        "bc_minibatches": 1,
-        "bc_scenarios": ["manoeuvre_heavy", "paper"],
-    }
+    spec = Pretrain(steps=1, epochs=1, bc_minibatches=1, bc_scenarios=("manoeuvre_heavy", "paper"))
+    hp = replace(hp, pretrain=spec)
     kept = CloningTerm(model, venv, hp, demos, seed=0).demos
     np.testing.assert_array_equal(kept.obs, demos.obs[[0, 2, 3]])
     assert list(kept.scenarios) == ["manoeuvre_heavy", "paper", "manoeuvre_heavy"]
-    hp["pretrain"]["bc_scenarios"] = ["degradation"]
+    hp = hp.with_values(pretrain={"bc_scenarios": ["degradation"]})
     with pytest.raises(AeromagError, match=r"bc_scenarios \['degradation'\]: no demonstration"):
         CloningTerm(model, venv, hp, demos, seed=0)
     venv.close()
@@ -405,3 +407,21 @@ def test_the_teacher_holds_a_step_for_the_same_time_at_any_decision_window(windo
         done = term or trunc or k > step + 100
     held = raised[-1] + window - step  # samples after the step with T_p's Q at the top
     assert TEACHER_AFTER_SAMPLES <= held < TEACHER_AFTER_SAMPLES + window, held
+
+
+def test_quick_is_one_preset_applied_after_every_default():
+    """``--quick`` replaces the sizes of the hyperparameter file, whatever it says, and the
+    commands' default sizes; a size the caller gives is kept."""
+    from agents.ppo import TIMESTEPS
+    from agents.quick import QUICK, quick_hyperparams, sized
+
+    for scenario in ("nonstationary", "suite"):
+        big = load_hyperparams(scenario).with_values(n_envs=64, n_steps=4096, eval_episodes=500)
+        quick = quick_hyperparams(big)
+        assert {k: getattr(quick, k) for k in QUICK.ppo} == dict(QUICK.ppo)
+        assert quick.pretrain is not None
+        assert {k: getattr(quick.pretrain, k) for k in QUICK.pretrain} == dict(QUICK.pretrain)
+        assert quick.env_kwargs == big.env_kwargs and quick.gamma == big.gamma
+    assert sized(None, TIMESTEPS, True, QUICK.train_timesteps) == QUICK.train_timesteps
+    assert sized(None, TIMESTEPS, False, QUICK.train_timesteps) == TIMESTEPS
+    assert sized(64, TIMESTEPS, True, QUICK.train_timesteps) == 64

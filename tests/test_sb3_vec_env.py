@@ -1,3 +1,5 @@
+from dataclasses import replace
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -12,8 +14,8 @@ ENV_KWARGS = {"extras": True, "action_mode": "absolute", "duration_s": 25.0}  # 
 
 
 def _hp(kind, **kw):
-    base = {**load_hyperparams("nonstationary"), "n_envs": 3, "env_kwargs": ENV_KWARGS}
-    return {**base, "vec_env": kind, **kw}
+    base = load_hyperparams("nonstationary").with_values(n_envs=3, env_kwargs=ENV_KWARGS)
+    return replace(base, vec_env=kind, **kw)
 
 
 def test_training_env_rollouts_equal_dummy_vec_env():
@@ -75,5 +77,5 @@ def test_seed_then_reset_seeds_each_environment_like_a_single_env():
 
 
 def test_unknown_vectorisation_is_a_one_line_error():
-    with pytest.raises(AeromagError, match="vec_env must be one of batched, dummy"):
+    with pytest.raises(AeromagError, match="vec_env: must be batched or dummy"):
         make_training_env("nonstationary", _hp("subproc"), seed=0)

@@ -16,6 +16,7 @@ from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.evaluate import TEST_SEED_START, VALIDATION_SEEDS
 from agents.hyperparams_file import read_hyperparams
 from agents.ppo import HYPERPARAMS, load_hyperparams
+from agents.ppo_hyperparams import PPOHyperparams
 from agents.tune import OUTPUTS, ray_session
 from agents.tune_space import SPACE, read_space
 from agents.validation import validation_seeds
@@ -166,4 +167,5 @@ def test_quick_search_writes_the_best_trial_as_a_hyperparameter_file(
     read_hyperparams(out / "ppo.json")
     tuned = load_hyperparams("nonstationary", out / "ppo.json")  # what aeromag train reads
     base = read_hyperparams(HYPERPARAMS)["scenarios"]["nonstationary"]
-    assert {k: v for k, v in tuned.items() if k != "version"} == {**base, **best["config"]}
+    want = PPOHyperparams.from_entry({**base, **best["config"]}, tuned.version)
+    assert tuned == want and tuned.to_entry()["gamma"] == best["config"]["gamma"]

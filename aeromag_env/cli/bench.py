@@ -58,11 +58,12 @@ def _median_seconds(fn: Callable[[], object], repeats: int) -> float:
     return statistics.median(times)
 
 
-def hour_flight() -> Flight:
-    """The benchmarks' data: a 1-hour 10 Hz ``nominal`` calibration+survey flight, seed 0."""
+def hour_flight(hours: float = 1.0) -> Flight:
+    """The benchmarks' data: a 1-hour (or ``hours``) 10 Hz ``nominal`` calibration+survey
+    flight, seed 0."""
     from aeromag_env.simulation.simulate import simulate_flight
 
-    return simulate_flight(_hour_config(), 0)
+    return simulate_flight(_hour_config(hours), 0)
 
 
 def _hour_config(hours: float = 1.0) -> Any:
@@ -72,13 +73,14 @@ def _hour_config(hours: float = 1.0) -> Any:
     )
 
 
-def bench_simulate(repeats: int) -> dict[str, float]:
-    """Seconds per simulated flight-hour: coarse-grid IGRF vs IGRF at every sample, both cold
-    (the pattern and its IGRF not remembered from an earlier run); and warm: the same pattern
-    again with another seed, as every episode of a training run flies it."""
+def bench_simulate(repeats: int, hours: float = 1.0) -> dict[str, float]:
+    """Seconds per simulated flight-hour (of a ``hours``-long flight): coarse-grid IGRF vs
+    IGRF at every sample, both cold (the pattern and its IGRF not remembered from an earlier
+    run); and warm: the same pattern again with another seed, as every episode of a training
+    run flies it."""
     from aeromag_env.simulation.simulate import clear_caches, simulate_flight
 
-    cfg = _hour_config()
+    cfg = _hour_config(hours)
     every_sample = with_overrides(cfg, {"earth.igrf_grid_spacing_s": 0.1})
     simulate_flight(cfg, 0)  # warm the rest (ppigrf coefficient file, imports)
 
@@ -94,9 +96,9 @@ def bench_simulate(repeats: int) -> dict[str, float]:
     simulate_flight(cfg, 0)
     warm = _median_seconds(lambda: simulate_flight(cfg, 1), repeats)
     return {
-        "simulate_s_per_flight_hour": grid,
-        "simulate_direct_igrf_s_per_flight_hour": ref,
-        "simulate_warm_s_per_flight_hour": warm,
+        "simulate_s_per_flight_hour": grid / hours,
+        "simulate_direct_igrf_s_per_flight_hour": ref / hours,
+        "simulate_warm_s_per_flight_hour": warm / hours,
     }
 
 
@@ -170,28 +172,43 @@ def run_benchmarks(
 ) -> dict[str, Any]:
     """Run every benchmark, print a table with ratios, write ``out/bench.json``. ``ray`` is
     ``--ray`` (None: the Ray figures are not measured and Ray is not imported); ``only``
-    ``"ray"`` or ``"discover"`` measures those figures alone."""
+    ``"ray"`` or ``"discover"`` measures those figures alone. ``quick``: the sizes of
+    :data:`agents.quick.QUICK` (about a minute; the figures are then only indicative)."""
     check_output_set(out, ("bench.json",))  # before minutes of work
     from aeromag_env.cli.bench_envs import bench_env, bench_ppo
+    from agents.quick import QUICK
 
-    repeats = 3 if quick else 7
+    q = QUICK
+    repeats = q.bench_repeats if quick else 7
+    hours = q.bench_flight_hours if quick else 1.0
     load_before = _load()
     figures: dict[str, Any] = {} if ray is None else bench_ray(ray, quick)
     if only == "ray":
         return _report(out, figures, ray_rows(figures), quick, repeats, load_before)
     if only == "discover":
-        figures |= bench_discover(hour_flight(), 1 if quick else 3)
+        figures |= bench_discover(hour_flight(hours), 1 if quick else 3)
         return _report(out, figures, [_discover_row(figures)], quick, repeats, load_before)
-    figures |= bench_simulate(repeats)
-    hour = hour_flight()
-    figures |= bench_filter_figures(hour, 1000 if quick else FILTER_SAMPLES, repeats)
-    figures |= bench_env(repeats)
-    figures |= bench_ppo(16384 if quick else 49152, 1 if quick else PPO_REPEATS)
-    figures |= bench_ppo(
-        32768 if quick else 163840, 1 if quick else PPO64_REPEATS, n_envs=64, prefix="ppo64"
+    figures |= bench_simulate(repeats, hours)
+    hour = hour_flight(hours)
+    figures |= bench_filter_figures(
+        hour, q.bench_filter_samples if quick else FILTER_SAMPLES, repeats
     )
+    figures |= bench_env(repeats)
+    sizes = {k: q.ppo[k] for k in ("n_steps", "batch_size")} if quick else {}
+    figures |= bench_ppo(
+        q.bench_ppo_timesteps if quick else 49152, 1 if quick else PPO_REPEATS, **sizes
+    )
+    if not quick or q.bench_ppo64:
+        figures |= bench_ppo(
+            4096 if quick else 163840,
+            1 if quick else PPO64_REPEATS,
+            n_envs=64,
+            prefix="ppo64",
+            **sizes,
+        )
     figures |= bench_discover(hour, 1 if quick else 3)
-    figures |= bench_memory()
+    if not quick or q.bench_memory:
+        figures |= bench_memory()
     return _report(out, figures, _rows(figures) + ray_rows(figures), quick, repeats, load_before)
 
 
@@ -204,6 +221,8 @@ def _report(
     load_before: float | None,
 ) -> dict[str, Any]:
     """Print the table, write ``bench.json``; return its content."""
+    from agents.quick import QUICK
+
     _print_table(rows)
     result = {
         "figures": figures,
@@ -213,7 +232,7 @@ def _report(
         ],
         "repeats": repeats,
         "ppo_repeats": 1 if quick else PPO_REPEATS,
-        "ppo64_repeats": 1 if quick else PPO64_REPEATS,
+        "ppo64_repeats": (1 if QUICK.bench_ppo64 else 0) if quick else PPO64_REPEATS,
         "statistic": "median",
         "quick": quick,
         "machine": _machine(),
@@ -234,7 +253,7 @@ def _rows(f: dict[str, Any]) -> list[Row]:
     batched, numpy_ref = f["filter_batched_samples_per_s"], f["filter_numpy_samples_per_s"]
     warm = f.get("simulate_warm_s_per_flight_hour")  # not in bench.json before 2026-11
     env1, envn = f["env_single_steps_per_s"], f["env_batched_steps_per_s"]
-    peak, base = f["compensate_10h_peak_mb"], f["compensate_baseline_mb"]
+    peak, base = f.get("compensate_10h_peak_mb"), f.get("compensate_baseline_mb")
     return [
         (
             "simulate 1 flight-hour (grid IGRF)",
@@ -299,10 +318,12 @@ def _rows(f: dict[str, Any]) -> list[Row]:
         _discover_row(f),
         (
             "compensate 10-hour flight, peak RSS",
-            f"{peak:.0f} MB",
-            f"{peak / base:.1f}× the process after imports ({base:.0f} MB)",
+            _num(peak, "MB"),
+            "n/a (not measured: --quick)"
+            if peak is None or base is None
+            else f"{peak / base:.1f}× the process after imports ({base:.0f} MB)",
             "< 1024 MB",
-            peak < 1024,
+            None if peak is None else peak < 1024,
         ),
     ]
 
@@ -323,7 +344,10 @@ def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
     """Batched + prefetch (with the 1.5× target and the range of its ratio over the repeats),
     batched alone, DummyVecEnv, and the zero-cost environment (PPO alone: the ceiling) when
     measured (from 2026-11-23 on); then the environment's share of the time (with its target
-    at 8 environments) when measured."""
+    at 8 environments) when measured; none when the figures were not measured (``--quick``
+    skips the 64 environments)."""
+    if f"{prefix}_n_envs" not in f:
+        return []
     n, dummy = f[f"{prefix}_n_envs"], f[f"{prefix}_dummyvec_steps_per_s"]
     rows: list[Row] = []
     for variant, label in (

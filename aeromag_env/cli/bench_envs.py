@@ -128,10 +128,15 @@ PPO_VARIANTS: dict[str, dict[str, Any] | None] = {
 
 
 def bench_ppo(
-    timesteps: int, repeats: int, n_envs: int | None = None, prefix: str = "ppo"
+    timesteps: int,
+    repeats: int,
+    n_envs: int | None = None,
+    prefix: str = "ppo",
+    **sizes: int,
 ) -> dict[str, Any]:
     """PPO ``learn(timesteps)`` steps per second for each of :data:`PPO_VARIANTS`, with
-    ``ppo.json``'s hyperparameters (``n_envs`` overridden if given), interleaved one rollout at
+    ``ppo.json``'s hyperparameters (``n_envs`` and the ``sizes`` — ``n_steps``, ``batch_size``
+    — overridden if given), interleaved one rollout at
     a time (:func:`_interleaved`); the share of each run's time spent inside the environments'
     ``step_wait`` (stepping, and the resets done there); each variant's microseconds per
     environment step in each of :data:`PARTS` and in the rest; the range over the repeats of
@@ -141,8 +146,8 @@ def bench_ppo(
     from agents import ppo
 
     hp = ppo.load_hyperparams("nonstationary")
-    hp = {**hp, "n_envs": n_envs or int(hp["n_envs"])}
-    free = _free_env_like(ppo.make_training_env("nonstationary", {**hp, "prefetch": False}, seed=0))
+    hp = hp.with_values(n_envs=n_envs or hp.n_envs, **sizes)
+    free = _free_env_like(ppo.make_training_env("nonstationary", hp.with_values(prefetch=False), 0))
     with ppo.training_torch():
         models: dict[str, Any] = {}
         running = {name: {part: [0.0] for part in PARTS} for name in PPO_VARIANTS}
@@ -150,14 +155,14 @@ def bench_ppo(
             if overrides is None:
                 venv = ppo.normalized(free(), hp)
             else:
-                venv = ppo.make_training_env("nonstationary", {**hp, **overrides}, seed=0)
+                venv = ppo.make_training_env("nonstationary", hp.with_values(**overrides), seed=0)
             model = models[name] = ppo.make_ppo(venv, hp, seed=0)
             inner, totals = venv.venv, running[name]
             inner.step_wait = _timed(inner.step_wait, totals["env"])
             model.policy.forward = _timed(model.policy.forward, totals["forward"])
             model.train = _timed(model.train, totals["update"])
         time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
-        rollout = int(hp["n_steps"]) * int(hp["n_envs"])
+        rollout = hp.n_steps * hp.n_envs
         for model in models.values():
             model.learn(rollout)  # the first reset, torch warmed up
         try:
@@ -166,7 +171,7 @@ def bench_ppo(
             for model in models.values():
                 model.get_env().close()
     rates = {name: [timesteps / s for s in seconds[name]] for name in PPO_VARIANTS}
-    figures: dict[str, Any] = {f"{prefix}_n_envs": hp["n_envs"], f"{prefix}_timesteps": timesteps}
+    figures: dict[str, Any] = {f"{prefix}_n_envs": hp.n_envs, f"{prefix}_timesteps": timesteps}
     for name in PPO_VARIANTS:
         total, part = seconds[name], parts[name]
         shares = [e / s for e, s in zip(part["env"], total, strict=True)]

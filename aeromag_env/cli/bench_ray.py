@@ -40,8 +40,9 @@ def bench_ray(address: str, quick: bool = False) -> dict[str, Any]:
     """The figures above; ``address`` as ``--ray`` (``local``: a Ray started here with this
     machine's cores)."""
     from agents.evaluate import TEST_SEED_START, evaluate_scenarios
+    from agents.quick import QUICK
 
-    flights, repeats = (16, 1) if quick else (FLIGHTS, 3)
+    flights, repeats = (QUICK.bench_ray_flights, 1) if quick else (FLIGHTS, 3)
     seeds = list(range(TEST_SEED_START, TEST_SEED_START + flights))
 
     def timed(runner: Any) -> tuple[float, str]:

@@ -78,7 +78,7 @@ def check_compensate(args: argparse.Namespace) -> None:
 def check_train(args: argparse.Namespace) -> None:
     """``train``'s seed and timesteps."""
     check_seed("--seed", args.seed)
-    if not 1 <= args.timesteps <= MAX_TIMESTEPS:
+    if args.timesteps is not None and not 1 <= args.timesteps <= MAX_TIMESTEPS:
         raise AeromagError(
             f"--timesteps must be in [1, {MAX_TIMESTEPS:.0e}] environment steps (10⁹ is 333× "
             f"the shipped policies' 3e6 and days of CPU time), got {args.timesteps}"
@@ -88,7 +88,7 @@ def check_train(args: argparse.Namespace) -> None:
 def check_tune(args: argparse.Namespace) -> None:
     """``tune``'s seed, timesteps per trial and samples."""
     check_train(args)
-    if not 1 <= args.samples <= MAX_SAMPLES:
+    if args.samples is not None and not 1 <= args.samples <= MAX_SAMPLES:
         raise AeromagError(
             f"--samples must be in [1, {MAX_SAMPLES}] trials (the best of 1000 random samples "
             f"is in the best 0.3 % of the space with 95 % probability), got {args.samples}"

@@ -299,7 +299,7 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "best validated policy as --out/policy.npz.",
     )
     p.add_argument("--scenario", default="nonstationary", help="scenario (default nonstationary)")
-    p.add_argument("--timesteps", type=int, default=3_000_000, help="environment steps (3e6)")
+    p.add_argument("--timesteps", type=int, help="environment steps (3e6; --quick: 2048)")
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     seeds.add_argument(
@@ -310,7 +310,7 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "--out/seeds.json",
     )
     p.add_argument("--out", default="results/ppo", help="output folder (default results/ppo)")
-    p.add_argument("--quick", action="store_true", help="tiny settings (tests)")
+    p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument(
         "--hyperparams", help="hyperparameter file (default agents/hyperparams/ppo.json)"
@@ -332,13 +332,11 @@ def _add_tune(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--scenario", default="nonstationary", help="scenario (default nonstationary)")
     p.add_argument("--space", help="search space file (default agents/hyperparams/tune_space.json)")
-    p.add_argument("--samples", type=int, default=16, help="trials (configurations, default 16)")
-    p.add_argument(
-        "--timesteps", type=int, default=500_000, help="environment steps per trial (5e5)"
-    )
+    p.add_argument("--samples", type=int, help="trials (configurations; 16, --quick: 2)")
+    p.add_argument("--timesteps", type=int, help="environment steps per trial (5e5; --quick: 1024)")
     p.add_argument("--seed", type=int, default=0, help="sampling and training seed (default 0)")
     p.add_argument("--out", default="results/tune", help="output folder (default results/tune)")
-    p.add_argument("--quick", action="store_true", help="tiny settings (tests)")
+    p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
     p.add_argument(
         "--hyperparams", help="base hyperparameter file (default agents/hyperparams/ppo.json)"
     )
@@ -356,7 +354,7 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
         "a few minutes.",
     )
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
-    p.add_argument("--quick", action="store_true", help="fewer repeats and shorter runs")
+    p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
     p.add_argument(
         "--only",
         choices=("ray", "discover"),

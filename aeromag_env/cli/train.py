@@ -49,7 +49,7 @@ def parse_seeds(text: str) -> list[int]:
 
 def train_seeds(
     scenario: str,
-    timesteps: int,
+    timesteps: int | None,
     seeds: list[int],
     out: Path,
     quick: bool,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import gymnasium as gym
@@ -239,8 +239,11 @@ class AeroMagCompensationEnv(gym.Env):
     ## Starting State
 
     A new flight of the scenario, drawn from ``reset``'s seed (``options={"scenario": name}``
-    switches scenario; other option keys, or options that are not a dict, are refused), with
-    the scenario's initial Q, R, P and x; the first observation is zeros.
+    switches scenario; ``options={"filter_method": m}`` runs the filter with the built-in
+    adaptation of the :class:`~aeromag_env.compensation.model.FilterConfig` method ``m``, e.g.
+    ``sage-husa`` or ``ding`` for the classical baselines, for that episode; other option keys,
+    or options that are not a dict, are refused), with the scenario's initial Q, R, P and x;
+    the first observation is zeros.
 
     ## Episode End
 
@@ -300,7 +303,7 @@ class AeroMagCompensationEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict | None = None
     ) -> tuple[np.ndarray, dict]:
-        options = reset_options(options, RESET_OPTIONS)
+        options = reset_options(options, (*RESET_OPTIONS, "filter_method"))
         super().reset(seed=seed)
         if "scenario" in options:
             self._scenario = options["scenario"]
@@ -309,7 +312,10 @@ class AeroMagCompensationEnv(gym.Env):
             self._scenario, self._flight_seed, self.config.duration_s
         )
         ep = self.episode
-        self.filter = FilterState(ep.filter_cfg, ep.y, ep.t_b, ep.tdot_b, store_states=False)
+        cfg = ep.filter_cfg
+        if "filter_method" in options:  # FilterConfig refuses an unknown method in one line
+            cfg = replace(cfg, method=options["filter_method"])
+        self.filter = FilterState(cfg, ep.y, ep.t_b, ep.tdot_b, store_states=False)
         self._truth = np.ascontiguousarray(ep.truth_interf)
         self._run = np.zeros(kernels.N_RUN)
         self._score_start = int(self.config.score_from * ep.n)

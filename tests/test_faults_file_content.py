@@ -20,7 +20,7 @@ import pytest
 import scipy.io
 
 from aeromag_env.cli.main import main
-from aeromag_env.cli.provenance import choose_inputs
+from aeromag_env.jobs.provenance import choose_inputs
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.earth_model import MODEL_MISMATCH_FRACTION, model_mismatch
 from aeromag_env.flight.files import load_flight, write_flight

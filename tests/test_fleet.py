@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from aeromag_env.cli.fleet import output_names
+from aeromag_env.jobs.fleet import output_names
 from aeromag_env.cli.main import main
 from aeromag_env.discovery.suite import base_config
 from aeromag_env.flight.files import write_flight

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.signal import butter, sosfiltfilt
 
-from aeromag_env.cli.compensate import REPORT_VERSION
+from aeromag_env.jobs.compensate import REPORT_VERSION
 from aeromag_env.cli.main import main
 from aeromag_env.compensation.real_metrics import bandpassed, spreads, vendor_comparison
 from aeromag_env.flight.data import Flight

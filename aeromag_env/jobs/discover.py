@@ -127,6 +127,16 @@ class DiscoverResult:
         """The augmented model as a :class:`~aeromag_env.simulation.config.SimulationConfig`."""
         return self.discovery.model
 
+    @property
+    def series(self) -> dict[str, np.ndarray]:
+        """``tt``, ``residual_before``, ``residual_after`` (n, 3) [nT] and ``held_out``."""
+        return self.discovery.series
+
+    @property
+    def drivers(self) -> list[tuple[str, str, np.ndarray]]:
+        """Per named effect: its name, its driving channel's name and samples (n,)."""
+        return self.discovery.drivers
+
 
 def discover(
     source: PathLike | Flight,

@@ -5,13 +5,22 @@ light; see the README, "How the code is laid out")::
 
     import aeromag_env as am
 
+    result = am.compensate("flight.xyz", method="tl", out="out")    # = aeromag compensate
+    result.metrics, result.warnings, result.report                  # numbers, warnings, report
+    found = am.discover("flight.h5").report["missing_effects"]      # = aeromag discover
+    rows = am.fleet("flights/", "out", method="kf").rows            # = aeromag compensate DIR
     flight = am.read_flight("flight.h5", needs=("tt", "flux_a_x"))  # read a flight file
     am.write_flight(flight, "copy.h5")                              # write one (atomically)
     flight = am.simulate_flight(am.preset("nominal"), rng=7)        # simulate one
-    comp = am.compensate_vector(flight, "fakf")                     # the paper's filter
+    comp = am.compensate_vector(flight, "fakf")                     # the paper's filter alone
     metrics = am.score(flight, comp)                                # RMSE, IR, FOM…
-    found = am.discover(flight).report["missing_effects"]           # what the model misses
     env = gymnasium.make(am.ENV_ID, scenario="nonstationary")       # the tuning environment
+
+The jobs (``compensate``, ``discover``, ``fleet``: :mod:`aeromag_env.jobs`) do everything the
+command line does (channels, fluxgate mount, gaps and spikes, provenance, the output set) and
+return typed results; their warnings are :class:`~aeromag_env.errors.AeromagWarning`, also
+listed in the result. ``compensate_vector`` takes the fluxgate's axes for body axes unless given
+a ``mount``, and warns when the data say otherwise.
 
 Importing the package registers the Gymnasium environment ``AeroMagCompensation-v0`` (the
 scenario a keyword) and one id per scenario (``AeroMag/Nonstationary-v0``…,
@@ -50,9 +59,15 @@ _PUBLIC = {
     "AeroMagCompensationEnv": "aeromag_env.environment.env",
     "AeroMagCompensationVecEnv": "aeromag_env.environment.vec_env",
     "SCENARIOS": "aeromag_env.environment.ids",
-    "discover": "aeromag_env.discovery.workflow",
     "Discovery": "aeromag_env.discovery.workflow",
+    "compensate": "aeromag_env.jobs.compensate",
+    "CompensationResult": "aeromag_env.jobs.compensate",
+    "discover": "aeromag_env.jobs.discover",
+    "DiscoverResult": "aeromag_env.jobs.discover",
+    "fleet": "aeromag_env.jobs.fleet",
+    "FleetResult": "aeromag_env.jobs.fleet",
     "AeromagError": "aeromag_env.errors",
+    "AeromagWarning": "aeromag_env.errors",
 }
 
 __all__ = [
@@ -61,17 +76,23 @@ __all__ = [
     "AeroMagCompensationEnv",
     "AeroMagCompensationVecEnv",
     "AeromagError",
+    "AeromagWarning",
     "Compensation",
+    "CompensationResult",
+    "DiscoverResult",
     "Discovery",
     "EnvConfig",
     "FilterConfig",
+    "FleetResult",
     "Flight",
     "SimulationConfig",
     "TollesLawson",
     "__version__",
+    "compensate",
     "compensate_scalar",
     "compensate_vector",
     "discover",
+    "fleet",
     "preset",
     "read_flight",
     "score",
@@ -88,13 +109,16 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers and IDEs
     )
     from aeromag_env.compensation.model import FilterConfig
     from aeromag_env.compensation.tolles_lawson import TollesLawson
-    from aeromag_env.discovery.workflow import Discovery, discover
+    from aeromag_env.discovery.workflow import Discovery
     from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig
     from aeromag_env.environment.ids import SCENARIOS
     from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
-    from aeromag_env.errors import AeromagError
+    from aeromag_env.errors import AeromagError, AeromagWarning
     from aeromag_env.flight.data import Flight
     from aeromag_env.flight.files import read_flight, write_flight
+    from aeromag_env.jobs.compensate import CompensationResult, compensate
+    from aeromag_env.jobs.discover import DiscoverResult, discover
+    from aeromag_env.jobs.fleet import FleetResult, fleet
     from aeromag_env.simulation.config import SimulationConfig, preset
     from aeromag_env.simulation.simulate import simulate_flight
 

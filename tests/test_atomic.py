@@ -23,10 +23,10 @@ from aeromag_env.atomic import (
     output_set,
     recover,
 )
-from aeromag_env.cli.compensate import OUTPUTS as COMPENSATE_OUTPUTS
 from aeromag_env.cli.main import main
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.files import write_flight
+from aeromag_env.jobs.compensate import OUTPUTS as COMPENSATE_OUTPUTS
 from tests._flights import simulated
 
 NAMES = ("a.h5", "b.json", "c.png")

@@ -20,13 +20,13 @@ import pytest
 import scipy.io
 
 from aeromag_env.cli.main import main
-from aeromag_env.cli.provenance import choose_inputs
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.earth_model import MODEL_MISMATCH_FRACTION, model_mismatch
 from aeromag_env.flight.files import load_flight, write_flight
 from aeromag_env.flight.info import describe
 from aeromag_env.geo.earth import IGRF_FIRST_DATE, IGRF_LAST_DATE, ModelDateError
 from aeromag_env.geo.frames import dcm_from_euler
+from aeromag_env.jobs.provenance import choose_inputs
 from tests._flights import simulated
 
 #: What every message about IGRF-14's range names.

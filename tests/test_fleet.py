@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from aeromag_env.cli.fleet import output_names
 from aeromag_env.cli.main import main
 from aeromag_env.discovery.suite import base_config
 from aeromag_env.flight.files import write_flight
+from aeromag_env.jobs.fleet import output_names
 from aeromag_env.simulation.simulate import simulate_flight
 
 #: 600 s flights: the shortest discover accepts with its default held-out scheme (300 s of

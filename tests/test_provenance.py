@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from scipy.signal import butter, sosfiltfilt
 
-from aeromag_env.cli.compensate import REPORT_VERSION
 from aeromag_env.cli.main import main
 from aeromag_env.compensation.real_metrics import bandpassed, spreads, vendor_comparison
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.files import read_flight, write_flight
+from aeromag_env.jobs.compensate import REPORT_VERSION
 from tests._flights import simulated
 
 FS_HZ = 10.0

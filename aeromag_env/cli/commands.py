@@ -39,7 +39,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_discover(args: argparse.Namespace) -> int:
     """``aeromag discover``: find what the model is missing in a flight file (or in each of a
-    folder or glob of them: :mod:`aeromag_env.cli.fleet`).
+    folder or glob of them: :mod:`aeromag_env.jobs.fleet`).
 
     Parameters
     ----------
@@ -53,49 +53,31 @@ def cmd_discover(args: argparse.Namespace) -> int:
         :class:`~aeromag_env.errors.AeromagError`.
     """
     limits.check_window("--calibration-window", args.calibration_window)
-    from aeromag_env.cli import fleet
-    from aeromag_env.cli.discover import run_discover, shrink_text
+    from aeromag_env.cli.discover import summary_line
+    from aeromag_env.cli.fleet import note_single_file, run_fleet
+    from aeromag_env.cli.stderr import warnings_on_stderr
+    from aeromag_env.jobs.discover import discover
+    from aeromag_env.jobs.fleet import is_fleet
 
     out = Path(args.out)
-    window = tuple(args.calibration_window) if args.calibration_window else None
+    options = {
+        "flux": args.flux,
+        "calibration_window": tuple(args.calibration_window) if args.calibration_window else None,
+        "mount": args.mount,
+        "ground": args.ground,
+        **selection_options(args),
+    }
 
     def say(msg: str) -> None:
         if not args.quiet:
             print(f"discover: {msg}", file=sys.stderr, flush=True)
 
-    if fleet.is_fleet(args.file):
-        job = fleet.DiscoverJob(
-            path=Path(args.file),
-            out=out,
-            flux=args.flux,
-            calibration_window=window,
-            mount=args.mount,
-            selection=selection_options(args),
-            ground=args.ground,
-        )
-        return fleet.discover_fleet(job, args.file, args.ray, args.quiet)
-    fleet.note_single_file("discover", args.ray)
-    report = run_discover(
-        Path(args.file),
-        out,
-        args.flux,
-        window,
-        say,
-        mount=args.mount,
-        selection=selection_options(args),
-        ground=args.ground,
-    )
-    gap, problems = report["gap"], report["input_problems"]
-    warned = (
-        (f"; {len(problems)} input warning(s), listed in report.json (aeromag info explains them)")
-        if problems
-        else ""
-    )
-    print(
-        f"{report['verdict']}; held-out gap {gap['rms_before_nt']:.3g} → "
-        f"{gap['rms_after_nt']:.3g} nT ({shrink_text(gap)}); wrote {out}/report.json, "
-        f"report.md, model_config.json, residual.png, diagnostics.png{warned}"
-    )
+    if is_fleet(args.file):
+        return run_fleet("discover", args.file, out, args.ray, args.quiet, options)
+    note_single_file("discover", args.ray)
+    with warnings_on_stderr():
+        result = discover(args.file, out, say, **options)
+    print(summary_line(result.report, out))
     return 0
 
 
@@ -214,7 +196,7 @@ def tl_bandpass(values: list[str]) -> tuple[float, float] | None:
 
 def cmd_compensate(args: argparse.Namespace) -> int:
     """``aeromag compensate``: compensate a flight file with one method (or each of a folder or
-    glob of them: :mod:`aeromag_env.cli.fleet`).
+    glob of them: :mod:`aeromag_env.jobs.fleet`).
 
     Parameters
     ----------
@@ -228,29 +210,34 @@ def cmd_compensate(args: argparse.Namespace) -> int:
         :class:`~aeromag_env.errors.AeromagError`.
     """
     limits.check_compensate(args)
-    from aeromag_env.cli import fleet
-    from aeromag_env.cli.compensate import CompensateRequest, run_compensate, summary_line
+    from aeromag_env.cli.compensate import summary_line
+    from aeromag_env.cli.fleet import note_single_file, run_fleet
+    from aeromag_env.cli.stderr import warnings_on_stderr
+    from aeromag_env.jobs.compensate import compensate
+    from aeromag_env.jobs.fleet import is_fleet
 
-    req = CompensateRequest(
-        path=Path(args.file),
-        out=Path(args.out),
-        method=args.method,
-        flux=args.flux,
-        scalar=args.scalar,
-        tl_bandpass_hz=tl_bandpass(args.tl_bandpass),
-        tl_trim=args.tl_trim,
-        tl_ridge=args.tl_ridge,
-        calibration_window_s=tuple(args.calibration_window) if args.calibration_window else None,
-        filter_preset=args.filter_preset,
-        r_std_nt=args.r_std_nt,
-        mount=args.mount,
+    out = Path(args.out)
+    options = {
+        "flux": args.flux,
+        "scalar": args.scalar,
+        "tl_bandpass_hz": tl_bandpass(args.tl_bandpass),
+        "tl_trim": args.tl_trim,
+        "tl_ridge": args.tl_ridge,
+        "calibration_window_s": (
+            tuple(args.calibration_window) if args.calibration_window else None
+        ),
+        "filter_preset": args.filter_preset,
+        "r_std_nt": args.r_std_nt,
+        "mount": args.mount,
         **selection_options(args),
-    )
-    if fleet.is_fleet(args.file):
-        return fleet.compensate_fleet(req, args.file, args.ray)
-    fleet.note_single_file("compensate", args.ray)
-    report = run_compensate(req)
-    print(summary_line(report, req.out))
+    }
+    if is_fleet(args.file):
+        options["method"] = args.method
+        return run_fleet("compensate", args.file, out, args.ray, False, options)
+    note_single_file("compensate", args.ray)
+    with warnings_on_stderr():
+        result = compensate(args.file, args.method, out, **options)
+    print(summary_line(result.report, out))
     return 0
 
 

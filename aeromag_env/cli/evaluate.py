@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any
 
 from aeromag_env.atomic import check_output_set, output_set, write_text
-from aeromag_env.cli.compensate import _jsonable
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError
+from aeromag_env.jobs.reports import jsonable
 from aeromag_env.parallel import retry_note, runner
 
 #: The output set of ``aeromag evaluate``, in the folder ``--out``.
@@ -77,7 +77,7 @@ def run_evaluate(
 
     for s, folder in outs.items():
         with output_set(folder, OUTPUTS, policy_files) as stage:
-            write_text(stage / "results.json", json.dumps(_jsonable(results[s]), indent=2))
+            write_text(stage / "results.json", json.dumps(jsonable(results[s]), indent=2))
             plot_evaluation(results[s], stage / "evaluation.png")
         print(evaluation_table(results[s]))
         print(f"wrote {folder}/results.json, evaluation.png")

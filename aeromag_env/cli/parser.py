@@ -29,7 +29,7 @@ EXIT_STATUS = (
     "error (a bug: one line on stderr, AEROMAG_DEBUG=1 shows the traceback); 130 interrupted"
 )
 
-#: ``file`` of compensate and discover: also a fleet (:mod:`aeromag_env.cli.fleet`).
+#: ``file`` of compensate and discover: also a fleet (:mod:`aeromag_env.jobs.fleet`).
 FLEET_HELP = (
     "or a folder or quoted glob of them (a fleet, e.g. 'flights/**/*.h5'): one output folder per "
     "flight, OUT/<file stem>/, and a summary OUT/fleet.csv and fleet.png; exit status 2 if a "

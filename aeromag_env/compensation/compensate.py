@@ -32,10 +32,10 @@ from aeromag_env.compensation.model import FilterConfig, interference_from_state
 from aeromag_env.compensation.samples import Samples, flight_samples, vector_inputs, within
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.configs import to_dict
-from aeromag_env.errors import AeromagError
+from aeromag_env.errors import AeromagError, warn
 from aeromag_env.flight.data import Flight, vector_names
 from aeromag_env.flight.earth_model import earth_model, earth_model_ned
-from aeromag_env.flight.mounting import Mount
+from aeromag_env.flight.mounting import Mount, mount_warning, solve_wahba
 from aeromag_env.simulation.interference import VectorCoefficients
 
 FILTER_METHODS = ("kf", "fakf", "rls", "sage-husa", "ding")
@@ -113,12 +113,21 @@ def compensate_vector(
     filter_cfg: FilterConfig | None = None,
     calibration: np.ndarray | None = None,
     mount: Mount | None = None,
+    *,
+    check_mount: bool = True,
 ) -> Compensation:
     """Run a vector method; with ``calibration`` (bool mask), fit there and apply everywhere.
 
     ``mount`` rotates the fluxgate from its own axes into the body frame first
     (:mod:`aeromag_env.flight.mounting`); None takes the sensor axes for body axes. A flight
     shorter than :data:`MIN_VECTOR_SAMPLES` is refused.
+
+    Without a mount (and with ``check_mount``), the mount is estimated from the data
+    (:func:`check_body_aligned`): a fluxgate more than
+    :data:`~aeromag_env.flight.mounting.WARN_ANGLE_DEG` from the body axes issues an
+    :class:`~aeromag_env.errors.AeromagWarning` naming the angle and the fix (the method would
+    fit the rotation as induced field: errors of thousands of nT). ``check_mount=False`` is for
+    callers that chose the mount themselves (:func:`aeromag_env.compensate` does).
     """
     check_long_enough(flight, method)
     cfg = replace(filter_cfg or FilterConfig(), method=method) if method != "lsq" else filter_cfg
@@ -126,6 +135,8 @@ def compensate_vector(
     samples = flight_samples(flight, vector_inputs(flight, flux), [flux])
     t_b, tdot_b = earth_model(flight, scheme, samples.segments)
     meas = flight.vector(flux) if mount is None else mount.to_body(flight.vector(flux))
+    if mount is None and check_mount:
+        check_body_aligned(meas[samples.valid], t_b[samples.valid], flux)
     y = np.where(samples.valid[:, None], meas - t_b, np.nan)  # flagged: predict only / no fit
     state, est, series, counts, settings = _estimate(method, cfg, y, t_b, tdot_b, calibration)
     known = np.all(np.isfinite(t_b) & np.isfinite(tdot_b), axis=1)  # the model field is known
@@ -151,6 +162,42 @@ def compensate_vector(
         nonfinite=samples.n_nonfinite,
         samples=samples,
     )
+
+
+def check_body_aligned(m_sensor: np.ndarray, t_body: np.ndarray, flux: str) -> float | None:
+    """Warn when a fluxgate's readings look rotated from the body axes.
+
+    Parameters
+    ----------
+    m_sensor : ndarray, shape (n, 3)
+        The fluxgate's readings, taken for body axes [nT].
+    t_body : ndarray, shape (n, 3)
+        The model Earth field in body axes at the same samples [nT].
+    flux : str
+        The fluxgate's id, for the message.
+
+    Returns
+    -------
+    float or None
+        The angle of the estimated mount from the body axes [deg]; None when the data cannot
+        tell (too few samples, too little attitude variation: no warning then).
+
+    Warns
+    -----
+    AeromagWarning
+        The angle is more than :data:`~aeromag_env.flight.mounting.WARN_ANGLE_DEG`.
+    """
+    try:
+        estimate = solve_wahba(m_sensor, t_body)
+    except AeromagError:
+        return None
+    message = mount_warning(Mount.identity(), estimate, flux)
+    if message:
+        warn(
+            f"{message}; pass mount=estimate_mount(flight, {flux!r}) (aeromag_env.flight."
+            "mounting) or use aeromag_env.compensate, which estimates and applies it"
+        )
+    return Mount.identity().angle_to_deg(estimate)
 
 
 def _estimate(

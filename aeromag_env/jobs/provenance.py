@@ -4,15 +4,14 @@ that came from, and the Earth-field model with its version.
 
 :func:`choose_inputs` is the one place ``compensate`` and ``discover`` pick their channels
 (:mod:`aeromag_env.flight.channels`) and fluxgate mount (:mod:`aeromag_env.flight.mount_choice`)
-and print the warnings of both, one line each, on stderr; :func:`provenance` turns the result
-into the report's blocks.
+and say the warnings of both, one line each; :func:`provenance` turns the result into the
+report's blocks.
 """
 
 from __future__ import annotations
 
 import hashlib
 import importlib.metadata
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,10 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env import errors
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.channels import KINDS, Channels, choose_channels, with_altitude
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.earth_model import model_mismatch
+from aeromag_env.flight.files import load_flight
 from aeromag_env.flight.formats.detect import detect_format
 from aeromag_env.flight.mount_choice import (
     MOUNT_MODES,
@@ -38,18 +39,51 @@ from aeromag_env.flight.validation import (
     file_error,
     needed_fields,
     plausibility_problems,
+    validate,
 )
 
 #: The Earth-field model of :mod:`aeromag_env.geo.earth`, and the package that evaluates it.
 EARTH_MODEL = "IGRF-14"
 EARTH_MODEL_PACKAGE = "ppigrf"
 
+#: How messages name a flight given in memory rather than as a file.
+IN_MEMORY = "flight"
+#: Where a job says a warning (one line): by default :func:`aeromag_env.errors.warn`.
 Warn = Callable[[str], None]
 
 
-def warn_stderr(message: str) -> None:
-    """Print one warning line on stderr."""
-    print(f"aeromag: warning: {message}", file=sys.stderr, flush=True)
+class JobWarnings:
+    """A job's warnings: each kept in :attr:`lines` (the result's ``warnings``) and, with
+    ``emit``, issued as an :class:`~aeromag_env.errors.AeromagWarning` as it is said.
+
+    Parameters
+    ----------
+    emit : bool
+        Issue each warning (a fleet's flights keep theirs for their row instead).
+    """
+
+    def __init__(self, emit: bool = True) -> None:
+        self.lines: list[str] = []
+        self.emit = emit
+
+    def __call__(self, message: str) -> None:
+        self.lines.append(message)
+        if self.emit:
+            errors.warn(message)
+
+
+def load_source(
+    source: PathLike | Flight, needs: tuple[str, ...]
+) -> tuple[Flight, list[str], Path | None]:
+    """A job's flight, its input problems (one line each) and its file (None for a flight given
+    in memory, which is checked as a file would be and named ``flight`` in messages).
+
+    ``needs`` as :func:`~aeromag_env.flight.validation.validate`'s.
+    """
+    if isinstance(source, Flight):
+        return source, validate(source, IN_MEMORY, needs), None
+    flight, problems = load_flight(source, needs=needs)
+    return flight, problems, Path(source)
 
 
 @dataclass(frozen=True)
@@ -91,10 +125,10 @@ def choose_inputs(
     mount: str = "auto",
     mask: np.ndarray | None = None,
     mount_matters: bool = True,
-    warn: Warn = warn_stderr,
+    warn: Warn = errors.warn,
     kinds: tuple[str, ...] = KINDS,
 ) -> Inputs:
-    """Choose the channels and the fluxgate mount of a run and print their warnings.
+    """Choose the channels and the fluxgate mount of a run and say their warnings to ``warn``.
 
     ``require`` names the channel kinds the method cannot do without (``fluxgate``, ``scalar``,
     ``altitude``), ``kinds`` those it reads at all; ``mask`` (n,) restricts the mount estimate
@@ -137,18 +171,19 @@ def check_units(flight: Flight, path: PathLike, names: list[str]) -> None:
 
 
 def provenance(
-    path: PathLike, flight: Flight, inputs: Inputs, earth_model_used: bool
+    path: PathLike | None, flight: Flight, inputs: Inputs, earth_model_used: bool
 ) -> dict[str, Any]:
     """The report's provenance blocks (see the module docstring).
 
+    ``path`` is the input file (None for a flight given in memory: no hash, no format);
     ``earth_model_used``: whether the run evaluated the Earth-field model (position and date).
     """
     faults = fault_report(flight)
     spikes = faults["spikes"]
     assert isinstance(spikes, dict)
     return {
-        "input_sha256": file_sha256(path),
-        "input_format": input_format(path),
+        "input_sha256": None if path is None else file_sha256(path),
+        "input_format": None if path is None else input_format(path),
         "channels": inputs.channels.to_dict(),
         "mount": inputs.mount.to_dict() if inputs.mount is not None else None,
         "segments": {k: faults[k] for k in ("segments", "gap_count", "gaps")},

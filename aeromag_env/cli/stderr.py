@@ -1,0 +1,43 @@
+"""How the command line shows the jobs' warnings: each :class:`~aeromag_env.errors.AeromagWarning`
+as one line ``aeromag: warning: …`` on stderr, as it is issued (other warnings as Python shows
+them)."""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import warnings
+from collections.abc import Iterator
+from typing import Any, TextIO
+
+from aeromag_env.errors import AeromagWarning
+
+
+def warn_stderr(message: str) -> None:
+    """Print one warning line on stderr."""
+    print(f"aeromag: warning: {message}", file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
+def warnings_on_stderr() -> Iterator[None]:
+    """Within the block, every :class:`AeromagWarning` is printed by :func:`warn_stderr`, each
+    time it is issued (not once per place, as Python's default filter would)."""
+    shown = warnings.showwarning
+
+    def show(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> Any:
+        if issubclass(category, AeromagWarning):
+            warn_stderr(str(message))
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", AeromagWarning)
+        warnings.showwarning = show
+        yield

@@ -1,0 +1,421 @@
+"""Compensate a flight file with one method: :func:`compensate`, the job of ``aeromag compensate``.
+
+Outputs in the folder ``out`` (when one is given): ``compensated.h5`` (the input's fields plus
+the compensated ones), ``report.json`` (``method``, ``settings``, ``coefficients``, ``metrics``,
+the provenance blocks of :func:`aeromag_env.jobs.provenance.provenance` — input hash and format,
+channels, mount, segments, flagged samples, flight date, Earth model — and the real-data accuracy
+blocks ``headline`` and, when the file has the vendor's compensated channel,
+``vendor_comparison``) and ``compensation.png`` (:data:`OUTPUTS`), written as a set
+(:func:`write_compensate_outputs`, :func:`aeromag_env.atomic.output_set`): refused before the
+work if a target is an input, and all replaced together at the end.
+
+The fluxgate, scalar and altitude channels are chosen by :mod:`aeromag_env.flight.channels`
+(``flux``/``scalar`` ``auto`` by default) and the fluxgate's mount by
+:mod:`aeromag_env.flight.mount_choice` (``mount="auto"`` by default).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aeromag_env.atomic import check_output_set, output_set, write_text
+from aeromag_env.compensation.compensate import (
+    FILTER_METHODS,
+    METHODS,
+    Compensation,
+    compensate_scalar,
+    compensate_vector,
+    held_out_rmse,
+    score,
+)
+from aeromag_env.compensation.model import FilterConfig, paper_filter_config
+from aeromag_env.compensation.real_metrics import headline, span_figures, vendor_comparison
+from aeromag_env.compensation.tolles_lawson import TollesLawson
+from aeromag_env.errors import AeromagError
+from aeromag_env.flight.data import Flight
+from aeromag_env.flight.files import write_flight
+from aeromag_env.flight.selection import select
+from aeromag_env.flight.validation import PathLike
+from aeromag_env.jobs.provenance import (
+    IN_MEMORY,
+    Inputs,
+    JobWarnings,
+    choose_inputs,
+    load_source,
+    provenance,
+)
+from aeromag_env.jobs.reports import report_json
+
+#: 2: provenance (input_sha256, input_format, channels, mount, segments, flagged_samples,
+#: flight_date, earth_model) and the headline / vendor_comparison blocks.
+REPORT_VERSION = 2
+#: The output set of a compensation, in the folder ``out``.
+OUTPUTS = ("compensated.h5", "report.json", "compensation.png")
+#: The filter settings ``filter_preset`` names: the package defaults or the paper's §4 setting.
+FILTER_PRESETS = ("default", "paper")
+
+
+@dataclass(frozen=True, kw_only=True)
+class CompensateRequest:
+    """Everything a compensation is asked for (validated by :meth:`check`).
+
+    Attributes
+    ----------
+    source : Path or Flight
+        The flight file, or a flight in memory.
+    out : Path or None
+        The folder of the output set (None: nothing written).
+    method : str
+        One of :data:`~aeromag_env.compensation.compensate.METHODS`.
+    flux, scalar : str
+        The fluxgate and scalar magnetometer ids, or ``auto`` (the first clean one).
+    mount : str
+        ``auto`` (estimate, apply beyond 1°), ``identity`` or a JSON mount file
+        (:mod:`aeromag_env.flight.mount_choice`).
+    tl_bandpass_hz : (float, float) or None
+        ``tl``'s band-pass LOW, HIGH [Hz]; None for none.
+    tl_trim : int
+        ``tl``: samples trimmed at each end of each run.
+    tl_ridge : float
+        ``tl``'s ridge parameter λ [-].
+    calibration_window_s : (float, float) or None
+        Fit on T0 ≤ tt ≤ T1 [s] only, apply everywhere.
+    calibration_line : str or None
+        Fit on this flight line (``auto``: the calibration box's), apply to the selection.
+    lines : tuple of float or None
+        The flight lines to compensate (with the calibration part).
+    segment_s : (float, float) or None
+        The time span T0, T1 [s] to compensate.
+    filter_preset : str
+        ``default`` or ``paper`` (the paper's §4 Q(0), R(0), x(0)).
+    r_std_nt : float or None
+        The filter's measurement-noise std [nT] (None: the preset's).
+    """
+
+    source: Path | Flight
+    out: Path | None
+    method: str
+    flux: str = "auto"
+    scalar: str = "auto"
+    mount: str = "auto"
+    tl_bandpass_hz: tuple[float, float] | None = (0.1, 0.9)
+    tl_trim: int = 20
+    tl_ridge: float = 0.0
+    calibration_window_s: tuple[float, float] | None = None
+    calibration_line: str | None = None  # "auto" or a line id
+    lines: tuple[float, ...] | None = None
+    segment_s: tuple[float, float] | None = None
+    filter_preset: str = "default"
+    r_std_nt: float | None = None
+
+    @property
+    def path(self) -> Path | None:
+        """The flight file (None for a flight given in memory)."""
+        return None if isinstance(self.source, Flight) else self.source
+
+    def check(self) -> None:
+        """One-line errors for unusable options (before any file is read)."""
+        if self.method not in METHODS:
+            raise AeromagError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if self.filter_preset not in FILTER_PRESETS:
+            raise AeromagError(
+                f"filter_preset must be default or paper, got {self.filter_preset!r}"
+            )
+        if self.tl_bandpass_hz is not None:
+            lo, hi = self.tl_bandpass_hz
+            if not (0 <= lo < hi):
+                raise AeromagError(f"--tl-bandpass needs 0 ≤ LOW < HIGH [Hz], got {lo} {hi}")
+        if self.tl_trim < 0:
+            raise AeromagError(f"--tl-trim must be ≥ 0, got {self.tl_trim}")
+        if self.tl_ridge < 0:
+            raise AeromagError(f"--tl-ridge must be ≥ 0, got {self.tl_ridge}")
+        if self.calibration_window_s is not None and not (
+            self.calibration_window_s[0] < self.calibration_window_s[1]
+        ):
+            raise AeromagError("--calibration-window needs T0 < T1 [s]")
+        if self.r_std_nt is not None and not self.r_std_nt > 0:
+            raise AeromagError(f"--r-std-nt must be > 0, got {self.r_std_nt}")
+
+    def needs(self) -> tuple[str, ...]:
+        """Fields the method reads besides its magnetometers (chosen after reading: ``tl``
+        needs only time, the fluxgate and the scalar)."""
+        if self.method == "tl":
+            return ("tt",)
+        return ("tt", "position", "attitude", "date")
+
+    def required_channels(self) -> tuple[str, ...]:
+        """Channel kinds (:data:`aeromag_env.flight.channels.KINDS`) the method needs."""
+        return ("fluxgate", "scalar") if self.method == "tl" else ("fluxgate", "altitude")
+
+    def input_files(self) -> list[Path]:
+        """The files the run reads: the flight and a mount file."""
+        mount = [] if self.mount in ("auto", "identity") else [Path(self.mount)]
+        return [*([] if self.path is None else [self.path]), *mount]
+
+    def filter_config(self) -> FilterConfig:
+        """The filter settings: the package defaults or the paper's §4 setting."""
+        cfg = paper_filter_config(self.method) if self.filter_preset == "paper" else FilterConfig()
+        if self.r_std_nt is not None:
+            cfg = replace(cfg, r_std_nt=self.r_std_nt)
+        return cfg
+
+
+#: The options :func:`compensate` takes by keyword (the fields of :class:`CompensateRequest`
+#: beyond the source, the method and the output folder).
+OPTIONS = tuple(f.name for f in dataclasses.fields(CompensateRequest))[3:]
+
+
+@dataclass(frozen=True)
+class CompensationResult:
+    """What :func:`compensate` produced.
+
+    Attributes
+    ----------
+    method : str
+    metrics : dict
+        The report's ``metrics`` block (:func:`~aeromag_env.compensation.compensate.score`).
+    coefficients : dict
+        The report's ``coefficients``: T_p, A, B (vector methods) or the 18 TL terms.
+    report : dict
+        Everything ``report.json`` holds (NaN and infinities as floats here, ``null`` in the
+        file: :func:`aeromag_env.jobs.reports.report_json` gives its text).
+    warnings : tuple of str
+        The warnings the run said, one line each, in order (the command line prints each on
+        stderr as ``aeromag: warning: …``). The input file's problems are in
+        :attr:`input_problems`, not here.
+    paths : tuple of Path
+        The files written (empty without ``out``).
+    compensation : Compensation
+        The method's series: compensated fields, totals before and after [nT], diagnostics.
+    flight : Flight
+        What ``compensated.h5`` holds: the selected samples of the input plus the compensated
+        channels.
+    """
+
+    method: str
+    metrics: dict[str, Any]
+    coefficients: dict[str, Any]
+    report: dict[str, Any]
+    warnings: tuple[str, ...]
+    paths: tuple[Path, ...]
+    compensation: Compensation
+    flight: Flight
+
+    @property
+    def input_problems(self) -> list[str]:
+        """What the reader found in the input (aliases, non-finite samples, gaps, spikes…)."""
+        return list(self.report["input_problems"])
+
+
+def compensate(
+    source: PathLike | Flight,
+    method: str = "tl",
+    out: PathLike | None = None,
+    **options: Any,
+) -> CompensationResult:
+    """Compensate a flight with one method, as ``aeromag compensate`` does, and score it.
+
+    Reads and checks the file, chooses the fluxgate, scalar and altitude channels, estimates the
+    fluxgate's mount (and applies it when it is more than 1° from the body axes), selects the
+    lines or segment, flags gaps and spikes, compensates, scores, and records the provenance;
+    with ``out``, writes the output set (module docstring) atomically.
+
+    Parameters
+    ----------
+    source : str, PathLike or Flight
+        A flight file (HDF5, CSV, Geosoft XYZ or MATLAB ``.mat``) or a flight in memory (then
+        the report has no input hash or format and its ``input`` is null).
+    method : str
+        One of :data:`~aeromag_env.compensation.compensate.METHODS` (default ``tl``).
+    out : str, PathLike or None
+        Folder for ``compensated.h5``, ``report.json`` and ``compensation.png`` (None: nothing
+        is written, the plot is not drawn).
+    **options
+        Any field of :class:`CompensateRequest` past ``method`` (:data:`OPTIONS`): ``flux``,
+        ``scalar``, ``mount``, ``tl_bandpass_hz``, ``calibration_line``…, with the command
+        line's defaults.
+
+    Returns
+    -------
+    CompensationResult
+        The same numbers ``aeromag compensate`` writes (``report`` is its ``report.json``).
+
+    Warns
+    -----
+    AeromagWarning
+        Each warning the command line prints (a channel chosen or doubted, the mount, the
+        Earth-field check), as it is said; the same lines are in the result's ``warnings``.
+
+    Raises
+    ------
+    AeromagError
+        Unusable options or input (one line), before anything is written.
+    """
+    unknown = sorted(set(options) - set(OPTIONS))
+    if unknown:
+        raise AeromagError(
+            f"compensate: unknown option {unknown[0]!r}; options: {', '.join(OPTIONS)}"
+        )
+    request = CompensateRequest(
+        source=source if isinstance(source, Flight) else Path(source),
+        out=None if out is None else Path(out),
+        method=method,
+        **options,
+    )
+    return run_compensate(request, JobWarnings())
+
+
+def run_compensate(req: CompensateRequest, warn: JobWarnings) -> CompensationResult:
+    """Do the work of :func:`compensate` for a request; its warnings go to ``warn``."""
+    req.check()
+    if req.out is not None:
+        check_output_set(req.out, OUTPUTS, req.input_files())
+    flight, problems, path = load_source(req.source, req.needs())
+    # channels and mount from the whole flight (the mount is the installation's, and a single
+    # line may turn too little to show it), then the selected part
+    inputs = choose_inputs(
+        flight,
+        path or IN_MEMORY,
+        req.flux,
+        req.scalar,
+        req.required_channels(),
+        req.mount,
+        mount_matters=req.method != "tl",
+        warn=warn,
+    )
+    chosen = select(
+        inputs.work, req.lines, req.segment_s, req.calibration_line, req.calibration_window_s
+    )
+    work, calibration = chosen.flight, chosen.calibration
+    comp = _compensate(req, work, inputs, calibration)
+    _check_output_names(flight, comp)
+    metrics_block = score(work, comp)
+    report = {
+        "report_version": REPORT_VERSION,
+        "input": None if path is None else str(path),
+        "method": comp.method,
+        "settings": comp.settings,
+        "coefficients": comp.coefficients,
+        "metrics": metrics_block,
+        "nonfinite_policy": _nonfinite_policy(comp),
+        "input_problems": problems,
+        "selection": chosen.report,
+        **_provenance_blocks(path, work, inputs, comp, metrics_block),
+        "held_out": _held_out(work, comp, calibration),
+    }
+    kept = {name: values[chosen.keep] for name, values in flight.fields.items()}
+    out_flight = Flight({**kept, **comp.fields}, {**flight.attrs, "compensation": comp.method})
+    paths: tuple[Path, ...] = ()
+    if req.out is not None:
+        paths = write_compensate_outputs(req.out, req.input_files(), out_flight, report, work, comp)
+    return CompensationResult(
+        method=comp.method,
+        metrics=metrics_block,
+        coefficients=comp.coefficients,
+        report=report,
+        warnings=tuple(warn.lines),
+        paths=paths,
+        compensation=comp,
+        flight=out_flight,
+    )
+
+
+def _compensate(
+    req: CompensateRequest, work: Flight, inputs: Inputs, calibration: np.ndarray | None
+) -> Compensation:
+    """The method on the selected flight, with the chosen channels and mount."""
+    flux = inputs.flux_name
+    if req.method == "tl":
+        tl = TollesLawson(bandpass_hz=req.tl_bandpass_hz, trim=req.tl_trim, ridge=req.tl_ridge)
+        scalar = inputs.scalar_name
+        assert scalar is not None  # a required channel of tl
+        return compensate_scalar(work, flux, scalar, tl, calibration)
+    cfg = req.filter_config() if req.method in FILTER_METHODS else None
+    mount = inputs.mount.mount if inputs.mount else None
+    # the mount was chosen (and warned about) above: no second check
+    return compensate_vector(
+        work, req.method, flux, cfg, calibration, mount=mount, check_mount=False
+    )
+
+
+def write_compensate_outputs(
+    out: Path,
+    inputs: list[Path],
+    out_flight: Flight,
+    report: dict[str, Any],
+    work: Flight,
+    comp: Compensation,
+) -> tuple[Path, ...]:
+    """Write the output set (:data:`OUTPUTS`) into ``out``, all replaced together; ``inputs``
+    are the files the run read (never overwritten). Returns the paths written."""
+    from aeromag_env.compensation.plots import plot_compensation
+
+    with output_set(out, OUTPUTS, inputs) as stage:
+        write_flight(out_flight, stage / "compensated.h5")
+        write_text(stage / "report.json", report_json(report))
+        plot_compensation(work, comp, report["metrics"], stage / "compensation.png")
+    return tuple(out / name for name in OUTPUTS)
+
+
+def _provenance_blocks(
+    path: Path | None,
+    flight: Flight,
+    inputs: Inputs,
+    comp: Compensation,
+    metrics_block: dict[str, Any],
+) -> dict[str, Any]:
+    """Provenance, ``headline`` and ``vendor_comparison`` (when the file has the vendor's
+    compensated scalar); ``segments`` / ``flagged_samples`` only if the metrics lack them."""
+    blocks = provenance(path, flight, inputs, earth_model_used=comp.model_total is not None)
+    for key in ("segments", "flagged_samples"):
+        if key in metrics_block:
+            del blocks[key]
+    ours = (inputs.scalar_name if comp.method == "tl" else None) or inputs.flux_name
+    blocks["headline"] = headline(
+        flight, comp.total_before, comp.total_after, metrics_block.get("fom_nt")
+    )
+    blocks["vendor_comparison"] = (
+        vendor_comparison(flight, inputs.scalar_name, comp.total_before, comp.total_after, ours)
+        if inputs.scalar_name
+        else None
+    )
+    return blocks
+
+
+def _held_out(
+    flight: Flight, comp: Compensation, calibration: np.ndarray | None
+) -> dict[str, Any] | None:
+    """With a calibration part, the figures of the samples the fit did not see (the industry's
+    check: fitted on the box, judged on the lines): band-passed stds and IR, and the RMSE
+    against the truth on simulated files."""
+    if calibration is None:
+        return None
+    rest = ~calibration
+    return {
+        "span": "outside the calibration part",
+        **span_figures(flight, comp.total_before, comp.total_after, rest),
+        "compensation_rmse_nt": held_out_rmse(flight, comp, rest),
+    }
+
+
+def _check_output_names(flight: Flight, comp: Compensation) -> None:
+    """One-line error when an output channel would replace a field of the input file."""
+    clash = [nm for nm in comp.fields if nm in flight]
+    if clash:
+        raise AeromagError(
+            f"the input already has field(s) {', '.join(clash)}, which compensate writes; "
+            "refusing to replace an input field (rename or drop them in the input first)"
+        )
+
+
+def _nonfinite_policy(comp: Compensation) -> str:
+    flagged = "flagged samples (a non-finite input, or a spike in the magnetometer used) are"
+    rest = "outputs there are NaN; the rate, band-passes and filters restart at each time gap"
+    if comp.method in FILTER_METHODS:
+        return f"{flagged} skipped by the filter (predict only); {rest}"
+    return f"{flagged} left out of the fit; {rest}"

@@ -72,6 +72,7 @@ def cmd_discover(args: argparse.Namespace) -> int:
             mount=args.mount,
             selection=selection_options(args),
             ground=args.ground,
+            html=not args.no_html,
         )
         return fleet.discover_fleet(job, args.file, args.ray, args.quiet)
     fleet.note_single_file("discover", args.ray)
@@ -84,6 +85,7 @@ def cmd_discover(args: argparse.Namespace) -> int:
         mount=args.mount,
         selection=selection_options(args),
         ground=args.ground,
+        html=not args.no_html,
     )
     gap, problems = report["gap"], report["input_problems"]
     warned = (
@@ -244,6 +246,7 @@ def cmd_compensate(args: argparse.Namespace) -> int:
         filter_preset=args.filter_preset,
         r_std_nt=args.r_std_nt,
         mount=args.mount,
+        html=not args.no_html,
         **selection_options(args),
     )
     if fleet.is_fleet(args.file):
@@ -299,6 +302,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         Path(args.out),
         args.quiet,
         ray=args.ray,
+        html=not args.no_html,
     )
     return 0
 
@@ -336,6 +340,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             hp,
             args.ray,
             args.quiet,
+            html=not args.no_html,
         )
         print(f"policies: {args.out}/seed_<k>/policy.npz; summary: {args.out}/seeds.json")
         return 0
@@ -350,6 +355,12 @@ def cmd_train(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         hyperparams=Path(args.hyperparams) if args.hyperparams else HYPERPARAMS,
     )
+    if not args.no_html:  # the learning curve beside training.json
+        from aeromag_env import reports
+        from aeromag_env.atomic import write_text
+
+        page = reports.train_page({"run": summary}, f"Training: {args.scenario}")
+        write_text(Path(args.out) / reports.PAGE, page)
     print(
         f"trained {summary['timesteps']} steps in {summary['train_seconds_this_run']:.0f} s; "
         f"best validation RMSE {summary['best_validation_rmse_nt']:.3g} nT; "

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env import reports
 from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.cli.provenance import (
     Inputs,
@@ -72,6 +73,7 @@ class CompensateRequest:
     segment_s: tuple[float, float] | None = None
     filter_preset: str = "default"
     r_std_nt: float | None = None
+    html: bool = True  # report.html beside report.json
 
     def check(self) -> None:
         """One-line errors for unusable options (before any file is read)."""
@@ -89,6 +91,10 @@ class CompensateRequest:
             raise AeromagError("--calibration-window needs T0 < T1 [s]")
         if self.r_std_nt is not None and not self.r_std_nt > 0:
             raise AeromagError(f"--r-std-nt must be > 0, got {self.r_std_nt}")
+
+    def outputs(self) -> tuple[str, ...]:
+        """The output set: :data:`OUTPUTS`, and the page unless ``html`` is off."""
+        return (*OUTPUTS, reports.PAGE) if self.html else OUTPUTS
 
     def needs(self) -> tuple[str, ...]:
         """Fields the method reads besides its magnetometers (chosen after reading: ``tl``
@@ -119,7 +125,7 @@ def run_compensate(req: CompensateRequest, warn: Warn = warn_stderr) -> dict[str
 
     Warnings about the channels and the mount go to ``warn``, one line each (stderr)."""
     req.check()
-    check_output_set(req.out, OUTPUTS, req.input_files())
+    check_output_set(req.out, req.outputs(), req.input_files())
     flight, problems = load_flight(req.path, needs=req.needs())
     # channels and mount from the whole flight (the mount is the installation's, and a single
     # line may turn too little to show it), then the selected part
@@ -165,10 +171,13 @@ def run_compensate(req: CompensateRequest, warn: Warn = warn_stderr) -> dict[str
     out_flight = Flight({**kept, **comp.fields}, {**flight.attrs, "compensation": comp.method})
     from aeromag_env.compensation.plots import plot_compensation
 
-    with output_set(req.out, OUTPUTS, req.input_files()) as stage:
+    with output_set(req.out, req.outputs(), req.input_files()) as stage:
         write_flight(out_flight, stage / "compensated.h5")
         write_text(stage / "report.json", json.dumps(_jsonable(report), indent=2))
         plot_compensation(work, comp, metrics_block, stage / "compensation.png")
+        if req.html:
+            page = reports.compensate_page(_jsonable(report), reports.compensate_arrays(work, comp))
+            write_text(stage / reports.PAGE, page)
     return report
 
 
@@ -252,7 +261,8 @@ MOUNT_RMSE_NOTE = (
 def summary_line(report: dict[str, Any], out: Path) -> str:
     """One line for the terminal (input problems are listed in report.json)."""
     m = report["metrics"]
-    parts = [f"{report['method']}: wrote {out}/compensated.h5, report.json, compensation.png"]
+    page = ", report.html" if (out / reports.PAGE).exists() else ""
+    parts = [f"{report['method']}: wrote {out}/compensated.h5, report.json, compensation.png{page}"]
     for key, label in (
         ("compensation_rmse_nt", "RMSE (2nd half)"),
         ("improvement_ratio", "IR"),

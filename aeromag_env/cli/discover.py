@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env import reports
 from aeromag_env.atomic import atomic_path, check_output_set, output_set, write_text
 from aeromag_env.cli.compensate import _jsonable
 from aeromag_env.cli.provenance import Warn, choose_inputs, provenance, warn_stderr
@@ -43,6 +44,7 @@ def run_discover(
     warn: Warn = warn_stderr,
     selection: dict[str, Any] | None = None,
     ground: str = "ignore",
+    html: bool = True,
 ) -> dict[str, Any]:
     """Do the work of ``aeromag discover``; return the report (also written to disk).
 
@@ -52,10 +54,12 @@ def run_discover(
     ``selection`` (``lines``, ``segment_s``, ``calibration_line``) picks the part of the flight
     (:func:`aeromag_env.flight.selection.select`); a calibration line is fitted on as a
     calibration window from its first to its last sample. ``ground`` (``ignore`` or
-    ``separate``) is :func:`~aeromag_env.discovery.workflow.discover`'s.
+    ``separate``) is :func:`~aeromag_env.discovery.workflow.discover`'s. ``html``: write
+    ``report.html`` too.
     """
     sources = [path] if mount in ("auto", "identity") else [path, Path(mount)]
-    check_output_set(out, OUTPUTS, sources)
+    outputs = (*OUTPUTS, reports.PAGE) if html else OUTPUTS
+    check_output_set(out, outputs, sources)
     flight, problems = load_flight(path, needs=("tt", "position", "attitude", "date"))
     flight.attrs.setdefault("path", str(path))
     inputs = choose_inputs(
@@ -92,11 +96,14 @@ def run_discover(
     for caveat in report["caveats"]:
         warn(caveat)
     model = json.loads(to_json(result.model))
-    with output_set(out, OUTPUTS, sources) as stage:
+    with output_set(out, outputs, sources) as stage:
         write_text(stage / "report.json", json.dumps(report, indent=2))
         write_text(stage / "report.md", markdown(report))
         write_text(stage / "model_config.json", json.dumps(model, indent=2))
         plot_discovery(result, stage)
+        if html:
+            page = reports.discover_page(report, result.series, result.drivers)
+            write_text(stage / reports.PAGE, page)
     return report
 
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from aeromag_env import reports
 from aeromag_env.atomic import check_output_set, output_set
 from aeromag_env.cli.compensate import CompensateRequest
 from aeromag_env.errors import AeromagError
@@ -146,6 +147,7 @@ class DiscoverJob:
     mount: str = "auto"
     selection: dict[str, Any] | None = None
     ground: str = "ignore"
+    html: bool = True
 
 
 def compensate_flight(req: CompensateRequest) -> dict[str, Any]:
@@ -184,6 +186,7 @@ def discover_flight(job: DiscoverJob) -> dict[str, Any]:
             warn=warnings.append,
             selection=job.selection,
             ground=job.ground,
+            html=job.html,
         )
     except (AeromagError, OSError) as e:
         return _failed(e, warnings)
@@ -232,7 +235,7 @@ def compensate_fleet(req: CompensateRequest, arg: str, ray: str | None) -> int:
         Task(str(path), compensate_flight, (replace(req, path=path, out=req.out / name),))
         for path, name in zip(files, names, strict=True)
     ]
-    return _run("compensate", tasks, names, req.out, ray, quiet=False)
+    return _run("compensate", tasks, names, req.out, ray, quiet=False, html=req.html)
 
 
 def discover_fleet(job: DiscoverJob, arg: str, ray: str | None, quiet: bool) -> int:
@@ -243,19 +246,25 @@ def discover_fleet(job: DiscoverJob, arg: str, ray: str | None, quiet: bool) -> 
         Task(str(path), discover_flight, (replace(job, path=path, out=job.out / name),))
         for path, name in zip(files, names, strict=True)
     ]
-    return _run("discover", tasks, names, job.out, ray, quiet)
+    return _run("discover", tasks, names, job.out, ray, quiet, html=job.html)
 
 
 def _plan(arg: str, out: Path) -> tuple[list[Path], list[str]]:
     """The fleet's files and their output folder names; the summary's targets checked before
     any work."""
     files = fleet_files(arg, out)
-    check_output_set(out, OUTPUTS, files)
+    check_output_set(out, (*OUTPUTS, reports.FLEET_PAGE), files)
     return files, output_names(files)
 
 
 def _run(
-    command: str, tasks: list[Task], names: list[str], out: Path, ray: str | None, quiet: bool
+    command: str,
+    tasks: list[Task],
+    names: list[str],
+    out: Path,
+    ray: str | None,
+    quiet: bool,
+    html: bool = True,
 ) -> int:
     """Run the flights (progress bar, warnings and errors on stderr as they end), write the
     summary, print its line; the exit status."""
@@ -278,11 +287,12 @@ def _run(
         outcomes = r.run(tasks, report)
     rows = [_row(o, name) for o, name in zip(outcomes, names, strict=True)]
     columns = COMPENSATE_COLUMNS if command == "compensate" else DISCOVER_COLUMNS
-    write_summary(out, rows, columns, [Path(t.label) for t in tasks], command)
+    write_summary(out, rows, columns, [Path(t.label) for t in tasks], command, html)
     failed = sum(row["status"] != "ok" for row in rows)
     print(
         f"{command}: {failed} of {len(rows)} flights failed ({r.name} runner); wrote "
         f"{out}/<flight>/ per flight, {out}/fleet.csv, fleet.png"
+        + (f", {reports.FLEET_PAGE}" if html else "")
     )
     return 2 if failed else 0
 
@@ -314,13 +324,19 @@ def write_summary(
     columns: Sequence[str],
     inputs: Sequence[Path],
     command: str,
+    html: bool = True,
 ) -> None:
-    """``fleet.csv`` and ``fleet.png`` in ``out``, as a set."""
+    """``fleet.csv`` and ``fleet.png`` in ``out``, and with ``html`` the index page
+    (``index.html``, a row per flight linking to its ``report.html``), as a set."""
     from aeromag_env.cli.fleet_plot import plot_fleet
 
-    with output_set(out, OUTPUTS, inputs) as stage:
+    outputs = (*OUTPUTS, reports.FLEET_PAGE) if html else OUTPUTS
+    with output_set(out, outputs, inputs) as stage:
         _write_csv(stage / OUTPUTS[0], rows, columns)
         plot_fleet(rows, command, stage / OUTPUTS[1])
+        if html:
+            page = reports.fleet_page(rows, columns, command, reports.PAGE)
+            (stage / reports.FLEET_PAGE).write_text(page, encoding="utf-8")
 
 
 def _write_csv(path: Path, rows: list[dict[str, Any]], columns: Sequence[str]) -> None:

@@ -69,7 +69,9 @@ LINKS_JS = """
 const found = [];
 const walk = (root) => {
   for (const el of root.querySelectorAll('*')) {
-    for (const a of ['src', 'href']) if (el.getAttribute && el.getAttribute(a)) found.push(el.getAttribute(a));
+    for (const a of ['src', 'href']) {
+      if (el.getAttribute && el.getAttribute(a)) found.push(el.getAttribute(a));
+    }
     if (el.shadowRoot) walk(el.shadowRoot);
   }
 };

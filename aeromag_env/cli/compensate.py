@@ -5,7 +5,8 @@ ones), ``report.json`` (``method``, ``settings``, ``coefficients``, ``metrics``,
 blocks of :func:`aeromag_env.cli.provenance.provenance` — input hash and format, channels, mount,
 segments, flagged samples, flight date, Earth model — and the real-data accuracy blocks
 ``headline`` and, when the file has the vendor's compensated channel, ``vendor_comparison``) and
-``compensation.png`` (:data:`OUTPUTS`), written as a set (:func:`aeromag_env.atomic.output_set`):
+``compensation.png`` and ``report.html`` (:mod:`aeromag_env.reports`; not with ``html`` off)
+(:data:`OUTPUTS`), written as a set (:func:`aeromag_env.atomic.output_set`):
 refused before the work if a target is an input, and all replaced together at the end.
 
 The fluxgate, scalar and altitude channels are chosen by :mod:`aeromag_env.flight.channels`
@@ -51,7 +52,7 @@ from aeromag_env.flight.selection import select
 #: flight_date, earth_model) and the headline / vendor_comparison blocks.
 REPORT_VERSION = 2
 #: The output set of ``aeromag compensate``, in the folder ``--out``.
-OUTPUTS = ("compensated.h5", "report.json", "compensation.png")
+OUTPUTS = ("compensated.h5", "report.json", "compensation.png", reports.PAGE)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,8 +94,8 @@ class CompensateRequest:
             raise AeromagError(f"--r-std-nt must be > 0, got {self.r_std_nt}")
 
     def outputs(self) -> tuple[str, ...]:
-        """The output set: :data:`OUTPUTS`, and the page unless ``html`` is off."""
-        return (*OUTPUTS, reports.PAGE) if self.html else OUTPUTS
+        """The output set: :data:`OUTPUTS`, without the page when ``html`` is off."""
+        return OUTPUTS if self.html else tuple(n for n in OUTPUTS if n != reports.PAGE)
 
     def needs(self) -> tuple[str, ...]:
         """Fields the method reads besides its magnetometers (chosen after reading: ``tl``

@@ -3,9 +3,10 @@
 Outputs in the folder ``out``: ``report.json`` (``missing_effects``, ``gap``, ``candidates``,
 ``skipped``, ``diagnostics``…), ``report.md`` (the same for people), ``model_config.json`` (the
 augmented model as a simulator configuration: ``aeromag simulate --config model_config.json
---replay FILE`` re-creates the flight with the named effects), ``residual.png`` and
-``diagnostics.png`` (:data:`OUTPUTS`), written as a set (:func:`aeromag_env.atomic.output_set`):
-refused before the work if a target is an input, and all replaced together at the end.
+--replay FILE`` re-creates the flight with the named effects), ``residual.png``,
+``diagnostics.png`` and ``report.html`` (:mod:`aeromag_env.reports`) (:data:`OUTPUTS`),
+written as a set (:func:`aeromag_env.atomic.output_set`): refused before the work if a target
+is an input, and all replaced together at the end.
 """
 
 from __future__ import annotations
@@ -31,7 +32,14 @@ from aeromag_env.flight.selection import select
 #: 4: ``ground`` (``--ground``), and ``gap.shrink`` 1 where both gaps are 0 (it was inf).
 REPORT_VERSION = 4
 #: The output set of ``aeromag discover``, in the folder ``out``.
-OUTPUTS = ("report.json", "report.md", "model_config.json", "residual.png", "diagnostics.png")
+OUTPUTS = (
+    "report.json",
+    "report.md",
+    "model_config.json",
+    "residual.png",
+    "diagnostics.png",
+    reports.PAGE,
+)
 
 
 def run_discover(
@@ -58,7 +66,7 @@ def run_discover(
     ``report.html`` too.
     """
     sources = [path] if mount in ("auto", "identity") else [path, Path(mount)]
-    outputs = (*OUTPUTS, reports.PAGE) if html else OUTPUTS
+    outputs = OUTPUTS if html else tuple(n for n in OUTPUTS if n != reports.PAGE)
     check_output_set(out, outputs, sources)
     flight, problems = load_flight(path, needs=("tt", "position", "attitude", "date"))
     flight.attrs.setdefault("path", str(path))

@@ -22,7 +22,7 @@ from aeromag_env.errors import AeromagError
 from aeromag_env.parallel import runner
 
 #: The output set of ``aeromag evaluate``, in the folder ``--out``.
-OUTPUTS = ("results.json", "evaluation.png")
+OUTPUTS = ("results.json", "evaluation.png", reports.PAGE)
 
 
 def run_evaluate(
@@ -62,7 +62,7 @@ def run_evaluate(
         raise AeromagError(f"--episodes must be ≥ 1, got {episodes}")
     policy_files = [Path(p[4:]) for p in policies if p.startswith("ppo:")]
     outs = {s: out if len(scenarios) == 1 else out / s for s in scenarios}
-    outputs = (*OUTPUTS, reports.PAGE) if html else OUTPUTS
+    outputs = OUTPUTS if html else tuple(n for n in OUTPUTS if n != reports.PAGE)
     for folder in outs.values():
         check_output_set(folder, outputs, policy_files)
     seeds = list(range(seed_start, seed_start + episodes))

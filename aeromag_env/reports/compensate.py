@@ -84,6 +84,7 @@ def _any_mask(masks: Any, n: int) -> np.ndarray:
     return out
 
 
+@h.page_builder
 def compensate_page(report: dict[str, Any], arrays: dict[str, np.ndarray]) -> str:
     """The HTML page of one compensated flight.
 

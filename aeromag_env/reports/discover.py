@@ -8,6 +8,7 @@ and every candidate's verdict.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from typing import Any
 
@@ -27,6 +28,7 @@ HEADLINES = (
 SCATTER_POINTS = 3000
 
 
+@h.page_builder
 def discover_page(
     report: dict[str, Any],
     series: dict[str, np.ndarray],
@@ -51,9 +53,10 @@ def discover_page(
         A self-contained HTML document.
     """
     tt = np.asarray(series["tt"], dtype=float)
+    verdict = json.dumps(report.get("verdict"))
     blocks: list[Any] = [
-        f'<p data-key="verdict" data-value="{h.esc(report.get("verdict"))}">'
-        f"<b>Verdict: {h.esc(report.get('verdict'))}</b></p>",
+        f'<p class="verdict" data-key="verdict" data-value="{h.esc(verdict)}">'
+        f"Verdict: <b>{h.esc(report.get('verdict'))}</b></p>",
         h.headline_block(report, HEADLINES),
         h.heading("Caveats"),
         h.card(h.notes(report.get("caveats") or [], "no caveats")),

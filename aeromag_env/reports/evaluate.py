@@ -17,6 +17,7 @@ from aeromag_env.reports.html import COLOURS
 from aeromag_env.reports.plots import finish_legend, lines, new_figure
 
 
+@h.page_builder
 def evaluate_page(
     results: dict[str, Any], traces: dict[str, dict[str, np.ndarray]] | None = None
 ) -> str:

@@ -29,6 +29,7 @@ LINK_TEMPLATE = (
 )
 
 
+@h.page_builder
 def fleet_page(
     rows: Sequence[dict[str, Any]], columns: Sequence[str], command: str, page: str | None
 ) -> str:

@@ -5,6 +5,9 @@ warnings) or a Bokeh layout. :func:`render_page` inlines BokehJS (only the bundl
 models need) and the style sheet, so the file opens from disk with no network: no CDN, no
 remote font, no request.
 
+The same data give the same bytes (:func:`page_builder`), so that a rerun's output set is
+comparable with the last one's.
+
 The headline figures carry their value and where it comes from in the report
 (``data-key="metrics.fom_nt" data-value="85.60879053239755"``), so a test can check that the
 page shows what ``report.json`` says.
@@ -12,12 +15,15 @@ page shows what ``report.json`` says.
 
 from __future__ import annotations
 
+import functools
 import html
 import json
 import math
-from collections.abc import Iterable, Sequence
+import re
+import uuid
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 #: Line colours, in order (colour-blind safe: Okabe–Ito).
 COLOURS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#999999")
@@ -80,6 +86,40 @@ class Headline:
     key: str
     value: Any
     unit: str = ""
+
+
+F = TypeVar("F", bound=Callable[..., str])
+#: A UUID as Bokeh writes it (document and element ids).
+_UUID = re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}")
+
+
+def page_builder(build: F) -> F:
+    """Make a page function deterministic: Bokeh's model ids restart from the same number for
+    each page (they count up per process otherwise), and :func:`render_page` numbers the
+    random document ids in order."""
+
+    @functools.wraps(build)
+    def wrapper(*args: Any, **kwargs: Any) -> str:
+        import bokeh.embed
+        import bokeh.models
+        import bokeh.plotting  # noqa: F401  (their imports create models: before the reset)
+        from bokeh.util import serialization
+
+        with serialization._simple_id_lock:
+            serialization._simple_id = 1000
+        return build(*args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]
+
+
+def _number_uuids(text: str) -> str:
+    """Every distinct UUID of ``text`` replaced by one counted in order of appearance."""
+    seen: dict[str, str] = {}
+
+    def stable(match: re.Match[str]) -> str:
+        return seen.setdefault(match.group(0), str(uuid.UUID(int=len(seen) + 1)))
+
+    return _UUID.sub(stable, text)
 
 
 def esc(text: Any) -> str:
@@ -173,11 +213,11 @@ def _cell(cls: str, value: Any) -> str:
 
 
 def definitions(items: dict[str, Any]) -> str:
-    """A definition list: plain values as text, nested ones as compact JSON."""
+    """A definition list: plain values as text, nested ones as one-line JSON."""
     parts = []
     for key, value in items.items():
         if isinstance(value, (dict, list)):
-            shown = f"<pre>{esc(json.dumps(value, indent=1, default=str))}</pre>"
+            shown = f"<code>{esc(json.dumps(value, default=str, ensure_ascii=False))}</code>"
         else:
             shown = esc(number(value))
         parts.append(f"<dt>{esc(key)}</dt><dd>{shown}</dd>")
@@ -198,6 +238,7 @@ def render_page(title: str, subtitle: str, blocks: Sequence[Any]) -> str:
 
     models = [b for b in blocks if not isinstance(b, str)]
     script, divs = components(models) if models else ("", ())
+    script, divs = _number_uuids(script), [_number_uuids(d) for d in divs]
     placed = iter(divs)
     body = "\n".join(
         b if isinstance(b, str) else f'<div class="plot">{next(placed)}</div>' for b in blocks

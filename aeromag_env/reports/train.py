@@ -15,6 +15,7 @@ from aeromag_env.reports.html import COLOURS
 from aeromag_env.reports.plots import finish_legend, new_figure
 
 
+@h.page_builder
 def train_page(runs: dict[str, dict[str, Any]], title: str = "Training") -> str:
     """The HTML page of one or more training runs.
 

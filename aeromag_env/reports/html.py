@@ -238,7 +238,7 @@ def render_page(title: str, subtitle: str, blocks: Sequence[Any]) -> str:
 
     models = [b for b in blocks if not isinstance(b, str)]
     script, divs = components(models) if models else ("", ())
-    script, divs = _number_uuids(script), [_number_uuids(d) for d in divs]
+    script, *divs = _number_uuids("\0".join([script, *divs])).split("\0")  # one numbering
     placed = iter(divs)
     body = "\n".join(
         b if isinstance(b, str) else f'<div class="plot">{next(placed)}</div>' for b in blocks

@@ -6,6 +6,7 @@ leaving the page. The browser tests save the screenshots of docs/reports/."""
 
 from __future__ import annotations
 
+import csv
 import json
 import subprocess
 import sys
@@ -375,46 +376,116 @@ def test_a_failing_page_replaces_nothing_of_the_set(
 # --- in a real browser --------------------------------------------------------------------
 
 
+def flawed_flight(folder: Path, seed: int = 1) -> Path:
+    """A 15-minute simulated calibration flight with what real files have: a 3000-nT spike in
+    the fluxgate, five NaN attitude samples and a 30-s recording gap."""
+    from aeromag_env.flight.data import Flight
+
+    flight = simulated(trajectory__duration_s=900.0, seed=seed)
+    fields = {k: np.array(v, copy=True) for k, v in flight.fields.items()}
+    n = fields["tt"].size
+    fields["flux_a_x"][n // 3] += 3000.0
+    fields["ins_roll"][2 * n // 3 : 2 * n // 3 + 5] = np.nan
+    fields["tt"][n // 2 :] += 30.0
+    return write_flight(Flight(fields, dict(flight.attrs)), folder / f"flight{seed}.h5")
+
+
+@pytest.fixture(scope="module")
+def real_pages(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, dict[str, Any]]]:
+    """Each kind of page as the commands write it, with the report its figures come from (the
+    training curve is a made-up one: a training run is too long for a test)."""
+    root = tmp_path_factory.mktemp("pages")
+    flights = root / "flights"
+    flights.mkdir()
+    flight = flawed_flight(flights)
+    flawed_flight(flights, seed=2)
+    (flights / "broken.h5").write_text("not a flight\n")
+    out = {kind: root / kind for kind in ("compensate", "discover", "evaluate", "fleet", "train")}
+    assert (
+        main(["compensate", str(flight), "--method", "fakf", "--out", str(out["compensate"])]) == 0
+    )
+    assert main(["discover", str(flight), "--quiet", "--out", str(out["discover"])]) == 0
+    policies = "constant,fis,tuned_constant,oracle"
+    argv = ["evaluate", "--scenario", "nominal", "--policies", policies, "--episodes", "3"]
+    assert main([*argv, "--quiet", "--out", str(out["evaluate"])]) == 0
+    assert main(["compensate", str(flights), "--method", "lsq", "--out", str(out["fleet"])]) == 2
+    out["train"].mkdir()
+    (out["train"] / "report.html").write_text(reports.train_page({"run": training_summary()}))
+    (out["train"] / "training.json").write_text(json.dumps(training_summary()))
+    rows = list(csv.DictReader((out["fleet"] / "fleet.csv").open()))
+    fleet_report = {
+        "flights": len(rows),
+        "failed": sum(r["status"] != "ok" for r in rows),
+        "with_warnings": sum(1 for r in rows if r["warnings"] not in ("", "0")),
+    }
+    return {
+        "compensate": (out["compensate"] / "report.html", _json(out["compensate"] / "report.json")),
+        "discover": (out["discover"] / "report.html", _json(out["discover"] / "report.json")),
+        "evaluate": (out["evaluate"] / "report.html", _json(out["evaluate"] / "results.json")),
+        "train": (out["train"] / "report.html", training_summary()),
+        "fleet": (out["fleet"] / "index.html", fleet_report),
+    }
+
+
+def _json(path: Path) -> dict[str, Any]:
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
 @pytest.mark.browser
-def test_every_kind_of_page_renders_in_chromium(tmp_path: Path) -> None:
+@pytest.mark.parametrize("kind", ["compensate", "discover", "evaluate", "train", "fleet"])
+def test_each_kind_of_page_renders_in_chromium(
+    kind: str, real_pages: dict[str, tuple[Path, dict[str, Any]]], chromium: Any
+) -> None:
     from tests import _browser
 
-    _browser.require_chromium()
+    path, report = real_pages[kind]
+    _browser.open_page(chromium, path)
+    assert _browser.console_errors(chromium) == []
+    outside = [u for u in _browser.requests(chromium) if not u.startswith(("file:", "data:"))]
+    assert outside == []
+    links = chromium.execute_script(_browser.LINKS_JS)
+    assert [u for u in links if u.startswith(("http:", "https:", "//"))] == []
+    plots = chromium.execute_script(_browser.PLOTS_JS)
+    figures = [p for p in plots["plots"] if p["type"] != "DataTable"]
+    assert figures and {p["id"] for p in plots["plots"]} <= set(plots["views"])
+    drawn = [
+        c
+        for c in chromium.execute_script(_browser.CANVASES_JS)
+        if c["height"] >= 100 and c["width"] >= 200 and c["inked"] > 0.002
+    ]
+    assert len(drawn) >= len(figures)  # every plot's canvas has ink
+    shown = chromium.execute_script(
+        "return [...document.querySelectorAll('[data-key]')].map("
+        "e => [e.dataset.key, e.dataset.value, e.querySelector('.v') ? "
+        "e.querySelector('.v').firstChild.textContent.trim() : e.textContent.trim()]);"
+    )
+    assert shown
+    for key, raw, text in shown:
+        value = lookup(report, key)
+        assert json.loads(raw) == value, key
+        assert reports.html.number(value) in text, (key, text)  # as people see it
+    if kind == "fleet":
+        rows = list(csv.DictReader((path.parent / "fleet.csv").open()))
+        table = chromium.execute_script(
+            "const t = Bokeh.documents[0].get_model_by_name('fleet_table');"
+            "return [t.source.data.output, t.source.data.improvement_ratio.map("
+            "v => Number.isNaN(v) ? null : v), t.source.data.link];"
+        )
+        assert table[0] == [r["output"] for r in rows]
+        for cell, row in zip(table[1], rows, strict=True):
+            assert (cell is None) == (row["improvement_ratio"] == "")
+            if cell is not None:
+                assert cell == pytest.approx(
+                    float(row["improvement_ratio"]), rel=1e-5
+                )  # csv: 6 digits
+        for link in table[2]:
+            assert link == "" or (path.parent / link).is_file()  # each flight's page exists
+    _browser.screenshot(chromium, SHOTS / f"{kind}.png")
+
+
+@pytest.fixture(scope="module")
+def chromium() -> Any:
+    from tests import _browser
+
     with _browser.browser() as driver:
-        for kind, (page, report) in all_pages().items():
-            path = tmp_path / kind / "report.html"
-            path.parent.mkdir()
-            path.write_text(page, encoding="utf-8")
-            _browser.open_page(driver, path)
-            assert _browser.console_errors(driver) == [], kind
-            outside = [u for u in _browser.requests(driver) if not u.startswith(("file:", "data:"))]
-            assert outside == [], (kind, outside)
-            links = driver.execute_script(_browser.LINKS_JS)
-            assert [u for u in links if u.startswith(("http:", "https:", "//"))] == [], kind
-            plots = driver.execute_script(_browser.PLOTS_JS)
-            figures = [p for p in plots["plots"] if p["type"] != "DataTable"]
-            assert set(p["id"] for p in plots["plots"]) <= set(plots["views"]), kind
-            drawn = [
-                c
-                for c in driver.execute_script(_browser.CANVASES_JS)
-                if c["height"] >= 100 and c["width"] >= 200 and c["inked"] > 0.002
-            ]
-            assert len(drawn) >= len(figures), (kind, len(drawn), len(figures))
-            shown = driver.execute_script(
-                "return [...document.querySelectorAll('[data-key]')].map("
-                "e => [e.dataset.key, e.dataset.value, e.querySelector('.v') ? "
-                "e.querySelector('.v').firstChild.textContent.trim() : e.textContent.trim()]);"
-            )
-            assert shown, kind
-            for key, raw, text in shown:
-                value = lookup(report, key)
-                assert json.loads(raw) == value, (kind, key)
-                assert reports.html.number(value) in text, (kind, key, text)  # as people see it
-            if kind == "fleet":
-                table = driver.execute_script(
-                    "const t = Bokeh.documents[0].get_model_by_name('fleet_table');"
-                    "return t.source.data.improvement_ratio.map(v => Number.isNaN(v) ? null : v);"
-                )
-                expected = [r["improvement_ratio"] for r in fleet_rows()]
-                assert table == expected
-            _browser.screenshot(driver, SHOTS / f"{kind}.png")
+        yield driver

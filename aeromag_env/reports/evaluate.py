@@ -128,13 +128,14 @@ def _paired(results: dict[str, Any], names: list[str]) -> Any:
         )
     means = [results["policies"][n]["rmse_nt_mean"] for n in names]
     ci = [results["policies"][n].get("rmse_nt_ci95") or [None, None] for n in names]
-    ok = [i for i, c in enumerate(ci) if c[0] is not None and c[1] is not None and c[0] > 0]
+    floor = float(np.nanmin(per)) / 2  # a log axis: an interval reaching 0 is cut here
+    ok = [i for i, c in enumerate(ci) if c[0] is not None and c[1] is not None]
     fig.scatter(names, means, marker="diamond", size=13, color="black")
     if ok:
         band = ColumnDataSource(
             {
                 "p": [names[i] for i in ok],
-                "lo": [ci[i][0] for i in ok],
+                "lo": [max(ci[i][0], floor) for i in ok],
                 "hi": [ci[i][1] for i in ok],
             }
         )

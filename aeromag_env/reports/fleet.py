@@ -23,6 +23,8 @@ PLOTTED = {
 }
 #: Table row height [px] and most rows shown without scrolling the table.
 ROW_PX, MAX_ROWS = 26, 24
+#: The ``file`` cell: the file's name, its whole path on hover.
+FILE_TEMPLATE = '<span title="<%- value %>"><%- value.split("/").pop() %></span>'
 #: The ``output`` cell: a link to the flight's page when it has one (underscore template).
 LINK_TEMPLATE = (
     '<% if (link) { %><a href="<%- link %>"><%- value %></a><% } else { %><%- value %><% } %>'
@@ -108,10 +110,15 @@ def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str], page: str | N
     data["tip"] = [str(r.get("warning_text") or r.get("error") or "") for r in rows]
     table_columns = []
     for c in shown:
-        if c == "output":
-            fmt: Any = HTMLTemplateFormatter(template=LINK_TEMPLATE)
+        if c == "file":
+            fmt: Any = HTMLTemplateFormatter(template=FILE_TEMPLATE)
+        elif c == "output":
+            fmt = HTMLTemplateFormatter(template=LINK_TEMPLATE)
         elif isinstance(data[c][0] if data[c] else "", float):
-            fmt = NumberFormatter(format="0.000", nan_format="–", text_align="right")
+            whole = all(v != v or float(v).is_integer() for v in data[c])  # NaN or whole
+            fmt = NumberFormatter(
+                format="0" if whole else "0.000", nan_format="–", text_align="right"
+            )
         else:
             fmt = StringFormatter()
         table_columns.append(TableColumn(field=c, title=c, formatter=fmt, width=_width(c)))
@@ -129,7 +136,8 @@ def _table(rows: Sequence[dict[str, Any]], columns: Sequence[str], page: str | N
 
 
 def _width(column: str) -> int:
-    return {"file": 260, "error": 260, "named_effects": 200, "output": 120}.get(column, 90)
+    """A column's width [px]: room for its title, more for file names and messages."""
+    return {"file": 160, "error": 300, "named_effects": 200}.get(column, max(70, 8 * len(column)))
 
 
 def _per_flight(rows: Sequence[dict[str, Any]], key: str, label: str) -> Any:

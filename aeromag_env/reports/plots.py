@@ -35,13 +35,14 @@ def new_figure(
     from bokeh.plotting import figure
 
     args: dict[str, Any] = {"x_range": x_range} if x_range is not None else {}
+    if y_log:  # else Bokeh's "auto": linear, or categorical for a list of factors
+        args["y_axis_type"] = "log"
     fig = figure(
         title=title,
         height=height,
         sizing_mode="stretch_width",
         tools=tools,
         active_scroll=None,
-        y_axis_type="log" if y_log else "linear",
         output_backend="canvas",
         **args,
         **kwargs,
@@ -58,9 +59,13 @@ def new_figure(
     return fig
 
 
-def finish_legend(fig: Any) -> None:
-    """Legend in the top left corner, clicking an entry hides its line (after the glyphs)."""
+def finish_legend(fig: Any, outside: bool = True) -> None:
+    """The legend right of the plot (``outside``, so it hides no data) or in its top left
+    corner; clicking an entry hides its line. Call after the glyphs."""
     if fig.legend:
+        legend = fig.legend[0]
+        if outside and legend not in fig.right:
+            fig.add_layout(legend, "right")
         fig.legend.location = "top_left"
         fig.legend.click_policy = "hide"
         fig.legend.label_text_font_size = "11px"

@@ -85,7 +85,6 @@ def train_page(runs: dict[str, dict[str, Any]], title: str = "Training") -> str:
     figs = [f for f in (steps, minutes, score) if f is not None]
     for fig in figs:
         finish_legend(fig)
-        fig.legend.location = "top_right"
     blocks += figs
     first = next(iter(runs.values()))
     blocks += [

@@ -312,7 +312,7 @@ def all_pages() -> dict[str, tuple[str, dict[str, Any]]]:
     rows = fleet_rows()
     fleet_report = {"flights": 5, "failed": 1, "with_warnings": 2}
     return {
-        "compensate": (reports.compensate_page(REPORT, synthetic_arrays(1.0)), REPORT),
+        "compensate": (reports.compensate_page(REPORT, synthetic_arrays(0.25)), REPORT),
         "discover": (reports.discover_page(disc, series, drivers), disc),
         "evaluate": (reports.evaluate_page(results, evaluate_traces()), results),
         "train": (reports.train_page({"run": training}), training),

@@ -348,6 +348,7 @@ def test_compensate_writes_report_html_with_the_set_and_no_html_writes_none(
     report = json.loads((out / "report.json").read_text())
     assert_self_contained(page)
     assert assert_headlines_match(page, report) >= 3
+    assert "estimated interference per axis" in page  # a simulated flight has the truth
     bare = tmp_path / "bare"
     argv = ["compensate", str(short_flight), "--method", "lsq", "--no-html", "--out", str(bare)]
     assert main(argv) == 0

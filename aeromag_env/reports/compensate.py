@@ -59,9 +59,11 @@ def compensate_arrays(flight: Any, comp: Any) -> dict[str, np.ndarray]:
     for name in ("lat", "lon"):
         if name in flight:
             out[name] = np.asarray(flight[name], dtype=float)
-    estimated = [f"comp_interf_est_{a}" for a in "xyz"]
+    # the estimate's channels end in interf_est_x/y/z (their prefix is the compensator's)
+    stem = next((n[:-2] for n in comp.fields if n.endswith("interf_est_x")), None)
+    estimated = [f"{stem}_{a}" for a in "xyz"]
     true = [f"truth_interf_{a}" for a in "xyz"]
-    if all(n in comp.fields for n in estimated) and all(n in flight for n in true):
+    if stem and all(n in comp.fields for n in estimated) and all(n in flight for n in true):
         out["interference_estimated"] = np.column_stack([comp.fields[n] for n in estimated])
         out["interference_true"] = np.column_stack([flight[n] for n in true])
     samples = comp.samples

@@ -210,6 +210,7 @@ def _time_plots(report: dict[str, Any], arrays: dict[str, np.ndarray]) -> list[A
             x_range=field.x_range,
         )
         lines(error, tt, [(f"error {a}", err[:, i]) for i, a in enumerate("xyz")])
+        _clip_to_steady_state(error, err)
         plots.append(error)
     ratios = [
         (k.upper().replace("_", " "), arrays[k])
@@ -231,6 +232,18 @@ def _time_plots(report: dict[str, Any], arrays: dict[str, np.ndarray]) -> list[A
         shade(fig, windows)
         shade(fig, gap_windows(tt), colour="#888888")
     return plots
+
+
+def _clip_to_steady_state(fig: Any, err: np.ndarray) -> None:
+    """Show ±1.5 × the 99.5th percentile of |error| after the first quarter (the filter's
+    start-up transient would flatten the rest; zooming out still shows it)."""
+    from bokeh.models import Range1d
+
+    late = np.abs(err[err.shape[0] // 4 :])
+    if np.isfinite(late).any():
+        lim = 1.5 * float(np.nanpercentile(late, 99.5))
+        if lim > 0:
+            fig.y_range = Range1d(-lim, lim)
 
 
 def _flags(fig: Any, tt: np.ndarray, y: np.ndarray, arrays: dict[str, np.ndarray]) -> None:

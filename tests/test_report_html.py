@@ -490,3 +490,40 @@ def chromium() -> Any:
 
     with _browser.browser() as driver:
         yield driver
+
+
+def test_the_seeds_page_and_the_discover_fleet_index_show_their_figures() -> None:
+    from aeromag_env.cli.fleet import DISCOVER_COLUMNS
+
+    runs = {f"seed {k}": {**training_summary(), "best_validation_rmse_nt": 0.4 + k} for k in (0, 1)}
+    page = reports.train_page(runs)
+    assert_self_contained(page)
+    assert assert_headlines_match(page, runs) == 2  # one per seed, keyed by its label
+    rows = [
+        {
+            "file": f"f{k}.h5",
+            "output": f"f{k}",
+            "status": "ok",
+            "verdict": "no missing effect",
+            "gap_before_nt": 1.0 + k,
+            "gap_after_nt": 1.0,
+            "gap_shrink": 1.0 + k,
+            "warnings": 0,
+        }
+        for k in range(3)
+    ]
+    page = reports.fleet_page(rows, DISCOVER_COLUMNS, "discover", reports.PAGE)
+    assert_self_contained(page)
+    assert assert_headlines_match(page, {"flights": 3, "failed": 0, "with_warnings": 0}) == 3
+    assert "held-out gap shrink" in page
+
+
+@pytest.mark.parametrize(
+    "command", ["compensate f.h5 --method kf", "discover f.h5", "evaluate", "train"]
+)
+def test_every_command_with_a_page_takes_no_html(command: str) -> None:
+    from aeromag_env.cli.parser import build_parser
+
+    argv = [*command.split(), "--out", "o"]
+    assert build_parser().parse_args(argv).no_html is False
+    assert build_parser().parse_args([*argv, "--no-html"]).no_html is True

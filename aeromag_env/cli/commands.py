@@ -65,6 +65,7 @@ def cmd_discover(args: argparse.Namespace) -> int:
         "calibration_window": tuple(args.calibration_window) if args.calibration_window else None,
         "mount": args.mount,
         "ground": args.ground,
+        "html": not args.no_html,
         **selection_options(args),
     }
 
@@ -77,7 +78,7 @@ def cmd_discover(args: argparse.Namespace) -> int:
     note_single_file("discover", args.ray)
     with warnings_on_stderr():
         result = discover(args.file, out, say, **options)
-    print(summary_line(result.report, out))
+    print(summary_line(result.report, out, html=not args.no_html))
     return 0
 
 
@@ -229,6 +230,7 @@ def cmd_compensate(args: argparse.Namespace) -> int:
         "filter_preset": args.filter_preset,
         "r_std_nt": args.r_std_nt,
         "mount": args.mount,
+        "html": not args.no_html,
         **selection_options(args),
     }
     if is_fleet(args.file):
@@ -237,7 +239,7 @@ def cmd_compensate(args: argparse.Namespace) -> int:
     note_single_file("compensate", args.ray)
     with warnings_on_stderr():
         result = compensate(args.file, args.method, out, **options)
-    print(summary_line(result.report, out))
+    print(summary_line(result.report, out, html=not args.no_html))
     return 0
 
 
@@ -286,6 +288,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         Path(args.out),
         args.quiet,
         ray=args.ray,
+        html=not args.no_html,
     )
     return 0
 
@@ -323,6 +326,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             hp,
             args.ray,
             args.quiet,
+            html=not args.no_html,
         )
         print(f"policies: {args.out}/seed_<k>/policy.npz; summary: {args.out}/seeds.json")
         return 0
@@ -337,6 +341,12 @@ def cmd_train(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         hyperparams=Path(args.hyperparams) if args.hyperparams else HYPERPARAMS,
     )
+    if not args.no_html:  # the learning curve beside training.json
+        from aeromag_env import reports
+        from aeromag_env.atomic import write_text
+
+        page = reports.train_page({"run": summary}, f"Training: {args.scenario}")
+        write_text(Path(args.out) / reports.PAGE, page)
     print(
         f"trained {summary['timesteps']} steps in {summary['train_seconds_this_run']:.0f} s; "
         f"best validation RMSE {summary['best_validation_rmse_nt']:.3g} nT; "

@@ -16,10 +16,12 @@ MOUNT_RMSE_NOTE = (
 )
 
 
-def summary_line(report: dict[str, Any], out: Path) -> str:
-    """One line for the terminal (input problems are listed in report.json)."""
+def summary_line(report: dict[str, Any], out: Path, html: bool = True) -> str:
+    """One line for the terminal (input problems are listed in report.json); ``html``: the set
+    has ``report.html``."""
     m = report["metrics"]
-    parts = [f"{report['method']}: wrote {out}/compensated.h5, report.json, compensation.png"]
+    page = ", report.html" if html else ""
+    parts = [f"{report['method']}: wrote {out}/compensated.h5, report.json, compensation.png{page}"]
     for key, label in (
         ("compensation_rmse_nt", "RMSE (2nd half)"),
         ("improvement_ratio", "IR"),

@@ -12,6 +12,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from aeromag_env import reports
 from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError
@@ -19,7 +22,7 @@ from aeromag_env.jobs.reports import jsonable
 from aeromag_env.parallel import retry_note, runner
 
 #: The output set of ``aeromag evaluate``, in the folder ``--out``.
-OUTPUTS = ("results.json", "evaluation.png")
+OUTPUTS = ("results.json", "evaluation.png", reports.PAGE)
 
 
 def run_evaluate(
@@ -30,12 +33,14 @@ def run_evaluate(
     out: Path,
     quiet: bool = False,
     ray: str | None = None,
+    html: bool = True,
 ) -> dict[str, Any]:
     """Evaluate, write ``results.json`` and ``evaluation.png``, print a table; return results.
 
     ``scenario`` may name several, comma-separated: each gets its output set in
     ``out/<scenario>/`` and the returned dict maps scenario → results. ``ray`` is ``--ray``
-    (None: this process; :func:`aeromag_env.parallel.runner`).
+    (None: this process; :func:`aeromag_env.parallel.runner`). ``html``: write
+    ``report.html`` too (with the first flight's Q/R scales under each policy).
     """
     from tqdm import tqdm
 
@@ -57,8 +62,9 @@ def run_evaluate(
         raise AeromagError(f"--episodes must be ≥ 1, got {episodes}")
     policy_files = [Path(p[4:]) for p in policies if p.startswith("ppo:")]
     outs = {s: out if len(scenarios) == 1 else out / s for s in scenarios}
+    outputs = OUTPUTS if html else tuple(n for n in OUTPUTS if n != reports.PAGE)
     for folder in outs.values():
-        check_output_set(folder, OUTPUTS, policy_files)
+        check_output_set(folder, outputs, policy_files)
     seeds = list(range(seed_start, seed_start + episodes))
     with (
         runner(ray) as tasks,
@@ -76,12 +82,46 @@ def run_evaluate(
     from aeromag_env.cli.plots import plot_evaluation
 
     for s, folder in outs.items():
-        with output_set(folder, OUTPUTS, policy_files) as stage:
+        with output_set(folder, outputs, policy_files) as stage:
             write_text(stage / "results.json", json.dumps(jsonable(results[s]), indent=2))
             plot_evaluation(results[s], stage / "evaluation.png")
+            if html:
+                traces = action_traces(s, policies, seeds[0])
+                page = reports.evaluate_page(jsonable(results[s]), traces)
+                write_text(stage / reports.PAGE, page)
         print(evaluation_table(results[s]))
         print(f"wrote {folder}/results.json, evaluation.png")
     return results[scenarios[0]] if len(scenarios) == 1 else results
+
+
+def action_traces(
+    scenario: str, policies: list[str], seed: int
+) -> dict[str, dict[str, np.ndarray]]:
+    """One flight (``seed``) of ``scenario`` under each policy: ``t`` (k,) [s] after each
+    decision, the cumulative ``q_scale`` and ``r_scale`` (k,) [-] the policy set, ``seed``."""
+    import gymnasium as gym
+
+    from agents import make_policy, policy_env_kwargs
+
+    traces = {}
+    for name in policies:
+        env = gym.make("AeroMagCompensation-v0", scenario=scenario, **policy_env_kwargs(name))
+        policy = make_policy(name, env)
+        obs, _ = env.reset(seed=seed)
+        inner: Any = env.unwrapped
+        tt = inner.episode.flight.tt
+        state, start, done, rows = None, np.array([True]), False, []
+        while not done:
+            action, state = policy.predict(
+                obs, state=state, episode_start=start, deterministic=True
+            )
+            obs, _, terminated, truncated, info = env.step(action)
+            start, done = np.array([False]), terminated or truncated
+            rows.append((tt[min(info["sample"], tt.size - 1)], info["q_scale"], info["r_scale"]))
+        env.close()
+        t, q, r = np.array(rows, dtype=float).T
+        traces[name] = {"t": t, "q_scale": q, "r_scale": r, "seed": np.array([seed])}
+    return traces
 
 
 def evaluation_table(results: dict[str, Any]) -> str:

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from aeromag_env.parallel import Outcome
+from aeromag_env.reports import FLEET_PAGE
 
 
 def note_single_file(command: str, ray: str | None) -> None:
@@ -60,6 +61,7 @@ def run_fleet(
     print(
         f"{command}: {result.failed} of {len(result.rows)} flights failed ({result.runner} "
         f"runner); wrote {out}/<flight>/ per flight, {out}/fleet.csv, fleet.png"
+        + (f", {FLEET_PAGE}" if options.get("html", True) else "")
     )
     return 2 if result.failed else 0
 

@@ -118,6 +118,7 @@ def _add_discover(sub: argparse._SubParsersAction) -> None:
     )
     _add_selection_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress messages")
+    _add_html_option(p)
     p.set_defaults(func=cmd_discover)
 
 
@@ -152,6 +153,15 @@ def _add_ray_option(p: argparse.ArgumentParser) -> None:
         help="run the tasks on Ray (extra ray): without ADDRESS Ray starts on this machine with "
         "its cores; with one (host:port of `ray start --head`, or ray://host:10001) it joins "
         "that cluster (default: this process, no Ray)",
+    )
+
+
+def _add_html_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--no-html",
+        action="store_true",
+        help="do not write report.html (the interactive page; the PNG figures are written "
+        "either way)",
     )
 
 
@@ -206,6 +216,7 @@ def _add_compensate(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--method", required=True, choices=METHODS, help="compensation method")
     p.add_argument("--out", required=True, help="output folder")
+    _add_html_option(p)
     _add_ray_option(p)
     p.add_argument(
         "--flux",
@@ -286,6 +297,7 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--out", default="results/evaluate", help="output folder")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_html_option(p)
     _add_ray_option(p)
     p.set_defaults(func=cmd_evaluate)
 
@@ -315,6 +327,7 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--hyperparams", help="hyperparameter file (default agents/hyperparams/ppo.json)"
     )
+    _add_html_option(p)
     _add_ray_option(p)
     p.set_defaults(func=cmd_train)
 

@@ -16,6 +16,7 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+from aeromag_env import reports
 from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.cli.limits import check_seed
 from aeromag_env.errors import AeromagError
@@ -56,10 +57,11 @@ def train_seeds(
     hyperparams: Path | None,
     ray: str | None,
     quiet: bool,
+    html: bool = True,
 ) -> dict[str, Any]:
     """Train one run per seed (tasks of ``--ray``'s runner, one CPU each); write and return
-    the summary. A failed seed is reported with its folder and the rest complete; then the
-    error is raised."""
+    the summary (and with ``html`` the seeds' learning curves, ``report.html``). A failed
+    seed is reported with its folder and the rest complete; then the error is raised."""
     from tqdm import tqdm
 
     from agents.ppo import CHECKPOINT, HYPERPARAMS, OUTPUTS, train_ppo
@@ -67,7 +69,8 @@ def train_seeds(
     hp = hyperparams or HYPERPARAMS
     for seed in seeds:
         check_output_set(out / f"seed_{seed}", (*CHECKPOINT, *OUTPUTS), [hp])
-    check_output_set(out, ("seeds.json",), [hp])
+    outputs = ("seeds.json", reports.PAGE) if html else ("seeds.json",)
+    check_output_set(out, outputs, [hp])
     tasks = [
         Task(
             f"seed {seed} ({out / f'seed_{seed}'})",
@@ -95,8 +98,11 @@ def train_seeds(
         for seed, o in zip(seeds, outcomes, strict=True)
     ]
     summary = {"scenario": scenario, "runner": r.name, "seeds": rows, **_spread(rows)}
-    with output_set(out, ("seeds.json",), [hp]) as stage:
+    with output_set(out, outputs, [hp]) as stage:
         write_text(stage / "seeds.json", json.dumps(summary, indent=2))
+        if html:
+            runs = {f"seed {s}": o.value for s, o in zip(seeds, outcomes, strict=True) if o.ok}
+            write_text(stage / reports.PAGE, reports.train_page(runs, f"Training: {scenario}"))
     print(seed_table(summary))
     failed = failures(outcomes)
     if failed:

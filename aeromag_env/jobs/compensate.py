@@ -5,7 +5,8 @@ the compensated ones), ``report.json`` (``method``, ``settings``, ``coefficients
 the provenance blocks of :func:`aeromag_env.jobs.provenance.provenance` — input hash and format,
 channels, mount, segments, flagged samples, flight date, Earth model — and the real-data accuracy
 blocks ``headline`` and, when the file has the vendor's compensated channel,
-``vendor_comparison``) and ``compensation.png`` (:data:`OUTPUTS`), written as a set
+``vendor_comparison``), ``compensation.png`` and ``report.html`` (:mod:`aeromag_env.reports`;
+not with ``html=False``) (:data:`OUTPUTS`), written as a set
 (:func:`write_compensate_outputs`, :func:`aeromag_env.atomic.output_set`): refused before the
 work if a target is an input, and all replaced together at the end.
 
@@ -23,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env import reports
 from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.compensation.compensate import (
     FILTER_METHODS,
@@ -49,13 +51,13 @@ from aeromag_env.jobs.provenance import (
     load_source,
     provenance,
 )
-from aeromag_env.jobs.reports import report_json
+from aeromag_env.jobs.reports import jsonable, report_json
 
 #: 2: provenance (input_sha256, input_format, channels, mount, segments, flagged_samples,
 #: flight_date, earth_model) and the headline / vendor_comparison blocks.
 REPORT_VERSION = 2
 #: The output set of a compensation, in the folder ``out``.
-OUTPUTS = ("compensated.h5", "report.json", "compensation.png")
+OUTPUTS = ("compensated.h5", "report.json", "compensation.png", reports.PAGE)
 #: The filter settings ``filter_preset`` names: the package defaults or the paper's §4 setting.
 FILTER_PRESETS = ("default", "paper")
 
@@ -95,6 +97,8 @@ class CompensateRequest:
         ``default`` or ``paper`` (the paper's §4 Q(0), R(0), x(0)).
     r_std_nt : float or None
         The filter's measurement-noise std [nT] (None: the preset's).
+    html : bool
+        Write ``report.html`` (:mod:`aeromag_env.reports`) with the set.
     """
 
     source: Path | Flight
@@ -112,6 +116,7 @@ class CompensateRequest:
     segment_s: tuple[float, float] | None = None
     filter_preset: str = "default"
     r_std_nt: float | None = None
+    html: bool = True
 
     @property
     def path(self) -> Path | None:
@@ -140,6 +145,10 @@ class CompensateRequest:
             raise AeromagError("--calibration-window needs T0 < T1 [s]")
         if self.r_std_nt is not None and not self.r_std_nt > 0:
             raise AeromagError(f"--r-std-nt must be > 0, got {self.r_std_nt}")
+
+    def outputs(self) -> tuple[str, ...]:
+        """The output set: :data:`OUTPUTS`, without the page when ``html`` is off."""
+        return OUTPUTS if self.html else tuple(n for n in OUTPUTS if n != reports.PAGE)
 
     def needs(self) -> tuple[str, ...]:
         """Fields the method reads besides its magnetometers (chosen after reading: ``tl``
@@ -274,7 +283,7 @@ def run_compensate(req: CompensateRequest, warn: JobWarnings) -> CompensationRes
     """Do the work of :func:`compensate` for a request; its warnings go to ``warn``."""
     req.check()
     if req.out is not None:
-        check_output_set(req.out, OUTPUTS, req.input_files())
+        check_output_set(req.out, req.outputs(), req.input_files())
     flight, problems, path = load_source(req.source, req.needs())
     # channels and mount from the whole flight (the mount is the installation's, and a single
     # line may turn too little to show it), then the selected part
@@ -312,7 +321,7 @@ def run_compensate(req: CompensateRequest, warn: JobWarnings) -> CompensationRes
     out_flight = Flight({**kept, **comp.fields}, {**flight.attrs, "compensation": comp.method})
     paths: tuple[Path, ...] = ()
     if req.out is not None:
-        paths = write_compensate_outputs(req.out, req.input_files(), out_flight, report, work, comp)
+        paths = write_compensate_outputs(req, out_flight, report, work, comp)
     return CompensationResult(
         method=comp.method,
         metrics=metrics_block,
@@ -344,22 +353,26 @@ def _compensate(
 
 
 def write_compensate_outputs(
-    out: Path,
-    inputs: list[Path],
+    req: CompensateRequest,
     out_flight: Flight,
     report: dict[str, Any],
     work: Flight,
     comp: Compensation,
 ) -> tuple[Path, ...]:
-    """Write the output set (:data:`OUTPUTS`) into ``out``, all replaced together; ``inputs``
-    are the files the run read (never overwritten). Returns the paths written."""
+    """Write the output set (:meth:`CompensateRequest.outputs`) into ``req.out``, all replaced
+    together; the files the run read are never overwritten. Returns the paths written."""
     from aeromag_env.compensation.plots import plot_compensation
 
-    with output_set(out, OUTPUTS, inputs) as stage:
+    assert req.out is not None
+    outputs = req.outputs()
+    with output_set(req.out, outputs, req.input_files()) as stage:
         write_flight(out_flight, stage / "compensated.h5")
         write_text(stage / "report.json", report_json(report))
         plot_compensation(work, comp, report["metrics"], stage / "compensation.png")
-    return tuple(out / name for name in OUTPUTS)
+        if req.html:
+            page = reports.compensate_page(jsonable(report), reports.compensate_arrays(work, comp))
+            write_text(stage / reports.PAGE, page)
+    return tuple(req.out / name for name in outputs)
 
 
 def _provenance_blocks(

@@ -4,7 +4,8 @@ Outputs in the folder ``out`` (when one is given): ``report.json`` (``missing_ef
 ``candidates``, ``skipped``, ``diagnostics``…), ``report.md`` (the same for people),
 ``model_config.json`` (the augmented model as a simulator configuration: ``aeromag simulate
 --config model_config.json --replay FILE`` re-creates the flight with the named effects),
-``residual.png`` and ``diagnostics.png`` (:data:`OUTPUTS`), written as a set
+``residual.png``, ``diagnostics.png`` and ``report.html`` (:mod:`aeromag_env.reports`; not with
+``html=False``) (:data:`OUTPUTS`), written as a set
 (:func:`write_discover_outputs`, :func:`aeromag_env.atomic.output_set`): refused before the work
 if a target is an input, and all replaced together at the end.
 """
@@ -20,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env import reports
 from aeromag_env.atomic import atomic_path, check_output_set, output_set, write_text
 from aeromag_env.configs import to_json
 from aeromag_env.discovery.workflow import ALPHA, Discovery
@@ -42,7 +44,14 @@ from aeromag_env.jobs.reports import jsonable
 #: 4: ``ground`` (``ground="separate"``), and ``gap.shrink`` 1 where both gaps are 0 (it was inf).
 REPORT_VERSION = 4
 #: The output set of a discovery, in the folder ``out``.
-OUTPUTS = ("report.json", "report.md", "model_config.json", "residual.png", "diagnostics.png")
+OUTPUTS = (
+    "report.json",
+    "report.md",
+    "model_config.json",
+    "residual.png",
+    "diagnostics.png",
+    reports.PAGE,
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -69,6 +78,8 @@ class DiscoverRequest:
         ``ignore`` or ``separate`` (:func:`aeromag_env.discovery.workflow.discover`).
     alpha : float
         Family-wise false-alarm level of the effect tests, in (0, 1).
+    html : bool
+        Write ``report.html`` (:mod:`aeromag_env.reports`) with the set.
     """
 
     source: Path | Flight
@@ -81,6 +92,7 @@ class DiscoverRequest:
     calibration_line: str | None = None
     ground: str = "ignore"
     alpha: float = ALPHA
+    html: bool = True
 
     @property
     def path(self) -> Path | None:
@@ -91,6 +103,10 @@ class DiscoverRequest:
         """The files the run reads: the flight and a mount file."""
         mount = [] if self.mount in ("auto", "identity") else [Path(self.mount)]
         return [*([] if self.path is None else [self.path]), *mount]
+
+    def outputs(self) -> tuple[str, ...]:
+        """The output set: :data:`OUTPUTS`, without the page when ``html`` is off."""
+        return OUTPUTS if self.html else tuple(n for n in OUTPUTS if n != reports.PAGE)
 
 
 #: The options :func:`discover` takes by keyword (the fields of :class:`DiscoverRequest` beyond
@@ -199,7 +215,7 @@ def run_discover(
 ) -> DiscoverResult:
     """Do the work of :func:`discover` for a request; its warnings go to ``warn``."""
     if req.out is not None:
-        check_output_set(req.out, OUTPUTS, req.input_files())
+        check_output_set(req.out, req.outputs(), req.input_files())
     flight, problems, path = load_source(req.source, ("tt", "position", "attitude", "date"))
     if path is not None:
         flight.attrs.setdefault("path", str(path))
@@ -246,22 +262,27 @@ def run_discover(
         warn(caveat)
     paths: tuple[Path, ...] = ()
     if req.out is not None:
-        paths = write_discover_outputs(req.out, req.input_files(), report, result)
+        paths = write_discover_outputs(req, report, result)
     return DiscoverResult(report, tuple(warn.lines), paths, result)
 
 
 def write_discover_outputs(
-    out: Path, inputs: list[Path], report: dict[str, Any], result: Discovery
+    req: DiscoverRequest, report: dict[str, Any], result: Discovery
 ) -> tuple[Path, ...]:
-    """Write the output set (:data:`OUTPUTS`) into ``out``, all replaced together; ``inputs``
-    are the files the run read (never overwritten). Returns the paths written."""
+    """Write the output set (:meth:`DiscoverRequest.outputs`) into ``req.out``, all replaced
+    together; the files the run read are never overwritten. Returns the paths written."""
+    assert req.out is not None
     model = json.loads(to_json(result.model))
-    with output_set(out, OUTPUTS, inputs) as stage:
+    outputs = req.outputs()
+    with output_set(req.out, outputs, req.input_files()) as stage:
         write_text(stage / "report.json", json.dumps(report, indent=2))
         write_text(stage / "report.md", markdown(report))
         write_text(stage / "model_config.json", json.dumps(model, indent=2))
         plot_discovery(result, stage)
-    return tuple(out / name for name in OUTPUTS)
+        if req.html:
+            page = reports.discover_page(report, result.series, result.drivers)
+            write_text(stage / reports.PAGE, page)
+    return tuple(req.out / name for name in outputs)
 
 
 def markdown(report: dict[str, Any]) -> str:

@@ -26,8 +26,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from aeromag_env import errors
-from aeromag_env.atomic import check_output_set, output_set
+from aeromag_env import errors, reports
+from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.formats.detect import SUFFIXES
 from aeromag_env.flight.validation import PathLike
@@ -283,7 +283,7 @@ def fleet(
         raise AeromagError(f"fleet: job must be one of {', '.join(JOBS)}, got {job!r}")
     folder = Path(out)
     template = _request(job, Path(source), folder, options)
-    files, names = _plan(str(source), folder)
+    files, names = _plan(str(source), folder, template.html)
     task, columns = JOBS[job]
     tasks = [
         Task(str(path), task, (replace(template, source=path, out=folder / name),))
@@ -294,7 +294,7 @@ def fleet(
     with runner(ray) as r:
         outcomes = r.run(tasks, on_flight or _warn_flight)
     rows = [_row(o, name) for o, name in zip(outcomes, names, strict=True)]
-    paths = write_summary(folder, rows, columns, files, job)
+    paths = write_summary(folder, rows, columns, files, job, template.html)
     return FleetResult(job, tuple(rows), tuple(outcomes), r.name, paths)
 
 
@@ -313,11 +313,11 @@ def _request(job: str, source: Path, out: Path, options: dict[str, Any]) -> Any:
     return request
 
 
-def _plan(arg: str, out: Path) -> tuple[list[Path], list[str]]:
+def _plan(arg: str, out: Path, html: bool) -> tuple[list[Path], list[str]]:
     """The fleet's files and their output folder names; the summary's targets checked before
     any work."""
     files = fleet_files(arg, out)
-    check_output_set(out, OUTPUTS, files)
+    check_output_set(out, summary_outputs(html), files)
     return files, output_names(files)
 
 
@@ -335,20 +335,32 @@ def _row(outcome: Outcome, name: str) -> dict[str, Any]:
     return {"file": outcome.label, "output": name, **row, "attempts": outcome.attempts}
 
 
+def summary_outputs(html: bool) -> tuple[str, ...]:
+    """The fleet's summary files: :data:`OUTPUTS`, and with ``html`` the index page."""
+    return (*OUTPUTS, reports.FLEET_PAGE) if html else OUTPUTS
+
+
 def write_summary(
     out: Path,
     rows: list[dict[str, Any]],
     columns: Sequence[str],
     inputs: Sequence[Path],
     command: str,
+    html: bool = True,
 ) -> tuple[Path, ...]:
-    """``fleet.csv`` and ``fleet.png`` in ``out``, as a set; returns their paths."""
+    """``fleet.csv`` and ``fleet.png`` in ``out``, and with ``html`` the index page
+    (``index.html``, a row per flight linking to its ``report.html``), as a set; returns their
+    paths."""
     from aeromag_env.jobs.fleet_plot import plot_fleet
 
-    with output_set(out, OUTPUTS, inputs) as stage:
+    outputs = summary_outputs(html)
+    with output_set(out, outputs, inputs) as stage:
         _write_csv(stage / OUTPUTS[0], rows, columns)
         plot_fleet(rows, command, stage / OUTPUTS[1])
-    return tuple(out / name for name in OUTPUTS)
+        if html:
+            page = reports.fleet_page(rows, columns, command, reports.PAGE)
+            write_text(stage / reports.FLEET_PAGE, page)
+    return tuple(out / name for name in outputs)
 
 
 def _write_csv(path: Path, rows: list[dict[str, Any]], columns: Sequence[str]) -> None:

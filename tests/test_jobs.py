@@ -89,7 +89,7 @@ def test_compensate_cli_and_library_agree(
     assert printed == summary_line(result.report, cli_out) + "\n"
     assert cli_said == list(result.warnings) == issued
     assert result.paths == tuple(
-        lib_out / n for n in ("compensated.h5", "report.json", "compensation.png")
+        lib_out / n for n in ("compensated.h5", "report.json", "compensation.png", "report.html")
     )
     # the gap, the spike and the mount are in the numbers both doors gave
     assert result.report["metrics"]["segments"]["count"] == 2

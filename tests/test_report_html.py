@@ -304,7 +304,7 @@ def fleet_rows() -> list[dict[str, Any]]:
 
 def all_pages() -> dict[str, tuple[str, dict[str, Any]]]:
     """Each kind of page and the report its headline figures come from."""
-    from aeromag_env.cli.fleet import COMPENSATE_COLUMNS
+    from aeromag_env.jobs.fleet import COMPENSATE_COLUMNS
 
     results = evaluate_results()
     training = training_summary()
@@ -493,7 +493,7 @@ def chromium() -> Any:
 
 
 def test_the_seeds_page_and_the_discover_fleet_index_show_their_figures() -> None:
-    from aeromag_env.cli.fleet import DISCOVER_COLUMNS
+    from aeromag_env.jobs.fleet import DISCOVER_COLUMNS
 
     runs = {f"seed {k}": {**training_summary(), "best_validation_rmse_nt": 0.4 + k} for k in (0, 1)}
     page = reports.train_page(runs)

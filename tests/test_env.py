@@ -94,7 +94,7 @@ def test_reward_forms_are_the_documented_formulas_over_the_same_windows(form, fo
         assert info["rmse_window_nt"] == info_log["rmse_window_nt"]  # the form changes no flight
         assert r_log == pytest.approx(-math.log1p(info["rmse_window_nt"] / 4.0))
         assert r == pytest.approx(formula(info["rmse_window_nt"]))
-    with pytest.raises(ConfigError, match="reward_form: one of log, linear, squared"):
+    with pytest.raises(ConfigError, match=r"reward_form\): one of log, linear, squared"):
         _make(config={"reward_form": "cubic"})
 
 

@@ -124,7 +124,7 @@ class EnvConfig:
         check_config(self)
         for name, spec in (("action", ActionSpec), ("reward", RewardSpec)):
             value = getattr(self, name)
-            require(isinstance(value, spec), name, f"a {spec.__name__}", value)
+            require(isinstance(value, spec), name, f"an {spec.__name__}", value)
         if isinstance(self.observations, list):  # a JSON list
             object.__setattr__(self, "observations", tuple(self.observations))
         check_observations(self.observations, self.action.permanent != "joint")
@@ -251,7 +251,7 @@ def _changed(base: dict[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]
             value = _spec_dict(value)
             if not isinstance(value, Mapping):
                 raise ConfigError(
-                    f"{key} must be a {key.capitalize()}Spec or a dict, got {value!r}"
+                    f"{key} must be an {key.capitalize()}Spec or a dict, got {value!r}"
                 )
             out[key].update(value)
         elif key in LEGACY_KEYS:

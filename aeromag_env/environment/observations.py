@@ -163,7 +163,7 @@ def check_observations(names: object, permanent_action: bool) -> None:
         needs = entry(name).needs
         if "permanent_action" in needs and not permanent_action:
             raise ConfigError(
-                f"observation {name!r} needs a T_p action (action permanent='graded' or 'gate')"
+                f"observations: {name!r} needs a T_p action (action.permanent 'graded' or 'gate')"
             )
     repeated = sorted({n for n in names if names.count(n) > 1})
     if repeated:

@@ -14,7 +14,7 @@ import gymnasium as gym
 import numpy as np
 
 from aeromag_env.atomic import atomic_path
-from aeromag_env.environment.env import EnvConfig
+from aeromag_env.environment.config import env_config
 from aeromag_env.errors import AeromagError
 from agents.evaluate import TRAIN_SEEDS
 
@@ -200,7 +200,7 @@ def _detector_rollouts(venv: Any, hp: dict[str, Any], steps: int) -> tuple[list,
 
     spec = hp["pretrain"]
     demo = InnovationDetectorPolicy(
-        EnvConfig(**hp["env_kwargs"]), threshold_nt=float(spec.get("threshold_nt", 20.0))
+        env_config(**hp["env_kwargs"]), threshold_nt=float(spec.get("threshold_nt", 20.0))
     )
     raw_obs, actions, rewards, dones = [], [], [], []
     venv.reset()
@@ -242,7 +242,7 @@ def _privileged_rollouts(
         gym.make("AeroMagCompensation-v0", scenario=scenario, **hp["env_kwargs"]) for _ in range(n)
     ]
     seeds = [seed_stream(rank, n, offset=offset) for rank in range(n)]
-    after = teacher_after(EnvConfig(**hp["env_kwargs"]).decision_window)
+    after = teacher_after(env_config(**hp["env_kwargs"]).decision_window)
     floor = hp["pretrain"].get("teacher_r_floor")
     teachers = [
         PrivilegedPolicy(env, after=after, cautious_start=True, r_floor=floor) for env in envs

@@ -10,7 +10,9 @@ compiled code, so environment i of the vector environment is bitwise the single 
 the same flight and actions (tested).
 
 The action mapping, reward and observation are specified in the environment's docstring; the
-action and observation layouts are named in :mod:`aeromag_env.environment.spaces`.
+action and observation layouts are named in :mod:`aeromag_env.environment.spaces`, the
+observations written by :mod:`aeromag_env.environment.observe`, and the vectors the step keeps
+and writes laid out in :mod:`aeromag_env.environment.layout`.
 """
 
 from __future__ import annotations
@@ -94,7 +96,7 @@ def _episode_rmse(run: np.ndarray, window_rmse: float) -> float:
 
 @njit(cache=True)
 def _reward(e: float, form: float) -> float:
-    """The reward of a window error ``e`` in units of ``reward_scale_nt``: ``−ln(1 + e)``
+    """The reward of a window error ``e`` in units of the reward's ``scale_nt``: ``−ln(1 + e)``
     (form 0, log), ``−e`` (1, linear) or ``−e²`` (2, squared)."""
     if form == 0.0:
         return -math.log1p(e)

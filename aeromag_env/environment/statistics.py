@@ -4,8 +4,8 @@ Each is compiled and reads the filter's arrays in place (:mod:`aeromag_env.compe
 the innovations of the last samples (whiteness), the circular window of the last M updates
 (recent ROR, innovation powers, the two-window change statistic, the innovation bias) and the
 model field in body axes (the turn rate). :func:`aeromag_env.environment.kernels.env_step`
-writes them into the observation; their meaning is in
-:class:`aeromag_env.environment.env.EnvConfig`.
+writes them into the observation (:mod:`aeromag_env.environment.observe`); their meaning is in
+the registry :mod:`aeromag_env.environment.observations`.
 """
 
 from __future__ import annotations

@@ -44,9 +44,9 @@ class AeroMagCompensationVecEnv(VectorEnv):
     ## Spaces
 
     ``single_action_space`` and ``single_observation_space`` are the single environment's;
-    ``action_space`` and ``observation_space`` batch them: actions (N, 2), or (N, 3) with
-    ``split_q``; observations (N, 2), or (N, 7) with ``extras`` (N, 8 with ``split_q`` too),
-    float32. Actions are clipped to [-1, 1]; a wrong shape, values that are not real numbers
+    ``action_space`` and ``observation_space`` batch them: actions (N, 2), or (N, 3) with a T_p
+    action; observations (N, len(config.observations)) float32. Actions are clipped to
+    [-1, 1]; a wrong shape, values that are not real numbers
     (complex, bool, text, objects) or a non-finite value (naming its environment) raise
     ``ValueError``.
 

@@ -6,9 +6,9 @@ the scalars ``obs_clip`` and ``obs_eps``, hidden layers ``w0`` (h0, n_obs), ``b0
 real numbers; ``meta`` a JSON object as a 0-d string array, whose ``env_kwargs`` (the
 settings of an :class:`~aeromag_env.environment.config.EnvConfig`: the shipped files name a
 preset, ``{"preset": "general"}``; files written from a hyperparameter file carry its flat
-keys) must give n_obs observations and n_act actions. Nothing is unpickled (``allow_pickle=False``), member sizes are checked before a
-member is read, and every problem is a one-line
-:class:`~aeromag_env.errors.PolicyFileError` naming the file and the problem.
+keys) must give n_obs observations and n_act actions. Nothing is unpickled
+(``allow_pickle=False``), member sizes are checked before a member is read, and every problem
+is a one-line :class:`~aeromag_env.errors.PolicyFileError` naming the file and the problem.
 """
 
 from __future__ import annotations

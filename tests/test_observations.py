@@ -21,11 +21,10 @@ import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.compensation.kernel_layout import ACC, INTS, N_ACC, N_INT, N_PAR, PAR, Acc
 from aeromag_env.configs import from_dict, to_json
 from aeromag_env.environment import observe
-from aeromag_env.environment.config import EnvConfig, env_config
+from aeromag_env.environment.config import PRESETS, EnvConfig, env_config
 from aeromag_env.environment.ids import registered_ids
 from aeromag_env.environment.layout import OUT, RUN, STEP_PAR
 from aeromag_env.environment.observations import NAMES, REGISTRY, entry, observation_id
-from aeromag_env.environment.presets import PRESETS
 from aeromag_env.environment.spaces import observation_names
 from aeromag_env.errors import ConfigError
 from agents import SHIPPED

@@ -3,7 +3,7 @@
 :class:`EnvConfig` composes three choices: the observation (a tuple of names from the registry
 :mod:`aeromag_env.environment.observations`), the action mapping (:class:`ActionSpec`) and the
 reward (:class:`RewardSpec`), beside the episode's scenario and timing. Named configurations are
-presets (:mod:`aeromag_env.environment.presets`); :func:`env_config` builds a configuration from
+presets (:data:`PRESETS`); :func:`env_config` builds a configuration from
 a preset name, a config or a dict, and keyword changes, as ``gym.make`` passes them.
 
 Dicts may be partial (``{"preset": "general", "decision_window": 5}``, ``{"action": {"s_max":
@@ -19,6 +19,7 @@ import dataclasses
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any
 
 from aeromag_env.configs import from_dict, to_dict
@@ -202,6 +203,64 @@ LEGACY_KEYS = {
 LEGACY_SWITCHES = ("extras", "split_q", "qp_gate", *LEGACY_OBSERVATIONS)
 _FIELDS = tuple(f.name for f in dataclasses.fields(EnvConfig))
 
+# The presets: ``paper`` is the paper's setting (its two observations, relative actions
+# ``s = 2 ** a``, the log reward), the default of every registered id
+# (:mod:`aeromag_env.environment.ids`); ``nonstationary`` and ``general`` are the settings the
+# shipped PPO policies were trained with (``agents/trained/ppo_nonstationary.npz``,
+# ``ppo_general.npz``, whose metadata names them). A preset's scenario is ``nominal``; the id or a
+# keyword chooses the scenario.
+#: The observations both shipped policies read: the paper's two, the five of the first
+#: version's ``extras``, the T_p Q scale and the two innovation powers.
+_DETECTOR_OBSERVATIONS = (
+    *PAPER_OBSERVATIONS,
+    *EXTRAS,
+    "log_qp_scale",
+    "log_innovation_power",
+    "log_mean_innovation_power",
+)
+
+#: The registry of presets (read-only): ``gym.make(id, preset=name)``, or in a dict
+#: ``{"preset": "general", "decision_window": 5}``.
+PRESETS: Mapping[str, EnvConfig] = MappingProxyType(
+    {
+        "paper": EnvConfig(),
+        "nonstationary": EnvConfig(
+            observations=_DETECTOR_OBSERVATIONS,
+            action=ActionSpec(
+                mode="absolute",
+                scale_limit=1e10,
+                q_log10=(-4.0, 4.0),
+                r_log10=(-1.0, 3.0),
+                qp_log10=(-2.0, 10.0),
+                permanent="gate",
+            ),
+        ),
+        "general": EnvConfig(
+            observations=(
+                *_DETECTOR_OBSERVATIONS,
+                "log_step_statistic",
+                "log_turn_rate",
+                "log_innovation_bias",
+            ),
+            action=ActionSpec(
+                mode="absolute",
+                scale_limit=1e10,
+                q_log10=(-10.0, 2.0),
+                r_log10=(-2.0, 7.0),
+                qp_log10=(-6.0, 10.0),
+                permanent="graded",
+            ),
+        ),
+    }
+)
+
+
+def preset(name: object) -> EnvConfig:
+    """The preset ``name``; a one-line ConfigError naming the presets for another name."""
+    if not isinstance(name, str) or name not in PRESETS:
+        raise ConfigError(f"unknown preset {name!r}; valid presets: {', '.join(PRESETS)}")
+    return PRESETS[name]
+
 
 def env_config(config: EnvConfig | Mapping[str, Any] | None = None, **changes: Any) -> EnvConfig:
     """The configuration ``config`` with ``changes``, checked.
@@ -232,8 +291,6 @@ def env_config(config: EnvConfig | Mapping[str, Any] | None = None, **changes: A
 
 
 def _preset_dict(name: object) -> dict[str, Any]:
-    from aeromag_env.environment.presets import preset
-
     return to_dict(preset("paper" if name is None else name))
 
 

@@ -96,7 +96,7 @@ class AeroMagCompensationEnv(gym.Env):
     | 1 | log10 QOQ | ``tr(K C_r Kᵀ) / tr Q`` (covariance matching), 0 before data |
 
     Every configuration starts with these two; the ``nonstationary`` and ``general`` presets
-    (:mod:`aeromag_env.environment.presets`) add the scales, innovation statistics and the turn
+    (:mod:`aeromag_env.environment.config`) add the scales, innovation statistics and the turn
     rate their shipped policies read. Names and columns:
     :func:`aeromag_env.environment.spaces.observation_names` and
     :func:`~aeromag_env.environment.spaces.observation_index` (actions:

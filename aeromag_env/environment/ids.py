@@ -4,7 +4,7 @@
 ``AeroMagCompensation-v0`` (the scenario a keyword, ``nominal`` by default) and one id per
 scenario in the ``AeroMag`` namespace: ``AeroMag/Nonstationary-v0`` is
 ``AeroMagCompensation-v0`` with ``scenario="nonstationary"``. Every id names its preset
-(:data:`ID_PRESET`; :mod:`aeromag_env.environment.presets`), which ``preset=`` or ``config=``
+(:data:`ID_PRESET`; :mod:`aeromag_env.environment.config`), which ``preset=`` or ``config=``
 replaces. Each works with ``gym.make``
 (``max_episode_steps`` and ``render_mode`` passed through), ``gym.make_vec`` (the batched vector
 environment with ``vectorization_mode="vector_entry_point"``, or Gymnasium's ``sync``/``async``)

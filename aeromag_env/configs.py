@@ -55,12 +55,17 @@ T = TypeVar("T")
 def from_dict(cls: type[T], data: dict[str, Any] | Any) -> T:
     """Plain dict → dataclass ``cls`` (recursively); unknown keys give a one-line error.
 
-    An instance of ``cls`` is returned unchanged, so callers may pass either form.
+    An instance of ``cls`` is returned unchanged, so callers may pass either form. A class
+    with a ``canonical_dict(data) -> dict`` static method reads its own dicts first (e.g.
+    :class:`~aeromag_env.environment.config.EnvConfig`: a preset name and partial specs).
     """
     if isinstance(data, cls):
         return data
     if not isinstance(data, dict):
         raise ConfigError(f"{cls.__name__} expects a mapping, got {type(data).__name__}")
+    canonical = getattr(cls, "canonical_dict", None)
+    if canonical is not None:
+        data = canonical(data)
     hints = _type_hints(cls)
     names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
     unknown = sorted(set(data) - set(names))
@@ -113,6 +118,10 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
         item = typing.get_args(tp)[0]
         if dataclasses.is_dataclass(item):
             return tuple(from_dict(item, v) for v in value)  # type: ignore[arg-type]
+        if item is str:
+            if not all(isinstance(v, str) for v in value):
+                raise ConfigError(f"{where} expects a list of names, got {value!r}")
+            return tuple(value)
         return tuple(_number(v, where) for v in value)
     if origin is dict:
         if not isinstance(value, dict):

@@ -48,8 +48,9 @@ def available_policies() -> list[str]:
 
 
 def policy_env_kwargs(name: str) -> dict[str, Any]:
-    """Environment settings a policy needs (PPO: those it was trained with; ``privileged``: its
-    action layout; others: none).
+    """Environment settings a policy needs as ``gym.make`` keywords (PPO: those it was trained
+    with, for the shipped policies the name of their preset; ``privileged``: its action layout;
+    others: none).
 
     ``ppo`` is the shipped policy; ``ppo:PATH`` loads an exported ``.npz`` (never a pickle).
     """

@@ -14,7 +14,7 @@ import gymnasium as gym
 import numpy as np
 
 from aeromag_env.atomic import atomic_path
-from aeromag_env.environment.env import EnvConfig
+from aeromag_env.environment.config import env_config
 from aeromag_env.errors import AeromagError
 from agents.evaluate import TRAIN_SEEDS
 from agents.ppo_hyperparams import PPOHyperparams, Pretrain
@@ -207,7 +207,7 @@ def _detector_rollouts(venv: Any, hp: PPOHyperparams, steps: int) -> tuple[list,
     from agents.policies import InnovationDetectorPolicy
 
     demo = InnovationDetectorPolicy(
-        EnvConfig(**hp.env_kwargs), threshold_nt=float(_pretrain(hp).threshold_nt)
+        env_config(**hp.env_kwargs), threshold_nt=float(_pretrain(hp).threshold_nt)
     )
     raw_obs, actions, rewards, dones = [], [], [], []
     venv.reset()
@@ -249,7 +249,7 @@ def _privileged_rollouts(
         gym.make("AeroMagCompensation-v0", scenario=scenario, **hp.env_kwargs) for _ in range(n)
     ]
     seeds = [seed_stream(rank, n, offset=offset) for rank in range(n)]
-    after = teacher_after(EnvConfig(**hp.env_kwargs).decision_window)
+    after = teacher_after(env_config(**hp.env_kwargs).decision_window)
     floor = _pretrain(hp).teacher_r_floor
     teachers = [
         PrivilegedPolicy(env, after=after, cautious_start=True, r_floor=floor) for env in envs

@@ -3,7 +3,8 @@
 The ``.npz`` (``allow_pickle=False``) holds the observation normalisation (``obs_mean``,
 ``obs_var``, ``obs_clip``, ``obs_eps``), the actor's hidden layers ``w0, b0, w1, b1, …``
 (tanh activations, SB3's default for PPO), the action layer ``w_out, b_out`` and a JSON string
-``meta`` (scenario, environment keyword arguments, training summary); :mod:`.policy_file` reads
+``meta`` (scenario, environment keyword arguments (the shipped files name their preset:
+:mod:`aeromag_env.environment.config`), training summary); :mod:`.policy_file` reads
 it and checks every array (names, dtypes, shapes, finite values, the sizes ``env_kwargs`` give)
 before a policy exists, so a malformed file is a one-line
 :class:`~aeromag_env.errors.PolicyFileError` at load time, never an error in :meth:`predict`.

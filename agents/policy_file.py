@@ -3,11 +3,12 @@
 The layout (written by :func:`export_policy`): ``obs_mean`` and ``obs_var`` (n_obs,),
 the scalars ``obs_clip`` and ``obs_eps``, hidden layers ``w0`` (h0, n_obs), ``b0`` (h0,),
 ``w1`` (h1, h0), … and the action layer ``w_out`` (n_act, h_last), ``b_out`` (n_act,), all
-real numbers; ``meta`` a JSON object as a 0-d string array, whose ``env_kwargs`` (an
-:class:`~aeromag_env.environment.env.EnvConfig`) must give n_obs observations and n_act
-actions. Nothing is unpickled (``allow_pickle=False``), member sizes are checked before a
-member is read, and every problem is a one-line
-:class:`~aeromag_env.errors.PolicyFileError` naming the file and the problem.
+real numbers; ``meta`` a JSON object as a 0-d string array, whose ``env_kwargs`` (the
+settings of an :class:`~aeromag_env.environment.config.EnvConfig`: the shipped files name a
+preset, ``{"preset": "general"}``; files written from a hyperparameter file carry its flat
+keys) must give n_obs observations and n_act actions. Nothing is unpickled
+(``allow_pickle=False``), member sizes are checked before a member is read, and every problem
+is a one-line :class:`~aeromag_env.errors.PolicyFileError` naming the file and the problem.
 """
 
 from __future__ import annotations

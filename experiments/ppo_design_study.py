@@ -37,7 +37,7 @@ import gymnasium as gym
 import numpy as np
 
 import aeromag_env  # noqa: F401
-from aeromag_env.environment.env import EnvConfig
+from aeromag_env.environment.config import env_config
 from aeromag_env.environment.spaces import BASE_ACTIONS, observation_index
 from aeromag_env.simulation.interference import STATE_SLICES
 from agents import DEFAULT_PPO, make_policy
@@ -160,7 +160,7 @@ def _mean_innovation_rule(nt: float, r0: float) -> Any:
     exceeds ``nt`` (``innovation_power``'s observation ``log_mean_innovation_power``:
     log10 |mean r|² / tr R(0), tr R(0) = 3 ``r0``), else Q(0); R at 100 × R(0)."""
     threshold = math.log10(nt**2 / (3 * r0))
-    layout = EnvConfig(**DETECTOR_ENV, innovation_power=True)
+    layout = env_config(**DETECTOR_ENV, innovation_power=True)
     col = observation_index(layout, "log_mean_innovation_power")
     return lambda obs: _absolute_action(0.0, 2.0, np.where(obs[:, col] > threshold, 10.0, 0.0))
 
@@ -179,7 +179,7 @@ def detector(seeds: Sequence[int] = SEEDS) -> None:
 
     base = {"scenario": "nonstationary", **DETECTOR_ENV}
     r0 = make_episode("nonstationary", seeds[0]).filter_cfg.r_std_nt ** 2  # per axis [nT²]
-    col = observation_index(EnvConfig(**base, step_statistic=True), "log_step_statistic")
+    col = observation_index(env_config(**base, step_statistic=True), "log_step_statistic")
 
     def held(log_threshold: float, hold_windows: int) -> Any:
         hold = np.zeros(len(seeds), int)

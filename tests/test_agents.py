@@ -120,7 +120,7 @@ def test_evaluate_cli(tmp_path, capsys):
 
 
 def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation():
-    from aeromag_env.environment.env import EnvConfig
+    from aeromag_env.environment.config import env_config
     from aeromag_env.environment.spaces import ACT_QP, observation_index
     from agents.policies import InnovationDetectorPolicy
 
@@ -135,16 +135,16 @@ def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation(
     }
     tr_r0 = 3 * 1.5**2  # nT², the default R(0)
     obs = np.zeros((3, 10), np.float32)
-    column = observation_index(EnvConfig(**kw), "log_mean_innovation_power")
+    column = observation_index(env_config(**kw), "log_mean_innovation_power")
     obs[:, column] = np.log10(np.array([19.0, 21.0, 60.0]) ** 2 / tr_r0)  # |mean r| 19, 21, 60 nT
-    actions, _ = InnovationDetectorPolicy(EnvConfig(**kw)).predict(obs)
+    actions, _ = InnovationDetectorPolicy(env_config(**kw)).predict(obs)
     np.testing.assert_allclose(actions[:, ACT_Q], 0.0, atol=1e-7)  # Q at 10^0 in (-4, 4)
     np.testing.assert_allclose(actions[:, ACT_R], 0.5, atol=1e-7)  # R at 10^2 in (-1, 3)
     np.testing.assert_allclose(actions[:, ACT_QP], [-2 / 3, 1.0, 1.0], atol=1e-6)  # 10^0, 10^10
-    gated, _ = InnovationDetectorPolicy(EnvConfig(**kw, qp_gate=True)).predict(obs[0])
+    gated, _ = InnovationDetectorPolicy(env_config(**kw, qp_gate=True)).predict(obs[0])
     assert gated[ACT_QP] == -1.0
     with pytest.raises(ConfigError, match="innovation_detector needs"):
-        InnovationDetectorPolicy(EnvConfig(extras=True))
+        InnovationDetectorPolicy(env_config(extras=True))
 
 
 def test_the_privileged_policy_acts_on_the_true_noise_and_the_steps():

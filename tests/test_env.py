@@ -11,12 +11,10 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.configs import to_dict
-from aeromag_env.environment.env import EnvConfig
+from aeromag_env.environment.config import EnvConfig, env_config
+from aeromag_env.environment.observations import NAMES
 from aeromag_env.environment.scenarios import REGIME_STD_NT, SCENARIOS, make_episode
 from aeromag_env.environment.spaces import (
-    OBS_LOG_Q_SCALE,
-    OBS_LOG_QP_SCALE,
-    OBSERVATIONS,
     action_names,
     observation_bounds,
     observation_index,
@@ -62,7 +60,7 @@ def test_same_seed_same_actions_identical():
 
 
 def test_config_round_trips_through_gym_make_as_a_dict():
-    cfg = EnvConfig(scenario="misspecified", decision_window=20, extras=True, s_max=3.0)
+    cfg = env_config(scenario="misspecified", decision_window=20, extras=True, s_max=3.0)
     env = _make(config=json.loads(json.dumps(to_dict(cfg))))
     assert env.unwrapped.config == cfg
     assert env.observation_space.shape == (7,)
@@ -96,7 +94,7 @@ def test_reward_forms_are_the_documented_formulas_over_the_same_windows(form, fo
         assert info["rmse_window_nt"] == info_log["rmse_window_nt"]  # the form changes no flight
         assert r_log == pytest.approx(-math.log1p(info["rmse_window_nt"] / 4.0))
         assert r == pytest.approx(formula(info["rmse_window_nt"]))
-    with pytest.raises(ConfigError, match="reward_form: one of log, linear, squared"):
+    with pytest.raises(ConfigError, match=r"reward_form\): one of log, linear, squared"):
         _make(config={"reward_form": "cubic"})
 
 
@@ -267,7 +265,9 @@ def test_split_q_scales_the_permanent_block_on_its_own():
     for (obs_a, *rest_a), (obs_b, *rest_b) in zip(a[1:], b[1:], strict=True):
         np.testing.assert_array_equal(obs_a[:7], obs_b)
         # the T_p scale followed the other blocks' scale
-        assert obs_a[OBS_LOG_QP_SCALE] == obs_a[OBS_LOG_Q_SCALE]
+        layout = split.unwrapped.config
+        qp, q = observation_index(layout, "log_qp_scale"), observation_index(layout, "log_q_scale")
+        assert obs_a[qp] == obs_a[q]
         assert rest_a[:3] == rest_b[:3]
     split.reset(seed=100_000)
     q0 = split.unwrapped.filter.qd.copy()
@@ -341,7 +341,7 @@ def _flown_window(env, steps: int = 60):
 def test_step_statistic_follows_its_definition_and_flags_a_step():
     """The two-window change statistic equals its formula on the filter's innovations, sits
     near 1 + K/(M − K) on white noise at any level, and a 5-sigma step lifts it by decades."""
-    from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_POS, INT_WINDOW
+    from aeromag_env.compensation.kernel_layout import INTS
     from aeromag_env.environment.statistics import step_statistic
 
     env = _make(scenario="nonstationary", extras=True, step_statistic=True, split_q=True)
@@ -354,7 +354,7 @@ def test_step_statistic_follows_its_definition_and_flags_a_step():
 
     m, k = 50, 10
     ints = np.zeros(8, np.int64)
-    ints[INT_COUNT], ints[INT_POS], ints[INT_WINDOW] = m, 17, m  # a full, wrapped window
+    ints[INTS.updates], ints[INTS.pos], ints[INTS.window] = m, 17, m  # a full, wrapped window
     rng = np.random.default_rng(0)
     for std in (1.0, 15.0):
         stats = [step_statistic(k, ints, std * rng.standard_normal((m, 3))) for _ in range(2000)]
@@ -400,7 +400,7 @@ def test_innovation_bias_follows_its_definition_and_holds_a_missed_step():
     white noise it sits near ν/(ν − 2) with ν = 3(M − 1) at any level, a bias of 2 noise std
     lifts it by decades, and it stays up once a step fills the whole window, where the
     two-window statistic falls back."""
-    from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_POS, INT_WINDOW
+    from aeromag_env.compensation.kernel_layout import INTS
     from aeromag_env.environment.statistics import innovation_bias, step_statistic
 
     env = _make(scenario="nonstationary", extras=True, innovation_bias=True)
@@ -411,7 +411,7 @@ def test_innovation_bias_follows_its_definition_and_holds_a_missed_step():
 
     m = 50
     ints = np.zeros(8, np.int64)
-    ints[INT_COUNT], ints[INT_POS], ints[INT_WINDOW] = m, 17, m
+    ints[INTS.updates], ints[INTS.pos], ints[INTS.window] = m, 17, m
     rng = np.random.default_rng(0)
     for std in (1.0, 15.0):
         stats = [innovation_bias(ints, std * rng.standard_normal((m, 3))) for _ in range(2000)]
@@ -419,7 +419,7 @@ def test_innovation_bias_follows_its_definition_and_holds_a_missed_step():
     held = 15.0 * rng.standard_normal((m, 3)) + 30.0  # a 30-nT step in 15-nT noise, window full
     assert innovation_bias(ints, held) > 100.0
     assert step_statistic(10, ints, held) < 10.0
-    ints[INT_COUNT] = 2
+    ints[INTS.updates] = 2
     assert np.isnan(innovation_bias(ints, held))
     with pytest.raises(ConfigError, match="innovation_bias needs extras"):
         _make(innovation_bias=True)
@@ -480,7 +480,7 @@ def test_spaces_lay_out_the_observations_and_actions_as_documented():
     paper = EnvConfig()
     assert observation_names(paper) == ("log_ror", "log_qoq")
     assert action_names(paper) == ("a_q", "a_r")
-    full = EnvConfig(
+    full = env_config(
         extras=True,
         split_q=True,
         innovation_power=True,
@@ -488,18 +488,20 @@ def test_spaces_lay_out_the_observations_and_actions_as_documented():
         turn_rate=True,
         innovation_bias=True,
     )
-    assert observation_names(full) == OBSERVATIONS and len(OBSERVATIONS) == 13
+    assert observation_names(full) == NAMES and len(NAMES) == 13
     assert action_names(full) == ("a_q", "a_r", "a_qp")
-    detector = EnvConfig(extras=True, split_q=True, innovation_power=True)
+    detector = env_config(extras=True, split_q=True, innovation_power=True)
     assert observation_index(detector, "log_mean_innovation_power") == 9
-    assert observation_index(EnvConfig(extras=True, step_statistic=True), "log_step_statistic") == 7
+    assert (
+        observation_index(env_config(extras=True, step_statistic=True), "log_step_statistic") == 7
+    )
     with pytest.raises(ValueError, match="not in this layout"):
         observation_index(paper, "whiteness")
     positions = observation_positions(detector)
     assert positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, -1, -1, -1]
-    low, high = observation_bounds(EnvConfig(extras=True))
+    low, high = observation_bounds(env_config(extras=True))
     np.testing.assert_array_equal(low, np.float32([-8, -8, -8, -8, -1, 0, -8]))
     np.testing.assert_array_equal(high, np.float32([8, 8, 8, 8, 1, 1, 8]))
-    assert observation_index(EnvConfig(extras=True, turn_rate=True), "log_turn_rate") == 7
+    assert observation_index(env_config(extras=True, turn_rate=True), "log_turn_rate") == 7
     env = _make(config=full)
     assert env.observation_space.shape == (13,) and env.action_space.shape == (3,)

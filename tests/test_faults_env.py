@@ -24,7 +24,8 @@ from aeromag_env.cli.main import main
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.configs import from_dict
 from aeromag_env.environment import vec_env
-from aeromag_env.environment.env import EnvConfig, parameters
+from aeromag_env.environment.config import LEGACY_KEYS, LEGACY_SWITCHES, EnvConfig, env_config
+from aeromag_env.environment.env import parameters
 from aeromag_env.environment.prefetch import FlightKey, simulate
 from aeromag_env.environment.scenarios import make_episode
 from aeromag_env.environment.spaces import check_actions
@@ -59,7 +60,7 @@ CONFIG_FAULTS: list[tuple[str, object, str]] = [
     ("reward_scale_nt", INF, r"\[nT\]"),
     ("reward_scale_nt", 1e-300, r"\[nT\]"),
     ("reward_form", "cubic", "one of log, linear, squared"),
-    ("reward_form", None, "one of log, linear, squared"),
+    ("reward_form", None, "string"),
     ("divergence_penalty", NAN, r"\[-1e\+06, 0\]"),
     ("divergence_penalty", INF, r"\[-1e\+06, 0\]"),
     ("divergence_penalty", -INF, r"\[-1e\+06, 0\]"),
@@ -89,13 +90,26 @@ CONFIG_FAULTS: list[tuple[str, object, str]] = [
     ("absolute_q_log10", (0.0, 1.0, 2.0), "lo < hi"),
     ("absolute_q_log10", (0.0, 400.0), "decades"),
     ("absolute_q_log10", (-101.0, 0.0), "decades"),
-    ("absolute_q_log10", ("a", "b"), "lo < hi"),
-    ("absolute_q_log10", 5, "lo < hi"),
+    ("absolute_q_log10", ("a", "b"), "numbers"),
+    ("absolute_q_log10", 5, "list"),
     ("absolute_r_log10", (-1e308, 1e308), "decades"),
     ("absolute_qp_log10", (2.0, 2.0), "lo < hi"),
     ("split_q", "yes", "true or false"),
     ("innovation_power", 1, "true or false"),
     ("qp_gate", None, "true or false"),
+    ("observations", ("log_ror", "log_qoq", "windspeed"), "valid observations"),
+    ("observations", ("log_qoq", "log_ror"), "starting with log_ror, log_qoq"),
+    ("observations", ("log_ror", "log_qoq", "progress", "progress"), "each once"),
+    ("observations", ("log_ror", "log_qoq", "log_qp_scale"), "needs a T_p action"),
+    ("observations", "log_ror", "list"),
+    ("action", {"mode": "both"}, "relative or absolute"),
+    ("action", {"permanent": "gate"}, "needs action.mode='absolute'"),
+    ("action", {"permanent": "half"}, "joint, graded, gate"),
+    ("action", {"q_log10": (1.0, 0.0)}, "lo < hi"),
+    ("action", 2.0, "an ActionSpec"),
+    ("reward", {"form": "cubic"}, "one of log, linear, squared"),
+    ("reward", {"scale_nt": 0.0}, r"\[nT\]"),
+    ("preset", "fancy", "valid presets: paper, nonstationary, general"),
 ]
 IDS = [f"{f}={v!r}" for f, v, _ in CONFIG_FAULTS]
 
@@ -103,7 +117,10 @@ IDS = [f"{f}={v!r}" for f, v, _ in CONFIG_FAULTS]
 @pytest.mark.parametrize(("field", "value", "allowed"), CONFIG_FAULTS, ids=IDS)
 def test_bad_config_values_are_refused_naming_the_field(field, value, allowed):
     with pytest.raises(ConfigError) as direct:
-        EnvConfig(**{field: value})  # type: ignore[arg-type]
+        if field in EnvConfig.__dataclass_fields__ and not isinstance(value, dict):
+            EnvConfig(**{field: value})
+        else:  # a preset, a partial spec or a flat key of the first version
+            env_config(**{field: value})
     assert_one_line_error(direct.value, patterns=(field, allowed))
     with pytest.raises(ConfigError) as made:  # as gym.make and a JSON config give it
         gym.make("AeroMagCompensation-v0", config={field: value})
@@ -294,7 +311,7 @@ HOSTILE = (
     | st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=3)
     | st.tuples(st.floats(-1e3, 1e3), st.floats(-1e3, 1e3))
 )
-FIELDS = sorted(EnvConfig.__dataclass_fields__)
+FIELDS = sorted([*EnvConfig.__dataclass_fields__, *LEGACY_KEYS, *LEGACY_SWITCHES])
 
 
 @settings(max_examples=400, deadline=None)
@@ -302,7 +319,10 @@ FIELDS = sorted(EnvConfig.__dataclass_fields__)
 def test_any_value_for_any_config_field(field, value):
     """Either the value is refused with a one-line ConfigError naming the field (directly and
     through the JSON path), or the configuration is usable: its compiled parameters finite."""
-    for make in (lambda: EnvConfig(**{field: value}), lambda: from_dict(EnvConfig, {field: value})):
+    for make in (
+        lambda: env_config(**{field: value}),
+        lambda: from_dict(EnvConfig, {field: value}),
+    ):
         try:
             cfg = make()
         except ConfigError as e:
@@ -369,19 +389,12 @@ def test_the_window_sums_hold_terms_100_decades_apart(seed):
     """``window_add``'s running sums against math.fsum of the window's last M terms, for tr S
     and |r|² that jump between 1e-50 and 1e+50 (the environment's R over ±100 decades): within
     1e-12 relative at every sample (they were negative, or 1e80× too large, before)."""
-    from aeromag_env.compensation.kernel_layout import (
-        ACC_C,
-        ACC_RR,
-        ACC_S,
-        INT_WINDOW,
-        N_ACC,
-        N_INT,
-    )
+    from aeromag_env.compensation.kernel_layout import ACC, INTS, N_ACC, N_INT
     from aeromag_env.compensation.window import window_add
 
     m, rng = 50, np.random.default_rng(seed)
     rbuf, sbuf, acc, ints = np.zeros((m, 3)), np.zeros(m), np.zeros(N_ACC), np.zeros(N_INT, int)
-    ints[INT_WINDOW] = m
+    ints[INTS.window] = m
     level = 10.0 ** rng.choice([-50.0, 0.0, 50.0], size=600).repeat(3)  # runs of 3 samples
     r_all = rng.standard_normal((level.size, 3)) * np.sqrt(level)[:, None]
     s_all = level * rng.uniform(1.0, 2.0, level.size)
@@ -391,9 +404,9 @@ def test_the_window_sums_hold_terms_100_decades_apart(seed):
         want_s = math.fsum(s_all[lo : k + 1])
         want_rr = math.fsum((r_all[lo : k + 1] ** 2).sum(axis=1))
         want_xy = math.fsum(r_all[lo : k + 1, 0] * r_all[lo : k + 1, 1])
-        assert acc[ACC_S] == pytest.approx(want_s, rel=1e-12), k
-        assert acc[ACC_RR] == pytest.approx(want_rr, rel=1e-12), k
-        assert acc[ACC_C + 1] == pytest.approx(want_xy, rel=1e-9, abs=1e-12 * want_rr), k
+        assert acc[ACC.s] == pytest.approx(want_s, rel=1e-12), k
+        assert acc[ACC.rr] == pytest.approx(want_rr, rel=1e-12), k
+        assert acc[ACC.c + 1] == pytest.approx(want_xy, rel=1e-9, abs=1e-12 * want_rr), k
 
 
 # --- soak: the batched environment under random, extreme and adversarial actions ---------------

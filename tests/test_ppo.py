@@ -7,6 +7,7 @@ import pytest
 
 import aeromag_env  # noqa: F401
 from aeromag_env.cli.main import main
+from aeromag_env.environment.config import env_config
 from aeromag_env.environment.ids import SUITE
 from aeromag_env.environment.spaces import ACT_R
 from aeromag_env.errors import AeromagError
@@ -99,7 +100,7 @@ def test_train_quick_then_resume_then_evaluate(tmp_path):
     steps = [c["timesteps"] for c in summary["curve"]]
     assert steps == sorted(set(steps))  # one validation per point of the learning curve
     name = f"ppo:{out / 'policy.npz'}"
-    assert policy_env_kwargs(name)["action_mode"] == "absolute"
+    assert env_config(**policy_env_kwargs(name)).action.mode == "absolute"
     env = gym.make("AeroMagCompensation-v0", scenario="nonstationary", **policy_env_kwargs(name))
     obs, _ = env.reset(seed=100_000)
     action, _ = make_policy(name, env).predict(obs)
@@ -130,7 +131,6 @@ def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     (the rare T_p raises are what PPO then trains on)."""
     import torch
 
-    from aeromag_env.environment.env import EnvConfig
     from agents.imitation import behaviour_clone
     from agents.policies import InnovationDetectorPolicy
 
@@ -143,7 +143,7 @@ def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     )
     venv = make_training_env("nonstationary", hp, seed=0)
     model = make_ppo(venv, hp, seed=0)
-    demo = InnovationDetectorPolicy(EnvConfig(**hp.env_kwargs))
+    demo = InnovationDetectorPolicy(env_config(**hp.env_kwargs))
 
     def gap() -> float:
         obs = venv.get_original_obs()

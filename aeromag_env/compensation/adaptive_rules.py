@@ -10,19 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from aeromag_env.compensation.fuzzy import zoomed_scale
-from aeromag_env.compensation.kernel_layout import (
-    ACC_RR,
-    ACC_S,
-    INT_COUNT,
-    PAR_EPS,
-    PAR_ETA,
-    PAR_LO,
-    PAR_SH_B,
-    PAR_SH_INNOV,
-    PAR_SH_Q,
-    PAR_ZOOM_Q,
-    PAR_ZOOM_R,
-)
+from aeromag_env.compensation.kernel_layout import ACC, INTS, PAR
 from aeromag_env.compensation.model import FilterMode
 from aeromag_env.numba_cache import njit
 
@@ -55,16 +43,16 @@ def adapt(
 ) -> None:
     """Windowed adaptation of Q and R: fuzzy (eq. 21) or Ding et al. 2007."""
     if mode == FilterMode.FAKF:
-        s_r = zoomed_scale(ror, par[PAR_EPS], par[PAR_ZOOM_R])
-        s_a = zoomed_scale(qoq, par[PAR_ETA], par[PAR_ZOOM_Q])
+        s_r = zoomed_scale(ror, par[PAR.eps], par[PAR.zoom_r])
+        s_a = zoomed_scale(qoq, par[PAR.eta], par[PAR.zoom_q])
         rm *= s_r
         qd *= s_a
     elif mode == FilterMode.DING:
-        m = ints[INT_COUNT]
+        m = ints[INTS.updates]
         trr = rm[0, 0] + rm[1, 1] + rm[2, 2]
-        denom = abs(acc[ACC_S] / m - trr)
+        denom = abs(acc[ACC.s] / m - trr)
         if denom > 0.0:
-            alpha = abs(acc[ACC_RR] / m - trr) / denom
+            alpha = abs(acc[ACC.rr] / m - trr) / denom
             if alpha > 0.0 and np.isfinite(alpha):
                 qd *= np.sqrt(alpha)
 
@@ -103,13 +91,13 @@ def sage_husa(
     Default: ``R ← (1−d) R + d (e eᵀ + H P⁺ Hᵀ)`` from the post-fit residual ``e`` (Akhlaghi,
     Zhou & Huang 2017), positive definite by construction; with the optimal gain
     ``e = R S⁻¹ r`` and ``H P⁺ Hᵀ = M − M S⁻¹ M``, ``M = H P⁻ Hᵀ = S − R``. With
-    ``par[PAR_SH_INNOV]``: the classic innovation form (:func:`sage_husa_innovation_r`).
-    Optionally (``par[PAR_SH_Q]``) ``Q ← Q + d diag(K (r rᵀ − S) Kᵀ)``, since
+    ``par[PAR.sh_innov]``: the classic innovation form (:func:`sage_husa_innovation_r`).
+    Optionally (``par[PAR.sh_q]``) ``Q ← Q + d diag(K (r rᵀ − S) Kᵀ)``, since
     ``P⁺_k − P⁺_{k−1} = Q − K S Kᵀ`` for ``Φ = I``; its diagonal is floored at ``lo``·Q(0).
     """
-    b = par[PAR_SH_B]
+    b = par[PAR.sh_b]
     dk = (1.0 - b) / (1.0 - b ** (k + 1))
-    if par[PAR_SH_INNOV] != 0.0:
+    if par[PAR.sh_innov] != 0.0:
         sage_husa_innovation_r(r, s, rm, dk)
     else:
         m = s - rm
@@ -119,9 +107,9 @@ def sage_husa(
             for j in range(3):
                 post = e[i] * e[j] + 0.5 * (hph[i, j] + hph[j, i])
                 rm[i, j] = (1.0 - dk) * rm[i, j] + dk * post
-    if par[PAR_SH_Q] == 0.0:
+    if par[PAR.sh_q] == 0.0:
         return
-    lo = par[PAR_LO]
+    lo = par[PAR.lo]
     for a in range(qd.shape[0]):
         v = 0.0
         for i in range(3):

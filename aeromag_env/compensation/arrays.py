@@ -41,8 +41,8 @@ class State(NamedTuple):
     p0: np.ndarray  #: (21, 21) P(0) (restart value)
     q0: np.ndarray  #: (21,) Q(0) (restart value)
     r0: np.ndarray  #: (3, 3) R(0) (restart value)
-    ints: np.ndarray  #: (N_INT,) int64 counters (INT_*)
-    par: np.ndarray  #: (N_PAR,) float settings (PAR_*)
+    ints: np.ndarray  #: (N_INT,) int64 counters (kernel_layout.INTS)
+    par: np.ndarray  #: (N_PAR,) float settings (kernel_layout.PAR)
 
 
 class Window(NamedTuple):
@@ -50,7 +50,7 @@ class Window(NamedTuple):
 
     rbuf: np.ndarray  #: (M, 3) innovations [nT]
     sbuf: np.ndarray  #: (M,) tr S of each [nT²]
-    acc: np.ndarray  #: (N_ACC,) running sums (ACC_*)
+    acc: np.ndarray  #: (N_ACC,) running sums (kernel_layout.ACC)
 
 
 class Outputs(NamedTuple):

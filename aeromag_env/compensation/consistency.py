@@ -8,7 +8,7 @@ method; the thresholds, and what they were measured against, are in
   the filter's own prediction (``rᵀ S⁻¹ r > GATE_NIS``) and with the recent innovations
   (``|r|² > GATE_POWER · max(ref, mean |r|²)``: ``ref`` the mean ``|r|²`` of the window's last
   full lap, the mean over the window as it is) is rejected: predict only, not added to the
-  window, not adapted to, counted (``INT_OUT``). Each test alone is met by clean runs: a
+  window, not adapted to, counted (``INTS.out``). Each test alone is met by clean runs: a
   too-small R (an environment's action) makes every ``rᵀ S⁻¹ r`` large, and an action that
   swings Q by decades can make the innovations of one lap tiny against the next; the filter's
   covariance or the window's own innovations then say so. Both tests together meet a spike, or
@@ -29,7 +29,7 @@ method; the thresholds, and what they were measured against, are in
   together under large noise): innovations with more than ``RUNAWAY_POWER`` times the power of
   the measurements over the window — an estimate 2× farther from the data than no estimate —
   are a divergence, restarted as a sustained inconsistency, and the filter goes on as the
-  plain KF with ``Q(0)``, ``R(0)`` for the rest of the flight (``INT_FELL_BACK``): restarted
+  plain KF with ``Q(0)``, ``R(0)`` for the rest of the flight (``INTS.fell_back``): restarted
   but still adapting, fakf and Sage–Husa ran away again and again under 1e3 nT noise.
 """
 
@@ -38,19 +38,11 @@ from __future__ import annotations
 import numpy as np
 
 from aeromag_env.compensation.kernel_layout import (
-    ACC_REF,
-    ACC_RR,
-    ACC_RUN,
-    ACC_RUN_RR,
+    ACC,
     GATE_NIS,
     GATE_POWER,
     GATE_POWER_AFTER,
-    INT_CALM,
-    INT_COUNT,
-    INT_OUT,
-    INT_POS,
-    INT_RUN,
-    INT_WINDOW,
+    INTS,
     RUNAWAY_POWER,
     SHIFT_FRACTION,
 )
@@ -67,20 +59,20 @@ def outlier(r: np.ndarray, sinv: np.ndarray, acc: np.ndarray, ints: np.ndarray) 
     ``|r|²`` is finite, and either ``|r|² > GATE_POWER · max(ref, mean |r|² of the window)`` and
     ``rᵀ S⁻¹ r > GATE_NIS``, or, within a window after a rejection,
     ``|r|² > GATE_POWER_AFTER · ref``."""
-    ref = acc[ACC_REF]
+    ref = acc[ACC.ref]
     rr = r[0] ** 2 + r[1] ** 2 + r[2] ** 2
     out = False
     if ref > 0.0 and rr < np.inf:
-        if ints[INT_CALM] < ints[INT_WINDOW]:
+        if ints[INTS.calm] < ints[INTS.window]:
             out = rr > GATE_POWER_AFTER * ref
-        elif rr > GATE_POWER * max(ref, acc[ACC_RR] / ints[INT_COUNT]):
+        elif rr > GATE_POWER * max(ref, acc[ACC.rr] / ints[INTS.updates]):
             nis = 0.0  # rᵀ S⁻¹ r
             for i in range(3):
                 nis += r[i] * (sinv[i, 0] * r[0] + sinv[i, 1] * r[1] + sinv[i, 2] * r[2])
             out = nis > GATE_NIS
     if not out:
-        ints[INT_CALM] += 1
-        ints[INT_RUN] = 0
+        ints[INTS.calm] += 1
+        ints[INTS.run] = 0
     return out
 
 
@@ -88,20 +80,20 @@ def outlier(r: np.ndarray, sinv: np.ndarray, acc: np.ndarray, ints: np.ndarray) 
 def reject(r: np.ndarray, acc: np.ndarray, ints: np.ndarray) -> bool:
     """Count the rejected innovation ``r`` (3,) [nT] into the run of rejections; True when the
     run has lasted a whole window and looks like a shift (the caller restarts the filter)."""
-    if ints[INT_RUN] == 0:
-        for a in range(ACC_RUN, ACC_RUN_RR + 1):
+    if ints[INTS.run] == 0:
+        for a in range(ACC.run, ACC.run_rr + 1):
             acc[a] = 0.0
-    ints[INT_OUT] += 1
-    ints[INT_RUN] += 1
-    ints[INT_CALM] = 0
+    ints[INTS.out] += 1
+    ints[INTS.run] += 1
+    ints[INTS.calm] = 0
     for i in range(3):
-        acc[ACC_RUN + i] += r[i]
-    acc[ACC_RUN_RR] += r[0] ** 2 + r[1] ** 2 + r[2] ** 2
-    n = ints[INT_RUN]
-    if n < ints[INT_WINDOW]:
+        acc[ACC.run + i] += r[i]
+    acc[ACC.run_rr] += r[0] ** 2 + r[1] ** 2 + r[2] ** 2
+    n = ints[INTS.run]
+    if n < ints[INTS.window]:
         return False
-    mean_power = (acc[ACC_RUN] ** 2 + acc[ACC_RUN + 1] ** 2 + acc[ACC_RUN + 2] ** 2) / n
-    return mean_power > SHIFT_FRACTION * acc[ACC_RUN_RR]  # |Σr|²/n² > f Σ|r|²/n
+    mean_power = (acc[ACC.run] ** 2 + acc[ACC.run + 1] ** 2 + acc[ACC.run + 2] ** 2) / n
+    return mean_power > SHIFT_FRACTION * acc[ACC.run_rr]  # |Σr|²/n² > f Σ|r|²/n
 
 
 @per_sample
@@ -110,10 +102,10 @@ def clear_window(acc: np.ndarray, ints: np.ndarray) -> None:
     and the run of rejections."""
     for a in range(acc.shape[0]):
         acc[a] = 0.0
-    ints[INT_COUNT] = 0
-    ints[INT_POS] = 0
-    ints[INT_RUN] = 0
-    ints[INT_CALM] = 0
+    ints[INTS.updates] = 0
+    ints[INTS.pos] = 0
+    ints[INTS.run] = 0
+    ints[INTS.calm] = 0
 
 
 @per_sample
@@ -121,10 +113,10 @@ def runaway(k: int, y: np.ndarray, est: np.ndarray, valid: np.ndarray, ints: np.
     """At the end of a lap of the window (once per window): over the valid samples among the
     last M up to k, ``Σ |y − H z⁻|² > RUNAWAY_POWER · Σ |y|²`` (``y`` (n, 3) the measurements,
     ``est`` (n, 3) the a-priori estimates [nT])."""
-    if ints[INT_POS] != 0 or ints[INT_COUNT] == 0:
+    if ints[INTS.pos] != 0 or ints[INTS.updates] == 0:
         return False
     num, den = 0.0, 0.0
-    for j in range(max(0, k + 1 - ints[INT_WINDOW]), k + 1):
+    for j in range(max(0, k + 1 - ints[INTS.window]), k + 1):
         if valid[j]:
             for i in range(3):
                 num += (y[j, i] - est[j, i]) ** 2

@@ -15,27 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aeromag_env.compensation.arrays import FilterArrays, filter_arrays, packed
-from aeromag_env.compensation.kernel_layout import (
-    INT_DIV,
-    INT_INTERVAL,
-    INT_K,
-    INT_OUT,
-    INT_SKIP,
-    INT_WINDOW,
-    N_ACC,
-    N_INT,
-    N_PAR,
-    PAR_EPS,
-    PAR_ETA,
-    PAR_FORGET,
-    PAR_HI,
-    PAR_LO,
-    PAR_SH_B,
-    PAR_SH_INNOV,
-    PAR_SH_Q,
-    PAR_ZOOM_Q,
-    PAR_ZOOM_R,
-)
+from aeromag_env.compensation.kernel_layout import INTS, N_ACC, N_INT, N_PAR, PAR
 from aeromag_env.compensation.kernels import advance
 from aeromag_env.compensation.model import MODE, STATE_SCALE, FilterConfig
 from aeromag_env.errors import ConfigError
@@ -126,7 +106,7 @@ class FilterState:
         self.sbuf = np.zeros(cfg.window)
         self.acc = np.zeros(N_ACC)
         self.ints = np.zeros(N_INT, dtype=np.int64)
-        self.ints[INT_WINDOW], self.ints[INT_INTERVAL] = cfg.window, cfg.adapt_interval
+        self.ints[INTS.window], self.ints[INTS.interval] = cfg.window, cfg.adapt_interval
         self.par = _parameters(cfg)
         self.est = np.full((n, 3), np.nan)
         self.innov = np.full((n, 3), np.nan)
@@ -144,17 +124,17 @@ class FilterState:
     @property
     def k(self) -> int:
         """Samples processed so far (the next sample to process)."""
-        return int(self.ints[INT_K])
+        return int(self.ints[INTS.k])
 
     @property
     def divergences(self) -> int:
         """Restarts after a divergence so far."""
-        return int(self.ints[INT_DIV])
+        return int(self.ints[INTS.div])
 
     @property
     def outliers_rejected(self) -> int:
         """Samples rejected by the outlier gate so far."""
-        return int(self.ints[INT_OUT])
+        return int(self.ints[INTS.out])
 
     def advance(self, k1: int) -> None:
         """Run the filter from the current sample up to (not including) ``k1``."""
@@ -200,9 +180,9 @@ class FilterState:
             final_covariance=self.p * np.outer(self.d, self.d),
             final_r=self.rm.copy(),
             final_q=self.qd * self.d**2,
-            divergences=int(self.ints[INT_DIV]),
-            skipped=int(self.ints[INT_SKIP]),
-            outliers_rejected=int(self.ints[INT_OUT]),
+            divergences=int(self.ints[INTS.div]),
+            skipped=int(self.ints[INTS.skip]),
+            outliers_rejected=int(self.ints[INTS.out]),
         )
 
 
@@ -220,12 +200,12 @@ def _positive_finite(value: object) -> bool:
 
 def _parameters(cfg: FilterConfig) -> np.ndarray:
     par = np.zeros(N_PAR)
-    par[PAR_EPS], par[PAR_ETA] = cfg.epsilon, cfg.eta
-    par[PAR_ZOOM_R], par[PAR_ZOOM_Q] = cfg.zoom_r, cfg.zoom_q
-    par[PAR_FORGET], par[PAR_SH_B] = cfg.forgetting, cfg.sage_husa_b
-    par[PAR_LO], par[PAR_HI] = cfg.scale_bounds
-    par[PAR_SH_Q] = float(cfg.sage_husa_q)
-    par[PAR_SH_INNOV] = float(cfg.sage_husa_form == "innovation")
+    par[PAR.eps], par[PAR.eta] = cfg.epsilon, cfg.eta
+    par[PAR.zoom_r], par[PAR.zoom_q] = cfg.zoom_r, cfg.zoom_q
+    par[PAR.forget], par[PAR.sh_b] = cfg.forgetting, cfg.sage_husa_b
+    par[PAR.lo], par[PAR.hi] = cfg.scale_bounds
+    par[PAR.sh_q] = float(cfg.sage_husa_q)
+    par[PAR.sh_innov] = float(cfg.sage_husa_form == "innovation")
     return par
 
 

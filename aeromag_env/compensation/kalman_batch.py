@@ -30,7 +30,7 @@ from aeromag_env.compensation.arrays import (
     row,
 )
 from aeromag_env.compensation.kalman import FilterResult, FilterState, _positive_finite
-from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_OUT, INT_SKIP
+from aeromag_env.compensation.kernel_layout import INTS
 from aeromag_env.compensation.kernels import advance
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.errors import ConfigError
@@ -146,17 +146,17 @@ class BatchFilterState:
     @property
     def k(self) -> np.ndarray:
         """(N,) samples processed so far per flight."""
-        return self.ints[:, INT_K].copy()
+        return self.ints[:, INTS.k].copy()
 
     @property
     def divergences(self) -> np.ndarray:
         """(N,) restarts after a divergence so far per flight."""
-        return self.ints[:, INT_DIV].copy()
+        return self.ints[:, INTS.div].copy()
 
     @property
     def outliers_rejected(self) -> np.ndarray:
         """(N,) samples rejected by the outlier gate so far per flight."""
-        return self.ints[:, INT_OUT].copy()
+        return self.ints[:, INTS.out].copy()
 
     def load(self, i: int, state: FilterState) -> None:
         """Put ``state`` (a flight of any length) into slot ``i``, growing the padding if needed."""
@@ -232,9 +232,9 @@ class BatchFilterState:
             final_covariance=self.p[i] * np.outer(d, d),
             final_r=self.rm[i].copy(),
             final_q=self.qd[i] * d**2,
-            divergences=int(self.ints[i, INT_DIV]),
-            skipped=int(self.ints[i, INT_SKIP]),
-            outliers_rejected=int(self.ints[i, INT_OUT]),
+            divergences=int(self.ints[i, INTS.div]),
+            skipped=int(self.ints[i, INTS.skip]),
+            outliers_rejected=int(self.ints[i, INTS.out]),
         )
 
     def _capacity(self) -> int:

@@ -1,28 +1,70 @@
 """The layout of the compiled filter's small state vectors, named once.
 
 The compiled loop (:mod:`aeromag_env.compensation.kernels`) keeps its settings and counters in
-flat arrays that numba passes cheaply: the float parameter vector ``par`` (``PAR_*``), the
-integer state ``ints`` (``INT_*``) and the window accumulators ``acc`` (``ACC_*``). The
-environment's compiled step reads the same names.
+flat arrays that numba passes cheaply: the float parameter vector ``par``, the integer state
+``ints`` and the window accumulators ``acc``. Each is laid out by one field list (the
+NamedTuples :class:`Par`, :class:`Ints`, :class:`Acc`); the indices (:data:`PAR`, :data:`INTS`,
+:data:`ACC`) and sizes are generated from it, so they cannot drift apart. numba reads the index
+tuples as compile-time constants.
 """
 
 from __future__ import annotations
 
-# indices of the float parameter vector
-PAR_EPS, PAR_ETA, PAR_ZOOM_R, PAR_ZOOM_Q, PAR_FORGET, PAR_SH_B, PAR_LO, PAR_HI = range(8)
-PAR_SH_Q, PAR_SH_INNOV = 8, 9
-N_PAR = 10
-# indices of the integer state vector; INT_OUT counts the samples the outlier gate rejected,
-# INT_RUN the current run of consecutive ones, INT_CALM the samples accepted since the last
-# rejection, INT_FELL_BACK 1 once an adaptive filter ran away and went on as the plain KF
-INT_POS, INT_COUNT, INT_K, INT_DIV, INT_SINCE, INT_SKIP, INT_WINDOW, INT_INTERVAL = range(8)
-INT_OUT, INT_RUN, INT_CALM, INT_FELL_BACK = 8, 9, 10, 11
-N_INT = 12
-# accumulators: sum |r|², sum tr S, sum r rᵀ (9) over the window; the mean |r|² of its last
-# full lap (the outlier gate's reference); sum r (3) and sum |r|² over a run of rejections
-ACC_RR, ACC_S, ACC_C = 0, 1, 2
-ACC_REF, ACC_RUN, ACC_RUN_RR = 11, 12, 15
-N_ACC = 16
+from itertools import accumulate
+from typing import NamedTuple
+
+
+class Par(NamedTuple):
+    """The float parameter vector ``par``: one slot per field, in this order (the instance
+    :data:`PAR` holds each field's index)."""
+
+    eps: int  #: ε of the R rule
+    eta: int  #: η of the Q rule
+    zoom_r: int  #: zoom level b_r (exponent of the R factor)
+    zoom_q: int  #: zoom level b_a (exponent of the Q factor)
+    forget: int  #: forgetting factor (rls)
+    sh_b: int  #: Sage–Husa fading factor b
+    lo: int  #: lower bound of a per-step scale factor
+    hi: int  #: upper bound of a per-step scale factor
+    sh_q: int  #: 1.0 when Sage–Husa also estimates Q
+    sh_innov: int  #: 1.0 for Sage–Husa's innovation form
+
+
+class Ints(NamedTuple):
+    """The integer state vector ``ints``: one slot per field (:data:`INTS` holds the indices)."""
+
+    pos: int  #: next slot of the circular innovation window
+    updates: int  #: updates in the window (≤ M)
+    k: int  #: samples processed (the next sample)
+    div: int  #: restarts after a divergence
+    since: int  #: updates since the last adaptation
+    skip: int  #: samples skipped (invalid inputs)
+    window: int  #: M, the window's size
+    interval: int  #: updates between two adaptations
+    out: int  #: samples the outlier gate rejected
+    run: int  #: the current run of consecutive rejections
+    calm: int  #: samples accepted since the last rejection
+    fell_back: int  #: 1 once an adaptive filter ran away and went on as the plain KF
+
+
+class Acc(NamedTuple):
+    """The window accumulators ``acc``: each field's width in slots, in order (:data:`ACC`
+    holds each field's first index)."""
+
+    rr: int = 1  #: sum |r|² over the window
+    s: int = 1  #: sum tr S over the window
+    c: int = 9  #: sum r rᵀ over the window (row-major 3×3)
+    ref: int = 1  #: mean |r|² of the window's last full lap (the outlier gate's reference)
+    run: int = 3  #: sum r over a run of rejections
+    run_rr: int = 1  #: sum |r|² over a run of rejections
+
+
+#: Index of each field of ``par``, ``ints`` and ``acc`` (``par[PAR.eps]``, ``acc[ACC.c + j]``).
+PAR = Par(*range(len(Par._fields)))
+INTS = Ints(*range(len(Ints._fields)))
+ACC = Acc(*list(accumulate(Acc(), initial=0))[:-1])
+#: Sizes of the three vectors.
+N_PAR, N_INT, N_ACC = len(PAR), len(INTS), sum(Acc())
 #: The window's running sums are summed afresh when the term leaving carried more than
 #: RESUM_RATIO times what is left (8 of 16 digits lost to the subtraction): actions that swing
 #: R by decades within a window. Clean runs never come near it (their terms span < 1e4).

@@ -38,24 +38,7 @@ import numpy as np
 from aeromag_env.compensation.adaptive_rules import adapt, clamp_scales, sage_husa
 from aeromag_env.compensation.arrays import FilterArrays, Packed, named
 from aeromag_env.compensation.consistency import clear_window, outlier, reject, runaway
-from aeromag_env.compensation.kernel_layout import (
-    ACC_C,
-    ACC_RR,
-    ACC_S,
-    INT_COUNT,
-    INT_DIV,
-    INT_FELL_BACK,
-    INT_INTERVAL,
-    INT_K,
-    INT_POS,
-    INT_SINCE,
-    INT_SKIP,
-    INT_WINDOW,
-    MAX_STATE,
-    PAR_FORGET,
-    PAR_HI,
-    PAR_LO,
-)
+from aeromag_env.compensation.kernel_layout import ACC, INTS, MAX_STATE, PAR
 from aeromag_env.compensation.model import FilterMode
 from aeromag_env.compensation.window import window_add
 from aeromag_env.numba_cache import njit
@@ -135,7 +118,7 @@ def _qoq(kt: np.ndarray, acc: np.ndarray, count: int, qd: np.ndarray) -> float:
     trq = qd.sum()
     if not trq > 0.0:
         return np.nan
-    c = acc[ACC_C : ACC_C + 9]
+    c = acc[ACC.c : ACC.c + 9]
     num = 0.0
     for a in range(kt.shape[1]):  # the diagonal of K C_r Kᵀ, row by row (independent rows)
         k0, k1, k2 = kt[0, a], kt[1, a], kt[2, a]
@@ -254,7 +237,7 @@ def _healthy(ok: bool, z: np.ndarray, p: np.ndarray, ints: np.ndarray, work: np.
     for a in range(z.shape[0]):
         if not (abs(z[a]) < MAX_STATE and p[a, a] > 0.0 and np.isfinite(p[a, a])):
             healthy = False
-    if healthy and ints[INT_POS] == 0 and not _psd(p, work):
+    if healthy and ints[INTS.pos] == 0 and not _psd(p, work):
         healthy = False
     return healthy
 
@@ -286,7 +269,7 @@ def _restart(
     ints: np.ndarray,
 ) -> None:
     """Divergence: count it and restart from the last good state with P(0), Q(0), R(0)."""
-    ints[INT_DIV] += 1
+    ints[INTS.div] += 1
     z[:] = z_good
     p[:, :] = p0
     qd[:] = q0
@@ -305,8 +288,8 @@ def _statistics(
     qoq: np.ndarray,
 ) -> None:
     """ROR and QOQ of the window at sample k (eqs. 22–24; NaN before data)."""
-    count = ints[INT_COUNT]
-    ror[k] = acc[ACC_RR] / acc[ACC_S] if count > 0 and acc[ACC_S] > 0.0 else np.nan
+    count = ints[INTS.updates]
+    ror[k] = acc[ACC.rr] / acc[ACC.s] if count > 0 and acc[ACC.s] > 0.0 else np.nan
     qoq[k] = _qoq(kt, acc, count, qd) if count > 0 and valid else np.nan
 
 
@@ -326,17 +309,17 @@ def _adapt(
     """``fakf``, ``ding``: adapt Q and R from the window statistics ``ror``, ``qoq`` once the
     window is full, every ``adapt_interval`` samples; then (and after every Sage–Husa sample)
     clamp their scales."""
-    ints[INT_SINCE] += 1
+    ints[INTS.since] += 1
     if (
         (mode == FilterMode.FAKF or mode == FilterMode.DING)
-        and ints[INT_COUNT] == ints[INT_WINDOW]
-        and ints[INT_SINCE] >= ints[INT_INTERVAL]
+        and ints[INTS.updates] == ints[INTS.window]
+        and ints[INTS.since] >= ints[INTS.interval]
     ):
         adapt(mode, ror, qoq, acc, ints, qd, rm, par)
-        clamp_scales(qd, q0, rm, r0, par[PAR_LO], par[PAR_HI])
-        ints[INT_SINCE] = 0
+        clamp_scales(qd, q0, rm, r0, par[PAR.lo], par[PAR.hi])
+        ints[INTS.since] = 0
     elif mode == FilterMode.SAGE_HUSA:
-        clamp_scales(qd, q0, rm, r0, par[PAR_LO], par[PAR_HI])
+        clamp_scales(qd, q0, rm, r0, par[PAR.lo], par[PAR.hi])
 
 
 @per_sample
@@ -380,10 +363,10 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
     gt, kt, kst = np.empty((3, n_state)), np.zeros((3, n_state)), np.empty((3, n_state))
     s, sinv, r = np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
     work = np.empty_like(p)
-    lam = par[PAR_FORGET]
+    lam = par[PAR.forget]
     trq0 = q0.sum()
     trr0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
-    if ints[INT_FELL_BACK]:  # an adaptive filter that ran away goes on as the plain KF
+    if ints[INTS.fell_back]:  # an adaptive filter that ran away goes on as the plain KF
         mode = FilterMode.KF
     adaptive = mode == FilterMode.FAKF or mode == FilterMode.DING or mode == FilterMode.SAGE_HUSA
     for k in range(k0, k1):
@@ -392,7 +375,7 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
         rejected = False
         if not valid[k]:
             _store_row(innov, k, np.nan, np.nan, np.nan)
-            ints[INT_SKIP] += 1
+            ints[INTS.skip] += 1
         else:
             _innovation(k, y, est, p, rm, col, hv, gt, s, r)
             _store_row(innov, k, r[0], r[1], r[2])
@@ -404,13 +387,13 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
                     _update(z, p, gt, kt, kst, s, sinv, r)
                     window_add(r, s[0, 0] + s[1, 1] + s[2, 2], rbuf, sbuf, acc, ints)
                     if mode == FilterMode.SAGE_HUSA:
-                        sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INT_K], par)
+                        sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INTS.k], par)
                 if not _healthy(ok, z, p, ints, work):
                     _restart(z, z_good, p, p0, qd, q0, rm, r0, ints)
                 else:
                     inconsistent = adaptive and runaway(k, y, est, valid, ints)
                     if inconsistent:  # restarted below; no more adaptation
-                        mode, adaptive, ints[INT_FELL_BACK] = FilterMode.KF, False, 1
+                        mode, adaptive, ints[INTS.fell_back] = FilterMode.KF, False, 1
                     else:
                         _copy(z, z_good)
             if inconsistent:  # restart, and the window starts again at the new level
@@ -420,4 +403,4 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
         if not rejected:  # a rejected sample leaves the window as it was: nothing to adapt to
             _adapt(mode, ror[k], qoq[k], ints, par, acc, qd, q0, rm, r0)
         _record(k, trq0, trr0, qd, rm, z, d, q_scale, r_scale, states)
-        ints[INT_K] += 1
+        ints[INTS.k] += 1

@@ -1,5 +1,6 @@
-"""What the tuning environment accepts, named once: the ranges of
-:class:`~aeromag_env.environment.env.EnvConfig`'s fields and the keys of ``reset``'s options.
+"""What the tuning environment accepts, named once: the ranges of the fields of
+:class:`~aeromag_env.environment.config.EnvConfig` and its action and reward specs, and the keys
+of ``reset``'s options.
 
 Every refusal is a one-line :class:`~aeromag_env.errors.ConfigError` naming the field, the
 allowed range and its unit, given when the configuration is made or ``reset`` is called, so
@@ -17,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.configs import check
-from aeromag_env.environment.kernels import REWARD_FORMS
 from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS, check_scenario
 from aeromag_env.errors import ConfigError
 
@@ -40,67 +40,70 @@ MAX_SCALE = 1e100
 MAX_DECADES = 100.0
 #: The keys ``reset(options=...)`` of the single environment takes.
 RESET_OPTIONS = ("scenario",)
-#: The boolean switches of the configuration.
-SWITCHES = (
-    "extras",
-    "split_q",
-    "innovation_power",
-    "step_statistic",
-    "turn_rate",
-    "innovation_bias",
-    "qp_gate",
-)
-#: The (lo, hi) log10 ranges of the absolute mode.
-LOG10_RANGES = ("absolute_q_log10", "absolute_r_log10", "absolute_qp_log10")
+#: How an action sets the scales (:class:`~aeromag_env.environment.config.ActionSpec`).
+ACTION_MODES = ("relative", "absolute")
+#: How the Q of the permanent-field block T_p is set: with the other 18 states (``joint``), by a
+#: third action (``graded``), or by a third action that is a switch (``gate``).
+PERMANENT_MODES = ("joint", "graded", "gate")
+#: Reward forms (:class:`~aeromag_env.environment.config.RewardSpec`), coded by their index in
+#: the compiled step's parameters.
+REWARD_FORMS = ("log", "linear", "squared")
+#: The (lo, hi) log10 ranges of the absolute mode (fields of the ActionSpec).
+LOG10_RANGES = ("q_log10", "r_log10", "qp_log10")
+
+
+def check_action(spec: Any) -> None:
+    """Check an :class:`~aeromag_env.environment.config.ActionSpec` (its ``__post_init__``)."""
+    check(
+        isinstance(spec.mode, str) and spec.mode in ACTION_MODES,
+        f"action.mode (action_mode): relative or absolute, got {_shown(spec.mode)}",
+    )
+    check(
+        isinstance(spec.permanent, str) and spec.permanent in PERMANENT_MODES,
+        f"action.permanent: one of {', '.join(PERMANENT_MODES)}, got {_shown(spec.permanent)}",
+    )
+    check(
+        spec.permanent != "gate" or spec.mode == "absolute",
+        "action.permanent='gate' (qp_gate) needs action.mode='absolute'",
+    )
+    require_number(spec, "s_max", 1.0, math.inf, "(a factor per step)", low_open=True)
+    require_number(spec, "scale_limit", 1.0, MAX_SCALE, "(a factor)", low_open=True)
+    for name in LOG10_RANGES:
+        lo_hi = getattr(spec, name)
+        ok = isinstance(lo_hi, tuple | list) and len(lo_hi) == 2 and all(map(is_real, lo_hi))
+        require(
+            ok and -MAX_DECADES <= lo_hi[0] < lo_hi[1] <= MAX_DECADES,
+            f"action.{name} (absolute_{name})",
+            f"(lo, hi) with lo < hi, each in [{-MAX_DECADES:g}, {MAX_DECADES:g}] [decades]",
+            lo_hi,
+        )
+
+
+def check_reward(spec: Any) -> None:
+    """Check a :class:`~aeromag_env.environment.config.RewardSpec` (its ``__post_init__``)."""
+    check(
+        isinstance(spec.form, str) and spec.form in REWARD_FORMS,
+        f"reward.form (reward_form): one of {', '.join(REWARD_FORMS)}",
+    )
+    require_number(spec, "scale_nt", *REWARD_SCALE_RANGE_NT, "[nT]", label="reward_scale_nt")
+    require_number(spec, "divergence_penalty", -MAX_PENALTY, 0.0, "(a reward)")
 
 
 def check_config(cfg: Any) -> None:
-    """Check every field of an :class:`~aeromag_env.environment.env.EnvConfig` (its
-    ``__post_init__``): types, ranges with units, and the switches that need others."""
+    """Check the fields of an :class:`~aeromag_env.environment.config.EnvConfig` (its
+    ``__post_init__``) that are not in its action and reward specs."""
     known = ", ".join(SCENARIOS + TRAINING_SCENARIOS)
     check(
         isinstance(cfg.scenario, str),
         f"unknown scenario {cfg.scenario!r}; valid scenarios: {known}",
     )
     check_scenario(cfg.scenario)
-    for name in SWITCHES:
-        value = getattr(cfg, name)
-        require(isinstance(value, bool), name, "true or false", value)
     require_number(cfg, "decision_window", 1, MAX_DECISION_WINDOW, "[samples]", integer=True)
     if cfg.recent_samples is not None:
         require_number(cfg, "recent_samples", 1, MAX_DECISION_WINDOW, "[samples]", integer=True)
-    require_number(cfg, "s_max", 1.0, math.inf, "(a factor per step)", low_open=True)
-    require_number(cfg, "reward_scale_nt", *REWARD_SCALE_RANGE_NT, "[nT]")
-    check(
-        isinstance(cfg.reward_form, str) and cfg.reward_form in REWARD_FORMS,
-        f"reward_form: one of {', '.join(REWARD_FORMS)}",
-    )
-    require_number(cfg, "divergence_penalty", -MAX_PENALTY, 0.0, "(a reward)")
     require_number(cfg, "score_from", 0.0, 1.0, "(a fraction of the flight)", high_open=True)
-    require_number(cfg, "scale_limit", 1.0, MAX_SCALE, "(a factor)", low_open=True)
     if cfg.duration_s is not None:
         require_number(cfg, "duration_s", *DURATION_RANGE_S, "[s]")
-    check(
-        isinstance(cfg.action_mode, str) and cfg.action_mode in ("relative", "absolute"),
-        "action_mode: relative or absolute",
-    )
-    check(cfg.extras or not cfg.innovation_power, "innovation_power needs extras=True")
-    check(cfg.extras or not cfg.step_statistic, "step_statistic needs extras=True")
-    for name in ("turn_rate", "innovation_bias"):
-        check(cfg.extras or not getattr(cfg, name), f"{name} needs extras=True")
-    check(
-        not cfg.qp_gate or (cfg.split_q and cfg.action_mode == "absolute"),
-        "qp_gate needs split_q=True and action_mode='absolute'",
-    )
-    for name in LOG10_RANGES:
-        lo_hi = getattr(cfg, name)
-        ok = isinstance(lo_hi, tuple | list) and len(lo_hi) == 2 and all(map(is_real, lo_hi))
-        require(
-            ok and -MAX_DECADES <= lo_hi[0] < lo_hi[1] <= MAX_DECADES,
-            name,
-            f"(lo, hi) with lo < hi, each in [{-MAX_DECADES:g}, {MAX_DECADES:g}] [decades]",
-            lo_hi,
-        )
 
 
 def is_real(value: object) -> bool:
@@ -134,9 +137,11 @@ def require_number(
     integer: bool = False,
     low_open: bool = False,
     high_open: bool = False,
+    label: str | None = None,
 ) -> None:
     """Field ``name`` of ``cfg`` a real number (an integer with ``integer``) in [lo, hi], with
-    open ends as asked (an infinite end is open: the value must be finite)."""
+    open ends as asked (an infinite end is open: the value must be finite); the message names
+    it ``label`` if given."""
     v = getattr(cfg, name)
     kind = "an integer" if integer else "a number"
     left, right = "(" if low_open else "[", ")" if high_open else "]"
@@ -145,7 +150,7 @@ def require_number(
         allowed = f"a finite number {'>' if low_open else '≥'} {lo:g} {unit}"
     ok = is_real(v) and (isinstance(v, int | np.integer) or not integer) and _finite(v)
     ok = ok and (lo < v if low_open else lo <= v) and (v < hi if high_open else v <= hi)
-    require(ok, name, allowed, v)
+    require(ok, label or name, allowed, v)
 
 
 def reset_options(options: object, valid: tuple[str, ...]) -> dict[str, Any]:

@@ -3,7 +3,9 @@
 ``import aeromag_env`` registers, through :func:`register_all`, the generic id
 ``AeroMagCompensation-v0`` (the scenario a keyword, ``nominal`` by default) and one id per
 scenario in the ``AeroMag`` namespace: ``AeroMag/Nonstationary-v0`` is
-``AeroMagCompensation-v0`` with ``scenario="nonstationary"``. Each works with ``gym.make``
+``AeroMagCompensation-v0`` with ``scenario="nonstationary"``. Every id names its preset
+(:data:`ID_PRESET`; :mod:`aeromag_env.environment.config`), which ``preset=`` or ``config=``
+replaces. Each works with ``gym.make``
 (``max_episode_steps`` and ``render_mode`` passed through), ``gym.make_vec`` (the batched vector
 environment with ``vectorization_mode="vector_entry_point"``, or Gymnasium's ``sync``/``async``)
 and :func:`aeromag_env.environment.sb3.make_sb3_vec_env`.
@@ -38,6 +40,8 @@ TRAINING_SCENARIOS = ("nonstationary_dense", "suite")
 ENV_ID = "AeroMagCompensation-v0"
 NAMESPACE = "AeroMag"
 VERSION = 0
+#: The preset every registered id starts from: the paper's setting.
+ID_PRESET = "paper"
 _ENTRY_POINT = "aeromag_env.environment.env:AeroMagCompensationEnv"
 _VECTOR_ENTRY_POINT = "aeromag_env.environment.vec_env:AeroMagCompensationVecEnv"
 
@@ -52,10 +56,18 @@ def env_id(scenario: str) -> str:
     return f"{NAMESPACE}/{name}-v{VERSION}"
 
 
+def registered_ids() -> dict[str, dict[str, str]]:
+    """Every id :func:`register_all` registers and its keyword arguments (its preset, and its
+    scenario for the per-scenario ids)."""
+    per_scenario = {
+        env_id(s): {"preset": ID_PRESET, "scenario": s} for s in SCENARIOS + TRAINING_SCENARIOS
+    }
+    return {ENV_ID: {"preset": ID_PRESET}, **per_scenario}
+
+
 def register_all() -> None:
     """Register the generic id and one id per scenario (once; a second call does nothing)."""
-    ids = {ENV_ID: {}, **{env_id(s): {"scenario": s} for s in SCENARIOS + TRAINING_SCENARIOS}}
-    for id_, kwargs in ids.items():
+    for id_, kwargs in registered_ids().items():
         if id_ not in registry:
             register(
                 id=id_,

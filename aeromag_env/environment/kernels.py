@@ -10,115 +10,26 @@ compiled code, so environment i of the vector environment is bitwise the single 
 the same flight and actions (tested).
 
 The action mapping, reward and observation are specified in the environment's docstring; the
-action and observation layouts are named in :mod:`aeromag_env.environment.spaces`.
+action and observation layouts are named in :mod:`aeromag_env.environment.spaces`, the
+observations written by :mod:`aeromag_env.environment.observe`, and the vectors the step keeps
+and writes laid out in :mod:`aeromag_env.environment.layout`.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 
 from aeromag_env.compensation.arrays import FilterArrays, Packed, named, packed, row
-from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_WINDOW
+from aeromag_env.compensation.kernel_layout import INTS
 from aeromag_env.compensation.kernels import advance
-from aeromag_env.environment.spaces import (
-    ACT_Q,
-    ACT_QP,
-    ACT_R,
-    OBS_LIMIT,
-    OBS_LOG_INNOVATION_BIAS,
-    OBS_LOG_INNOVATION_POWER,
-    OBS_LOG_MEAN_INNOVATION_POWER,
-    OBS_LOG_Q_SCALE,
-    OBS_LOG_QOQ,
-    OBS_LOG_QP_SCALE,
-    OBS_LOG_R_SCALE,
-    OBS_LOG_RECENT_ROR,
-    OBS_LOG_ROR,
-    OBS_LOG_STEP_STATISTIC,
-    OBS_LOG_TURN_RATE,
-    OBS_PROGRESS,
-    OBS_WHITENESS,
-)
-from aeromag_env.environment.statistics import (
-    innovation_bias,
-    log10_or_zero,
-    recent_power,
-    recent_ratio,
-    step_statistic,
-    turn_rate,
-    whiteness,
-)
+from aeromag_env.environment.layout import LN10, OUT, RUN, STEP_PAR, EnvArrays, EnvSettings
+from aeromag_env.environment.observe import observe
+from aeromag_env.environment.spaces import ACT_Q, ACT_QP, ACT_R
 from aeromag_env.numba_cache import njit
 from aeromag_env.simulation.interference import INDUCED_START, PERMANENT_START
 from aeromag_env.threads import run_chunks
-
-# running values of one environment (float vector); RUN_LOG_Q is the Q of all 21 states, or with
-# split_q of the coefficient blocks (A, B) only, and RUN_LOG_QP that of the permanent block T_p;
-# RUN_SQ_ERR and RUN_N_ERR sum the squared errors from score_start on, RUN_SQ_FLOWN and
-# RUN_N_FLOWN over every sample flown that has an estimate (the score of an episode that ends
-# before score_start)
-RUN_LOG_Q, RUN_LOG_R, RUN_SQ_ERR, RUN_N_ERR, RUN_LOG_QP, RUN_SQ_FLOWN, RUN_N_FLOWN = range(7)
-N_RUN = 7
-# environment parameters (float vector, see aeromag_env.environment.env.parameters)
-(
-    PAR_K,
-    PAR_LOG_S_MAX,
-    PAR_LOG_LIMIT,
-    PAR_ABSOLUTE,
-    PAR_Q_LO,
-    PAR_Q_HI,
-    PAR_R_LO,
-    PAR_R_HI,
-    PAR_REWARD_NT,
-    PAR_PENALTY,
-    PAR_LN10,
-    PAR_SPLIT_Q,
-    PAR_QP_LO,
-    PAR_QP_HI,
-    PAR_REWARD_FORM,
-    PAR_QP_GATE,
-    PAR_RECENT,
-) = range(17)
-N_PAR = 17
-#: Reward forms of :class:`aeromag_env.environment.env.EnvConfig`, coded by their index in
-#: PAR_REWARD_FORM.
-REWARD_FORMS = ("log", "linear", "squared")
-# outcome of one step (float vector)
-(
-    OUT_REWARD,
-    OUT_RMSE,
-    OUT_ROR,
-    OUT_QOQ,
-    OUT_Q_SCALE,
-    OUT_R_SCALE,
-    OUT_TERMINATED,
-    OUT_TRUNCATED,
-    OUT_EPISODE_RMSE,
-    OUT_QP_SCALE,
-) = range(10)
-N_OUT = 10
-
-
-class EnvArrays(NamedTuple):
-    """One environment's arrays (the vector environment's: each with a leading environment axis)."""
-
-    action: np.ndarray  #: (2 or 3,) float64 finite action (aeromag_env.environment.spaces.ACTIONS)
-    run: np.ndarray  #: (N_RUN,) running values (RUN_*)
-    truth: np.ndarray  #: (≥ n, 3) true interference [nT]
-    obs: np.ndarray  #: (dim,) float32 observation (written)
-    outcome: np.ndarray  #: (N_OUT,) outcome of the step (OUT_*, written)
-
-
-class EnvSettings(NamedTuple):
-    """What every environment of one configuration shares."""
-
-    par: np.ndarray  #: (N_PAR,) parameters (PAR_*)
-    obs_at: np.ndarray  #: int64 column of each observation or -1 (spaces.observation_positions)
-    low: np.ndarray  #: (dim,) float32 lower bounds of the observation
-    high: np.ndarray  #: (dim,) float32 upper bounds
 
 
 @njit(cache=True, inline="always")  # as arrays.row
@@ -135,11 +46,11 @@ def _scale(a: float, slot: int, lo: float, hi: float, run: np.ndarray, par: np.n
     relative mode: ``s = s_max ** a``; the log scale stays within ±log(scale_limit).
     """
     a = min(max(a, -1.0), 1.0)
-    old, limit = run[slot], par[PAR_LOG_LIMIT]
-    if par[PAR_ABSOLUTE] != 0.0:
-        step = par[PAR_LN10] * (lo + 0.5 * (a + 1.0) * (hi - lo)) - old
+    old, limit = run[slot], par[STEP_PAR.log_limit]
+    if par[STEP_PAR.absolute] != 0.0:
+        step = LN10 * (lo + 0.5 * (a + 1.0) * (hi - lo)) - old
     else:
-        step = a * par[PAR_LOG_S_MAX]
+        step = a * par[STEP_PAR.log_s_max]
     new = min(max(old + step, -limit), limit)
     run[slot] = new
     return math.exp(new - old)
@@ -162,12 +73,12 @@ def _window_error(
             if k >= score_start:
                 scored += e2
         if np.isfinite(row):
-            run[RUN_SQ_FLOWN] += row
-            run[RUN_N_FLOWN] += 3
+            run[RUN.sq_flown] += row
+            run[RUN.n_flown] += 3
     lo = max(k0, score_start)
     if lo < k1:
-        run[RUN_SQ_ERR] += scored
-        run[RUN_N_ERR] += 3 * (k1 - lo)
+        run[RUN.sq_err] += scored
+        run[RUN.n_err] += 3 * (k1 - lo)
     return math.sqrt(total / (3 * (k1 - k0))) if k1 > k0 else np.nan
 
 
@@ -176,55 +87,16 @@ def _episode_rmse(run: np.ndarray, window_rmse: float) -> float:
     """The episode's RMSE so far [nT]: over the flight after ``score_from``; before it (an
     episode cut or diverged early) over the part flown, so that a score is never NaN; the
     window's when no sample has an estimate yet."""
-    if run[RUN_N_ERR] > 0:
-        return math.sqrt(run[RUN_SQ_ERR] / run[RUN_N_ERR])
-    if run[RUN_N_FLOWN] > 0:
-        return math.sqrt(run[RUN_SQ_FLOWN] / run[RUN_N_FLOWN])
+    if run[RUN.n_err] > 0:
+        return math.sqrt(run[RUN.sq_err] / run[RUN.n_err])
+    if run[RUN.n_flown] > 0:
+        return math.sqrt(run[RUN.sq_flown] / run[RUN.n_flown])
     return window_rmse
 
 
 @njit(cache=True)
-def _observe(
-    k0: int, k1: int, n: int, env: EnvArrays, settings: EnvSettings, f: FilterArrays
-) -> None:
-    """Write the observation at the end of the window ``k0 ≤ k < k1`` (float32, clipped to the
-    bounds), each at its column (``settings.obs_at``)."""
-    run, obs, par, at = env.run, env.obs, settings.par, settings.obs_at
-    ints, r0, rbuf = f.state.ints, f.state.r0, f.window.rbuf
-    k = k1 - 1
-    obs[OBS_LOG_ROR] = log10_or_zero(f.outputs.ror[k])
-    obs[OBS_LOG_QOQ] = log10_or_zero(f.outputs.qoq[k])
-    if at[OBS_LOG_Q_SCALE] >= 0:  # the extras
-        obs[OBS_LOG_Q_SCALE] = run[RUN_LOG_Q] / par[PAR_LN10]
-        obs[OBS_LOG_R_SCALE] = run[RUN_LOG_R] / par[PAR_LN10]
-        obs[OBS_WHITENESS] = whiteness(k1, ints[INT_WINDOW], f.outputs.innov)
-        obs[OBS_PROGRESS] = k1 / n
-        short = recent_ratio(int(par[PAR_RECENT]), ints, rbuf, f.window.sbuf)
-        obs[OBS_LOG_RECENT_ROR] = log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
-    if at[OBS_LOG_QP_SCALE] >= 0:
-        obs[at[OBS_LOG_QP_SCALE]] = run[RUN_LOG_QP] / par[PAR_LN10]
-    if at[OBS_LOG_INNOVATION_POWER] >= 0:  # over tr R(0): the noise level and a step, R aside
-        tr_r0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
-        power = recent_power(ints[INT_WINDOW], ints, rbuf)[0]
-        obs[at[OBS_LOG_INNOVATION_POWER]] = log10_or_zero(power / tr_r0)
-        mean_power = recent_power(int(par[PAR_RECENT]), ints, rbuf)[1]
-        obs[at[OBS_LOG_MEAN_INNOVATION_POWER]] = log10_or_zero(mean_power / tr_r0)
-    if at[OBS_LOG_STEP_STATISTIC] >= 0:
-        statistic = step_statistic(int(par[PAR_RECENT]), ints, rbuf)
-        obs[at[OBS_LOG_STEP_STATISTIC]] = log10_or_zero(statistic)
-    if at[OBS_LOG_TURN_RATE] >= 0:  # 0 (no turn seen) → the lower bound
-        s = f.signals
-        rate = turn_rate(k0, k1, s.t, s.td, s.valid)
-        obs[at[OBS_LOG_TURN_RATE]] = math.log10(rate) if rate > 0.0 else -OBS_LIMIT
-    if at[OBS_LOG_INNOVATION_BIAS] >= 0:
-        obs[at[OBS_LOG_INNOVATION_BIAS]] = log10_or_zero(innovation_bias(ints, rbuf))
-    for j in range(obs.shape[0]):
-        obs[j] = min(max(obs[j], settings.low[j]), settings.high[j])
-
-
-@njit(cache=True)
 def _reward(e: float, form: float) -> float:
-    """The reward of a window error ``e`` in units of ``reward_scale_nt``: ``−ln(1 + e)``
+    """The reward of a window error ``e`` in units of the reward's ``scale_nt``: ``−ln(1 + e)``
     (form 0, log), ``−e`` (1, linear) or ``−e²`` (2, squared)."""
     if form == 0.0:
         return -math.log1p(e)
@@ -253,33 +125,33 @@ def env_step(
     env, settings, f = EnvArrays(*env_arrays), EnvSettings(*shared), named(filter_arrays)
     e, run, a, out = settings.par, env.run, env.action, env.outcome
     qd, rm, ints = f.state.qd, f.state.rm, f.state.ints
-    s_q = _scale(a[ACT_Q], RUN_LOG_Q, e[PAR_Q_LO], e[PAR_Q_HI], run, e)
-    s_r = _scale(a[ACT_R], RUN_LOG_R, e[PAR_R_LO], e[PAR_R_HI], run, e)
-    if e[PAR_SPLIT_Q] != 0.0:  # T_p's Q on its own, the coefficient blocks' by s_q
-        a_qp = a[ACT_QP] if e[PAR_QP_GATE] == 0.0 else (1.0 if a[ACT_QP] > 0.0 else -1.0)
-        s_qp = _scale(a_qp, RUN_LOG_QP, e[PAR_QP_LO], e[PAR_QP_HI], run, e)
+    s_q = _scale(a[ACT_Q], RUN.log_q, e[STEP_PAR.q_lo], e[STEP_PAR.q_hi], run, e)
+    s_r = _scale(a[ACT_R], RUN.log_r, e[STEP_PAR.r_lo], e[STEP_PAR.r_hi], run, e)
+    if e[STEP_PAR.split_q] != 0.0:  # T_p's Q on its own, the coefficient blocks' by s_q
+        a_qp = a[ACT_QP] if e[STEP_PAR.qp_gate] == 0.0 else (1.0 if a[ACT_QP] > 0.0 else -1.0)
+        s_qp = _scale(a_qp, RUN.log_qp, e[STEP_PAR.qp_lo], e[STEP_PAR.qp_hi], run, e)
         qd[PERMANENT_START:INDUCED_START] *= s_qp
         qd[INDUCED_START:] *= s_q
     else:
         qd *= s_q  # eq. 21: Q ← s_a Q, R ← s_r R
     rm *= s_r
-    k0, divergences = ints[INT_K], ints[INT_DIV]
-    k1 = min(k0 + int(e[PAR_K]), n)
+    k0, divergences = ints[INTS.k], ints[INTS.div]
+    k1 = min(k0 + int(e[STEP_PAR.k]), n)
     if k1 > k0:
         advance(mode, k0, k1, f)
     ror, qoq = f.outputs.ror, f.outputs.qoq
     rmse = _window_error(k0, k1, env.truth, f.outputs.est, score_start, run)
-    terminated = ints[INT_DIV] > divergences
-    reward = _reward(rmse / e[PAR_REWARD_NT], e[PAR_REWARD_FORM])
-    out[OUT_REWARD] = e[PAR_PENALTY] if terminated else reward
-    out[OUT_RMSE] = rmse
-    out[OUT_ROR], out[OUT_QOQ] = ror[k1 - 1], qoq[k1 - 1]
-    out[OUT_Q_SCALE], out[OUT_R_SCALE] = math.exp(run[RUN_LOG_Q]), math.exp(run[RUN_LOG_R])
-    out[OUT_QP_SCALE] = math.exp(run[RUN_LOG_QP])
-    out[OUT_TERMINATED] = 1.0 if terminated else 0.0
-    out[OUT_TRUNCATED] = 1.0 if k1 >= n and not terminated else 0.0
-    out[OUT_EPISODE_RMSE] = _episode_rmse(run, rmse)
-    _observe(k0, k1, n, env, settings, f)
+    terminated = ints[INTS.div] > divergences
+    reward = _reward(rmse / e[STEP_PAR.reward_nt], e[STEP_PAR.reward_form])
+    out[OUT.reward] = e[STEP_PAR.penalty] if terminated else reward
+    out[OUT.rmse] = rmse
+    out[OUT.ror], out[OUT.qoq] = ror[k1 - 1], qoq[k1 - 1]
+    out[OUT.q_scale], out[OUT.r_scale] = math.exp(run[RUN.log_q]), math.exp(run[RUN.log_r])
+    out[OUT.qp_scale] = math.exp(run[RUN.log_qp])
+    out[OUT.terminated] = 1.0 if terminated else 0.0
+    out[OUT.truncated] = 1.0 if k1 >= n and not terminated else 0.0
+    out[OUT.episode_rmse] = _episode_rmse(run, rmse)
+    observe(k0, k1, n, env, settings, f)
 
 
 @njit(cache=True, nogil=True)

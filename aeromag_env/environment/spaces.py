@@ -1,114 +1,53 @@
 """The action and observation layouts of the tuning environment, named once.
 
-An action is ``[a_q, a_r]``, or with ``split_q`` ``[a_q, a_r, a_qp]`` (:data:`ACTIONS`). An
-observation is the paper's two ratios, with ``extras`` five more, then the optional ones each
-switch of :class:`aeromag_env.environment.env.EnvConfig` adds, in the order of
-:data:`OBSERVATIONS`; :func:`observation_names` gives the layout of a configuration. The compiled
-step (:mod:`aeromag_env.environment.kernels`) writes each observation at the position
-:func:`observation_positions` gives it; policies find a column with :func:`observation_index`.
+An action is ``[a_q, a_r]``, or with a T_p action (:attr:`ActionSpec.permanent
+<aeromag_env.environment.config.ActionSpec.permanent>` ``graded`` or ``gate``) ``[a_q, a_r,
+a_qp]`` (:data:`ACTIONS`). An observation is the tuple of registry names the configuration
+chooses (:attr:`~aeromag_env.environment.config.EnvConfig.observations`), in that order; its
+size, names and bounds come from the registry (:mod:`aeromag_env.environment.observations`)
+only. The compiled step writes each observation at the column :func:`observation_positions`
+gives it; policies find a column with :func:`observation_index`.
 """
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-#: The entries of an action, in order; ``a_qp`` only with ``split_q``.
+from aeromag_env.environment.observations import NAMES, entry
+
+if TYPE_CHECKING:
+    from aeromag_env.environment.config import EnvConfig
+
+#: The entries of an action, in order; ``a_qp`` only with a T_p action.
 ACTIONS = ("a_q", "a_r", "a_qp")
-#: Their positions: Q scale (of every state, or with ``split_q`` of the A and B blocks), R scale,
-#: Q scale of the permanent-field block T_p.
+#: Their positions: Q scale (of every state, or with a T_p action of the A and B blocks), R
+#: scale, Q scale of the permanent-field block T_p.
 ACT_Q, ACT_R, ACT_QP = ACTIONS.index("a_q"), ACTIONS.index("a_r"), ACTIONS.index("a_qp")
-#: The actions without ``split_q``.
+#: The actions without a T_p action.
 BASE_ACTIONS = ACTIONS[:2]
-
-#: Every observation the environment can give, in the order it gives them (see the environment's
-#: docstring for their meaning): two always, five more with ``extras``, then the optional ones of
-#: :data:`OPTIONAL_OBSERVATIONS`.
-OBSERVATIONS = (
-    "log_ror",  # log10 ROR over the statistics window
-    "log_qoq",  # log10 QOQ
-    "log_q_scale",  # log10 of the cumulative Q scale
-    "log_r_scale",  # log10 of the cumulative R scale
-    "whiteness",  # lag-1 autocorrelation of the innovations over the last window
-    "progress",  # progress through the flight
-    "log_recent_ror",  # log10 ROR over the last decision window
-    "log_qp_scale",  # log10 of the cumulative T_p Q scale
-    "log_innovation_power",  # log10 mean |r|² over the statistics window / tr R(0)
-    "log_mean_innovation_power",  # log10 |mean r|² over the last decision window / tr R(0)
-    "log_step_statistic",  # log10 of the two-window change statistic
-    "log_turn_rate",  # log10 RMS |Ṫ|/|T| over the last decision window [rad/s]
-    "log_innovation_bias",  # log10 M |mean r|² / tr C over the statistics window
-)
-#: Each observation's index in OBSERVATIONS: for the first two (always given) and the five of
-#: ``extras`` also its column, for the optional ones the row of :func:`observation_positions`.
-OBS_LOG_ROR = OBSERVATIONS.index("log_ror")
-OBS_LOG_QOQ = OBSERVATIONS.index("log_qoq")
-OBS_LOG_Q_SCALE = OBSERVATIONS.index("log_q_scale")
-OBS_LOG_R_SCALE = OBSERVATIONS.index("log_r_scale")
-OBS_WHITENESS = OBSERVATIONS.index("whiteness")
-OBS_PROGRESS = OBSERVATIONS.index("progress")
-OBS_LOG_RECENT_ROR = OBSERVATIONS.index("log_recent_ror")
-OBS_LOG_QP_SCALE = OBSERVATIONS.index("log_qp_scale")
-OBS_LOG_INNOVATION_POWER = OBSERVATIONS.index("log_innovation_power")
-OBS_LOG_MEAN_INNOVATION_POWER = OBSERVATIONS.index("log_mean_innovation_power")
-OBS_LOG_STEP_STATISTIC = OBSERVATIONS.index("log_step_statistic")
-OBS_LOG_TURN_RATE = OBSERVATIONS.index("log_turn_rate")
-OBS_LOG_INNOVATION_BIAS = OBSERVATIONS.index("log_innovation_bias")
-BASE_OBSERVATIONS = OBSERVATIONS[: OBS_LOG_QOQ + 1]
-EXTRA_OBSERVATIONS = OBSERVATIONS[OBS_LOG_QOQ + 1 : OBS_LOG_RECENT_ROR + 1]
-#: The switch that adds each optional observation (with ``extras``; they follow the extras in the
-#: order of OBSERVATIONS).
-OPTIONAL_OBSERVATIONS = {
-    "log_qp_scale": "split_q",
-    "log_innovation_power": "innovation_power",
-    "log_mean_innovation_power": "innovation_power",
-    "log_step_statistic": "step_statistic",
-    "log_turn_rate": "turn_rate",
-    "log_innovation_bias": "innovation_bias",
-}
-#: Observations are log10 ratios clipped to ±OBS_LIMIT, except those with a range of their own.
-OBS_LIMIT = 8.0
-OBS_RANGES = {"whiteness": (-1.0, 1.0), "progress": (0.0, 1.0)}
+#: The columns of the paper's two observations, which every configuration's observation
+#: starts with (:func:`aeromag_env.environment.observations.check_observations`).
+OBS_LOG_ROR, OBS_LOG_QOQ = 0, 1
 
 
-class Layout(Protocol):
-    """The switches of :class:`aeromag_env.environment.env.EnvConfig` that shape the spaces."""
-
-    @property
-    def extras(self) -> bool: ...
-    @property
-    def split_q(self) -> bool: ...
-    @property
-    def innovation_power(self) -> bool: ...
-    @property
-    def step_statistic(self) -> bool: ...
-    @property
-    def turn_rate(self) -> bool: ...
-    @property
-    def innovation_bias(self) -> bool: ...
+def action_names(config: EnvConfig) -> tuple[str, ...]:
+    """The entries of one action: ``(a_q, a_r)``, or with a T_p action ``(a_q, a_r, a_qp)``."""
+    return ACTIONS[: config.action.size]
 
 
-def action_names(config: Layout) -> tuple[str, ...]:
-    """The entries of one action: ``(a_q, a_r)``, or with ``split_q`` ``(a_q, a_r, a_qp)``."""
-    return ACTIONS if config.split_q else BASE_ACTIONS
-
-
-def action_size(config: Layout) -> int:
+def action_size(config: EnvConfig) -> int:
     """Entries of one action."""
-    return len(action_names(config))
+    return config.action.size
 
 
-def observation_names(config: Layout) -> tuple[str, ...]:
+def observation_names(config: EnvConfig) -> tuple[str, ...]:
     """The observations of ``config``, in the order of the observation vector."""
-    if not config.extras:
-        return BASE_OBSERVATIONS
-    optional = OBSERVATIONS[len(BASE_OBSERVATIONS) + len(EXTRA_OBSERVATIONS) :]
-    chosen = tuple(n for n in optional if getattr(config, OPTIONAL_OBSERVATIONS[n]))
-    return BASE_OBSERVATIONS + EXTRA_OBSERVATIONS + chosen
+    return tuple(config.observations)
 
 
-def observation_index(config: Layout, name: str) -> int:
+def observation_index(config: EnvConfig, name: str) -> int:
     """The column of observation ``name`` under ``config`` (ValueError when it has none)."""
     names = observation_names(config)
     if name not in names:
@@ -116,15 +55,16 @@ def observation_index(config: Layout, name: str) -> int:
     return names.index(name)
 
 
-def observation_positions(config: Layout) -> np.ndarray:
-    """For each name of :data:`OBSERVATIONS`, its column under ``config`` or -1 (int64)."""
+def observation_positions(config: EnvConfig) -> np.ndarray:
+    """For each registry entry (:data:`aeromag_env.environment.observations.NAMES`), its column
+    under ``config`` or -1 (int64)."""
     names = observation_names(config)
-    return np.array([names.index(n) if n in names else -1 for n in OBSERVATIONS], np.int64)
+    return np.array([names.index(n) if n in names else -1 for n in NAMES], np.int64)
 
 
-def observation_bounds(config: Layout) -> tuple[np.ndarray, np.ndarray]:
+def observation_bounds(config: EnvConfig) -> tuple[np.ndarray, np.ndarray]:
     """The lower and upper bounds (float32) of the observations of ``config``."""
-    ranges = [OBS_RANGES.get(n, (-OBS_LIMIT, OBS_LIMIT)) for n in observation_names(config)]
+    ranges = [(entry(n).low, entry(n).high) for n in observation_names(config)]
     low, high = np.array(ranges, np.float32).reshape(-1, 2).T
     return np.ascontiguousarray(low), np.ascontiguousarray(high)
 

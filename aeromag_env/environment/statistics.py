@@ -4,8 +4,8 @@ Each is compiled and reads the filter's arrays in place (:mod:`aeromag_env.compe
 the innovations of the last samples (whiteness), the circular window of the last M updates
 (recent ROR, innovation powers, the two-window change statistic, the innovation bias) and the
 model field in body axes (the turn rate). :func:`aeromag_env.environment.kernels.env_step`
-writes them into the observation; their meaning is in
-:class:`aeromag_env.environment.env.EnvConfig`.
+writes them into the observation (:mod:`aeromag_env.environment.observe`); their meaning is in
+the registry :mod:`aeromag_env.environment.observations`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from aeromag_env.compensation.kernel_layout import INT_COUNT, INT_POS, INT_WINDOW
+from aeromag_env.compensation.kernel_layout import INTS
 from aeromag_env.numba_cache import njit
 
 
@@ -81,10 +81,10 @@ def _previous(w: int, size: int) -> int:
 @njit(cache=True)
 def recent_ratio(m: int, ints: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray) -> float:
     """ROR over the last ``m`` updates only: ``Σ|r|² / Σ tr S`` (NaN before any update)."""
-    m = min(m, ints[INT_COUNT])
-    num, den, w = 0.0, 0.0, ints[INT_POS]
+    m = min(m, ints[INTS.updates])
+    num, den, w = 0.0, 0.0, ints[INTS.pos]
     for _ in range(m):  # newest first
-        w = _previous(w, ints[INT_WINDOW])
+        w = _previous(w, ints[INTS.window])
         num += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
         den += sbuf[w]
     return num / den if den > 0.0 else np.nan
@@ -95,12 +95,12 @@ def recent_power(m: int, ints: np.ndarray, rbuf: np.ndarray) -> tuple[float, flo
     """Over the last ``m`` updates: the mean innovation power ``mean |r|²`` and the power of
     the mean innovation ``|mean r|²`` [nT²] (NaN before any update). Noise averages out of the
     second, a step does not."""
-    m = min(m, ints[INT_COUNT])
+    m = min(m, ints[INTS.updates])
     if m == 0:
         return np.nan, np.nan
-    power, s0, s1, s2, w = 0.0, 0.0, 0.0, 0.0, ints[INT_POS]
+    power, s0, s1, s2, w = 0.0, 0.0, 0.0, 0.0, ints[INTS.pos]
     for _ in range(m):  # newest first
-        w = _previous(w, ints[INT_WINDOW])
+        w = _previous(w, ints[INTS.window])
         power += rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
         s0, s1, s2 = s0 + rbuf[w, 0], s1 + rbuf[w, 1], s2 + rbuf[w, 2]
     return power / m, (s0 * s0 + s1 * s1 + s2 * s2) / (m * m)
@@ -113,14 +113,14 @@ def step_statistic(m: int, ints: np.ndarray, rbuf: np.ndarray) -> float:
     the earlier ones' innovation covariance trace. About 1 + m/(M − m) without a change,
     whatever the noise level or R; an interference step raises it by m |step|² / tr C₀. NaN
     with fewer than 3 earlier updates. (Per axis in scalars, newest first: no allocation.)"""
-    count = ints[INT_COUNT]
+    count = ints[INTS.updates]
     m = min(m, count)
     earlier = count - m
     if m < 1 or earlier < 3:
         return np.nan
-    size = ints[INT_WINDOW]
+    size = ints[INTS.window]
     recent0, recent1, recent2, before0, before1, before2 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    w = ints[INT_POS]
+    w = ints[INTS.pos]
     for j in range(count):
         w = _previous(w, size)
         if j < m:
@@ -134,7 +134,7 @@ def step_statistic(m: int, ints: np.ndarray, rbuf: np.ndarray) -> float:
     recent0, recent1, recent2 = recent0 / m, recent1 / m, recent2 / m
     before0, before1, before2 = before0 / earlier, before1 / earlier, before2 / earlier
     sq0, sq1, sq2 = 0.0, 0.0, 0.0
-    w = (ints[INT_POS] - m) % size  # the earlier updates, newest first
+    w = (ints[INTS.pos] - m) % size  # the earlier updates, newest first
     for _ in range(m, count):
         w = _previous(w, size)
         sq0 += (rbuf[w, 0] - before0) ** 2
@@ -174,15 +174,15 @@ def innovation_bias(ints: np.ndarray, rbuf: np.ndarray) -> float:
     consistent filter (zero-mean innovations) at any noise level or R; a step the filter has not
     absorbed keeps it high for as long as the bias stays, where the two-window statistic falls
     once the step fills the window. NaN with fewer than 3 updates."""
-    count, size = ints[INT_COUNT], ints[INT_WINDOW]
+    count, size = ints[INTS.updates], ints[INTS.window]
     if count < 3:
         return np.nan
-    s0, s1, s2, w = 0.0, 0.0, 0.0, ints[INT_POS]
+    s0, s1, s2, w = 0.0, 0.0, 0.0, ints[INTS.pos]
     for _ in range(count):
         w = _previous(w, size)
         s0, s1, s2 = s0 + rbuf[w, 0], s1 + rbuf[w, 1], s2 + rbuf[w, 2]
     m0, m1, m2 = s0 / count, s1 / count, s2 / count
-    sq, w = 0.0, ints[INT_POS]
+    sq, w = 0.0, ints[INTS.pos]
     for _ in range(count):
         w = _previous(w, size)
         sq += (rbuf[w, 0] - m0) ** 2 + (rbuf[w, 1] - m1) ** 2 + (rbuf[w, 2] - m2) ** 2

@@ -14,46 +14,15 @@ from gymnasium.vector.utils import batch_space
 from aeromag_env.compensation.arrays import Packed, packed
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
-from aeromag_env.compensation.kernel_layout import INT_DIV, INT_K, INT_OUT
+from aeromag_env.compensation.kernel_layout import INTS
 from aeromag_env.environment import kernels
 from aeromag_env.environment.checks import RESET_OPTIONS, reset_options
 from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig, step_settings
-from aeromag_env.environment.kernels import (
-    OUT_EPISODE_RMSE,
-    OUT_Q_SCALE,
-    OUT_QOQ,
-    OUT_QP_SCALE,
-    OUT_R_SCALE,
-    OUT_REWARD,
-    OUT_RMSE,
-    OUT_ROR,
-    OUT_TERMINATED,
-    OUT_TRUNCATED,
-    EnvArrays,
-)
+from aeromag_env.environment.info import info, info_rows, put_infos
+from aeromag_env.environment.layout import OUT, RUN, EnvArrays
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
 from aeromag_env.environment.spaces import action_size, check_actions
 
-#: Per-step info entries (as the single environment's ``info``) and their rows of the outcome.
-STEP_INFO = (
-    ("rmse_window_nt", OUT_RMSE),
-    ("ror", OUT_ROR),
-    ("qoq", OUT_QOQ),
-    ("q_scale", OUT_Q_SCALE),
-    ("r_scale", OUT_R_SCALE),
-    ("q_permanent_scale", OUT_QP_SCALE),
-)
-#: The keys of a step's info dict (:meth:`AeroMagCompensationVecEnv.step_rows`), in the single
-#: environment's order: the entries above, then the counts and totals.
-_ROW_KEYS = (
-    *(key for key, _ in STEP_INFO),
-    "sample",
-    "flight_seed",
-    "episode_rmse_nt",
-    "divergences",
-    "outliers_rejected",
-)
-_STEP_COLS = np.array([col for _, col in STEP_INFO])
 #: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
 VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS)
 
@@ -75,9 +44,9 @@ class AeroMagCompensationVecEnv(VectorEnv):
     ## Spaces
 
     ``single_action_space`` and ``single_observation_space`` are the single environment's;
-    ``action_space`` and ``observation_space`` batch them: actions (N, 2), or (N, 3) with
-    ``split_q``; observations (N, 2), or (N, 7) with ``extras`` (N, 8 with ``split_q`` too),
-    float32. Actions are clipped to [-1, 1]; a wrong shape, values that are not real numbers
+    ``action_space`` and ``observation_space`` batch them: actions (N, 2), or (N, 3) with a T_p
+    action; observations (N, len(config.observations)) float32. Actions are clipped to
+    [-1, 1]; a wrong shape, values that are not real numbers
     (complex, bool, text, objects) or a non-finite value (naming its environment) raise
     ``ValueError``.
 
@@ -162,10 +131,10 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self.flight_seeds = np.zeros(n, np.int64)
         self._filters: BatchFilterState | None = None
         self._truth = np.zeros((n, 0, 3))
-        self._run = np.zeros((n, kernels.N_RUN))
+        self._run = np.zeros((n, len(RUN)))
         self._score_start = np.zeros(n, np.int64)
         self._obs = np.zeros((n, self._settings.low.size), np.float32)
-        self._out = np.zeros((n, kernels.N_OUT))
+        self._out = np.zeros((n, len(OUT)))
         self._ended = np.zeros(n, bool)
         self._steps = np.zeros(n, np.int64)  # steps of each environment's current episode
         self._everyone = np.ones(n, bool)  # the mask of a step without restarts (never written)
@@ -192,7 +161,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         from aeromag_env.environment.render import render_vector
 
         f = self._need_filters()
-        return render_vector(self.scenarios, f.ints[:, INT_K], self._truth, f)
+        return render_vector(self.scenarios, f.ints[:, INTS.k], self._truth, f)
 
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict | None = None
@@ -240,16 +209,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
             raise ValueError("step_rows needs autoreset_mode=AutoresetMode.DISABLED")
         active = self._restart_ended({})
         rewards, terminated, truncated = self._advance(actions, active)
-        ints, out = self._need_filters().ints, self._out
-        columns = (
-            *out[:, _STEP_COLS].T.tolist(),
-            ints[:, INT_K].tolist(),
-            self.flight_seeds.tolist(),
-            out[:, OUT_EPISODE_RMSE].tolist(),
-            ints[:, INT_DIV].tolist(),
-            ints[:, INT_OUT].tolist(),
-        )
-        rows = [dict(zip(_ROW_KEYS, values, strict=True)) for values in zip(*columns, strict=True)]
+        rows = info_rows(self._out, self._need_filters().ints, self.flight_seeds)
         return self._obs.copy(), rewards, terminated, truncated, rows
 
     def _advance(
@@ -270,10 +230,10 @@ class AeroMagCompensationVecEnv(VectorEnv):
         out = self._out
         self._steps += active
         if self.max_episode_steps is not None:  # a TimeLimit's cut, as gym.make's
-            out[active & (self._steps >= self.max_episode_steps), OUT_TRUNCATED] = 1.0
-        terminated, truncated = out[:, OUT_TERMINATED] > 0, out[:, OUT_TRUNCATED] > 0
+            out[active & (self._steps >= self.max_episode_steps), OUT.truncated] = 1.0
+        terminated, truncated = out[:, OUT.terminated] > 0, out[:, OUT.truncated] > 0
         self._ended = terminated | truncated
-        return out[:, OUT_REWARD].copy(), terminated, truncated
+        return out[:, OUT.reward].copy(), terminated, truncated
 
     def _restart_ended(self, infos: dict[str, Any]) -> np.ndarray:
         """Environments that ended on the previous step: ``NEXT_STEP`` restarts them now, which
@@ -352,24 +312,11 @@ class AeroMagCompensationVecEnv(VectorEnv):
     def _step_infos(self, infos: dict[str, Any], stepped: np.ndarray) -> None:
         """The single env's step infos of the ``stepped`` environments, batched."""
         filters = self._need_filters()
-        for key, col in STEP_INFO:
-            _put(infos, key, self._out[:, col], stepped)
-        _put(infos, "sample", filters.ints[:, INT_K], stepped)
-        _put(infos, "flight_seed", self.flight_seeds, stepped)
-        _put(infos, "episode_rmse_nt", self._out[:, OUT_EPISODE_RMSE], stepped)
-        _put(infos, "divergences", filters.ints[:, INT_DIV], stepped)
-        _put(infos, "outliers_rejected", filters.ints[:, INT_OUT], stepped)
+        put_infos(infos, self._out, filters.ints, self.flight_seeds, stepped, _put)
 
     def _info(self, i: int) -> dict[str, Any]:
         """The single env's info of environment i at the end of its episode."""
-        filters, out = self._need_filters(), self._out[i]
-        info: dict[str, Any] = {key: float(out[col]) for key, col in STEP_INFO}
-        info["sample"] = int(filters.ints[i, INT_K])
-        info["flight_seed"] = int(self.flight_seeds[i])
-        info["episode_rmse_nt"] = float(out[OUT_EPISODE_RMSE])
-        info["divergences"] = int(filters.ints[i, INT_DIV])
-        info["outliers_rejected"] = int(filters.ints[i, INT_OUT])
-        return info
+        return info(self._out[i], self._need_filters().ints[i], int(self.flight_seeds[i]))
 
     def _same_step_reset(self, infos: dict[str, Any], stepped: np.ndarray) -> np.ndarray:
         """Reset the ended environments at once; their last observation and info go to

@@ -1,0 +1,171 @@
+"""The compiled writers of the observations, one per entry of the registry.
+
+Each writer computes one observation of :data:`aeromag_env.environment.observations.REGISTRY`
+at the end of the decision window ``k0 ≤ k < k1`` of a flight of ``n`` samples, from the
+environment's and the filter's arrays; :func:`observe` writes those the configuration chooses
+at their columns (``settings.obs_at``, by registry id) and clips them to their bounds. The
+statistics themselves are in :mod:`aeromag_env.environment.statistics`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from aeromag_env.compensation.arrays import FilterArrays
+from aeromag_env.compensation.kernel_layout import INTS
+from aeromag_env.environment.layout import LN10, RUN, STEP_PAR, EnvArrays, EnvSettings
+from aeromag_env.environment.observations import OBS_LIMIT, observation_id
+from aeromag_env.environment.statistics import (
+    innovation_bias,
+    log10_or_zero,
+    recent_power,
+    recent_ratio,
+    step_statistic,
+    turn_rate,
+    whiteness,
+)
+from aeromag_env.numba_cache import njit
+
+# Each observation's registry id (an unknown name fails here, at import).
+LOG_ROR = observation_id("log_ror")
+LOG_QOQ = observation_id("log_qoq")
+LOG_Q_SCALE = observation_id("log_q_scale")
+LOG_R_SCALE = observation_id("log_r_scale")
+WHITENESS = observation_id("whiteness")
+PROGRESS = observation_id("progress")
+LOG_RECENT_ROR = observation_id("log_recent_ror")
+LOG_QP_SCALE = observation_id("log_qp_scale")
+LOG_INNOVATION_POWER = observation_id("log_innovation_power")
+LOG_MEAN_INNOVATION_POWER = observation_id("log_mean_innovation_power")
+LOG_STEP_STATISTIC = observation_id("log_step_statistic")
+LOG_TURN_RATE = observation_id("log_turn_rate")
+LOG_INNOVATION_BIAS = observation_id("log_innovation_bias")
+
+
+@njit(cache=True)
+def _log_ror(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> float:
+    return log10_or_zero(f.outputs.ror[k1 - 1])
+
+
+@njit(cache=True)
+def _log_qoq(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> float:
+    return log10_or_zero(f.outputs.qoq[k1 - 1])
+
+
+@njit(cache=True)
+def _log_q_scale(
+    k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> float:
+    return env.run[RUN.log_q] / LN10
+
+
+@njit(cache=True)
+def _log_r_scale(
+    k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> float:
+    return env.run[RUN.log_r] / LN10
+
+
+@njit(cache=True)
+def _whiteness(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> float:
+    return whiteness(k1, f.state.ints[INTS.window], f.outputs.innov)
+
+
+@njit(cache=True)
+def _progress(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> float:
+    return k1 / n
+
+
+@njit(cache=True)
+def _log_recent_ror(
+    k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> float:
+    short = recent_ratio(int(s.par[STEP_PAR.recent]), f.state.ints, f.window.rbuf, f.window.sbuf)
+    return log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _log_qp_scale(
+    k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> float:
+    return env.run[RUN.log_qp] / LN10
+
+
+@njit(cache=True)
+def _log_innovation_power(
+    k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> float:
+    """Over tr R(0): the noise level, whatever R is."""
+    ints, r0 = f.state.ints, f.state.r0
+    power = recent_power(ints[INTS.window], ints, f.window.rbuf)[0]
+    return log10_or_zero(power / (r0[0, 0] + r0[1, 1] + r0[2, 2]))
+
+
+@njit(cache=True)
+def _log_mean_innovation_power(
+    k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> float:
+    """Over tr R(0): a step, whatever R is."""
+    ints, r0 = f.state.ints, f.state.r0
+    mean_power = recent_power(int(s.par[STEP_PAR.recent]), ints, f.window.rbuf)[1]
+    return log10_or_zero(mean_power / (r0[0, 0] + r0[1, 1] + r0[2, 2]))
+
+
+@njit(cache=True)
+def _log_step_statistic(
+    k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> float:
+    statistic = step_statistic(int(s.par[STEP_PAR.recent]), f.state.ints, f.window.rbuf)
+    return log10_or_zero(statistic)
+
+
+@njit(cache=True)
+def _log_turn_rate(
+    k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> float:
+    """0 (no turn seen) → the lower bound."""
+    g = f.signals
+    rate = turn_rate(k0, k1, g.t, g.td, g.valid)
+    return math.log10(rate) if rate > 0.0 else -OBS_LIMIT
+
+
+@njit(cache=True)
+def _log_innovation_bias(
+    k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> float:
+    return log10_or_zero(innovation_bias(f.state.ints, f.window.rbuf))
+
+
+@njit(cache=True)
+def observe(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> None:
+    """Write the observation at the end of the window ``k0 ≤ k < k1`` (float32, clipped to the
+    bounds): each chosen registry entry at its column ``s.obs_at[id]``."""
+    obs, at = env.obs, s.obs_at
+    if at[LOG_ROR] >= 0:
+        obs[at[LOG_ROR]] = _log_ror(k0, k1, n, env, s, f)
+    if at[LOG_QOQ] >= 0:
+        obs[at[LOG_QOQ]] = _log_qoq(k0, k1, n, env, s, f)
+    if at[LOG_Q_SCALE] >= 0:
+        obs[at[LOG_Q_SCALE]] = _log_q_scale(k0, k1, n, env, s, f)
+    if at[LOG_R_SCALE] >= 0:
+        obs[at[LOG_R_SCALE]] = _log_r_scale(k0, k1, n, env, s, f)
+    if at[WHITENESS] >= 0:
+        obs[at[WHITENESS]] = _whiteness(k0, k1, n, env, s, f)
+    if at[PROGRESS] >= 0:
+        obs[at[PROGRESS]] = _progress(k0, k1, n, env, s, f)
+    if at[LOG_RECENT_ROR] >= 0:
+        obs[at[LOG_RECENT_ROR]] = _log_recent_ror(k0, k1, n, env, s, f)
+    if at[LOG_QP_SCALE] >= 0:
+        obs[at[LOG_QP_SCALE]] = _log_qp_scale(k0, k1, n, env, s, f)
+    if at[LOG_INNOVATION_POWER] >= 0:
+        obs[at[LOG_INNOVATION_POWER]] = _log_innovation_power(k0, k1, n, env, s, f)
+    if at[LOG_MEAN_INNOVATION_POWER] >= 0:
+        obs[at[LOG_MEAN_INNOVATION_POWER]] = _log_mean_innovation_power(k0, k1, n, env, s, f)
+    if at[LOG_STEP_STATISTIC] >= 0:
+        obs[at[LOG_STEP_STATISTIC]] = _log_step_statistic(k0, k1, n, env, s, f)
+    if at[LOG_TURN_RATE] >= 0:
+        obs[at[LOG_TURN_RATE]] = _log_turn_rate(k0, k1, n, env, s, f)
+    if at[LOG_INNOVATION_BIAS] >= 0:
+        obs[at[LOG_INNOVATION_BIAS]] = _log_innovation_bias(k0, k1, n, env, s, f)
+    for j in range(obs.shape[0]):
+        obs[j] = min(max(obs[j], s.low[j]), s.high[j])

@@ -34,11 +34,13 @@ TEST_SEED_START = 100_000
 CHUNK = 8
 
 
-def run_episode(env: gym.Env, policy: TuningPolicy, seed: int) -> dict[str, float]:
+def run_episode(
+    env: gym.Env, policy: TuningPolicy, seed: int, trace: list[dict[str, Any]] | None = None
+) -> dict[str, float]:
     """One episode (reset with the policy's ``reset_options``, if it has any); returns ``rmse_nt``
     (truth, after ``score_from``), ``reward``, ``divergences``, ``outliers_rejected``
     (samples the filter's outlier gate skipped) and ``log_ror_abs_median`` (|log10 ROR| over
-    the scored part)."""
+    the scored part). With ``trace``, each step's info dict is appended to it."""
     options = dict(policy.reset_options) if isinstance(policy, BasePolicy) else None
     obs, _ = env.reset(seed=seed, options=options or None)
     inner: Any = env.unwrapped
@@ -51,6 +53,8 @@ def run_episode(env: gym.Env, policy: TuningPolicy, seed: int) -> dict[str, floa
         start = np.array([False])
         total += float(reward)
         done = terminated or truncated
+        if trace is not None:
+            trace.append(info)
         if info["sample"] >= score_from * inner.episode.n and np.isfinite(info["ror"]):
             log_ror.append(abs(np.log10(info["ror"])) if info["ror"] > 0 else np.inf)
     return {
@@ -60,6 +64,29 @@ def run_episode(env: gym.Env, policy: TuningPolicy, seed: int) -> dict[str, floa
         "outliers_rejected": int(info["outliers_rejected"]),
         "log_ror_abs_median": float(np.median(log_ror)) if log_ror else float("nan"),
     }
+
+
+def action_traces(
+    scenario: str, policies: Sequence[str], seed: int
+) -> dict[str, dict[str, np.ndarray]]:
+    """One flight (``seed``) of ``scenario`` under each policy: ``t`` (k,) [s] after each
+    decision, the cumulative ``q_scale`` and ``r_scale`` (k,) [-] the policy set, ``seed``
+    (the Q/R actions of ``report.html``)."""
+    from agents import make_policy, policy_env_kwargs
+
+    traces = {}
+    for name in policies:
+        env = gym.make("AeroMagCompensation-v0", scenario=scenario, **policy_env_kwargs(name))
+        steps: list[dict[str, Any]] = []
+        run_episode(env, make_policy(name, env), seed, trace=steps)
+        inner: Any = env.unwrapped
+        tt = inner.episode.flight.tt
+        env.close()
+        t = np.array([tt[min(info["sample"], tt.size - 1)] for info in steps], dtype=float)
+        q = np.array([info["q_scale"] for info in steps], dtype=float)
+        r = np.array([info["r_scale"] for info in steps], dtype=float)
+        traces[name] = {"t": t, "q_scale": q, "r_scale": r, "seed": np.array([seed])}
+    return traces
 
 
 def ci95(x: np.ndarray) -> list[float]:

@@ -7,7 +7,8 @@ The ``.npz`` (``allow_pickle=False``) holds the observation normalisation (``obs
 :mod:`aeromag_env.environment.config`), training summary); :mod:`.policy_file` reads
 it and checks every array (names, dtypes, shapes, finite values, the sizes ``env_kwargs`` give)
 before a policy exists, so a malformed file is a one-line
-:class:`~aeromag_env.errors.PolicyFileError` at load time, never an error in :meth:`predict`.
+:class:`~aeromag_env.errors.PolicyFileError` at load time, never an error in
+:meth:`NumpyPPOPolicy.predict`.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ each policy says only how it acts (:meth:`BasePolicy.act`). Actions are ``[a_q, 
   steps), as ``fakf``.
 * ``sage_husa``, ``ding`` — the classical adaptive filters: the environment runs its filter with
   that built-in adaptation (``reset``'s ``filter_method`` option, which these policies name in
-  :attr:`BasePolicy.reset_options`; the same compiled code as ``aeromag compensate --method``)
+  ``BasePolicy.reset_options``; the same compiled code as ``aeromag compensate --method``)
   and they output zero actions.
 * ``tuned_constant`` — the best constant Q and R scale found offline on training seeds
   (:mod:`agents.tuning`), applied at the start of the episode, then held.
@@ -174,7 +174,7 @@ class _Bound(BasePolicy):
 
 class ClassicalPolicy(_Bound):
     """Sage–Husa or Ding et al. 2007: the filter's own adaptation, which the environment runs
-    when reset with this policy's :attr:`reset_options`; zero actions."""
+    when reset with this policy's ``reset_options``; zero actions."""
 
     def __init__(self, method: str, env: Any) -> None:
         super().__init__(env)

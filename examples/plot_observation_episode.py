@@ -3,9 +3,10 @@ What a policy sees: the observation over an episode
 ===================================================
 
 The observation is the filter's consistency statistics at the end of each decision window:
-the paper's ROR and QOQ and, with ``extras=True``, the cumulative Q and R scales, the
-innovations' whiteness, the progress through the flight and the recent ROR. This example runs
-the paper's rules on one flight of ``AeroMag/Nonstationary-v0`` with the extras on and plots
+the paper's ROR and QOQ, and any further entries of the observation registry
+(:mod:`aeromag_env.environment.observations`) named in ``observations``: here the cumulative Q
+and R scales, the innovations' whiteness, the progress through the flight and the recent ROR.
+This example runs the paper's rules on one flight of ``AeroMag/Nonstationary-v0`` and plots
 every observation, named by the environment's own layout.
 """
 
@@ -20,7 +21,18 @@ import aeromag_env  # noqa: F401  (registers the ids)
 from aeromag_env.environment.spaces import observation_names
 from agents import make_policy
 
-env = gym.make("AeroMag/Nonstationary-v0", extras=True)
+env = gym.make(
+    "AeroMag/Nonstationary-v0",
+    observations=(
+        "log_ror",
+        "log_qoq",
+        "log_q_scale",
+        "log_r_scale",
+        "whiteness",
+        "progress",
+        "log_recent_ror",
+    ),
+)
 names = observation_names(env.unwrapped.config)
 print(env.observation_space)
 print(names)

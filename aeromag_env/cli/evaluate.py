@@ -12,8 +12,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from aeromag_env import reports
 from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
@@ -45,7 +43,7 @@ def run_evaluate(
     from tqdm import tqdm
 
     from agents import POLICIES
-    from agents.evaluate import evaluate_scenarios
+    from agents.evaluate import action_traces, evaluate_scenarios
 
     scenarios = [s.strip() for s in scenario.split(",") if s.strip()]
     if not scenarios or len(set(scenarios)) < len(scenarios):
@@ -92,36 +90,6 @@ def run_evaluate(
         print(evaluation_table(results[s]))
         print(f"wrote {folder}/results.json, evaluation.png")
     return results[scenarios[0]] if len(scenarios) == 1 else results
-
-
-def action_traces(
-    scenario: str, policies: list[str], seed: int
-) -> dict[str, dict[str, np.ndarray]]:
-    """One flight (``seed``) of ``scenario`` under each policy: ``t`` (k,) [s] after each
-    decision, the cumulative ``q_scale`` and ``r_scale`` (k,) [-] the policy set, ``seed``."""
-    import gymnasium as gym
-
-    from agents import make_policy, policy_env_kwargs
-
-    traces = {}
-    for name in policies:
-        env = gym.make("AeroMagCompensation-v0", scenario=scenario, **policy_env_kwargs(name))
-        policy = make_policy(name, env)
-        obs, _ = env.reset(seed=seed)
-        inner: Any = env.unwrapped
-        tt = inner.episode.flight.tt
-        state, start, done, rows = None, np.array([True]), False, []
-        while not done:
-            action, state = policy.predict(
-                obs, state=state, episode_start=start, deterministic=True
-            )
-            obs, _, terminated, truncated, info = env.step(action)
-            start, done = np.array([False]), terminated or truncated
-            rows.append((tt[min(info["sample"], tt.size - 1)], info["q_scale"], info["r_scale"]))
-        env.close()
-        t, q, r = np.array(rows, dtype=float).T
-        traces[name] = {"t": t, "q_scale": q, "r_scale": r, "seed": np.array([seed])}
-    return traces
 
 
 def evaluation_table(results: dict[str, Any]) -> str:

@@ -8,7 +8,7 @@ scenario in the ``AeroMag`` namespace: ``AeroMag/Nonstationary-v0`` is
 replaces. Each works with ``gym.make``
 (``max_episode_steps`` and ``render_mode`` passed through), ``gym.make_vec`` (the batched vector
 environment with ``vectorization_mode="vector_entry_point"``, or Gymnasium's ``sync``/``async``)
-and :func:`aeromag_env.environment.sb3.make_sb3_vec_env`.
+and :class:`aeromag_env.environment.sb3.AeroMagSB3VecEnv`.
 """
 
 from __future__ import annotations

@@ -23,6 +23,7 @@ import agents
 DATA_NAMES = ("ENV_ID", "SCENARIOS", "__version__")
 #: The stages of the pipeline, in order: subpackage → section title.
 STAGES = {
+    "jobs": "Jobs: what the command line runs",
     "flight": "Flight files",
     "simulation": "Simulation",
     "compensation": "Compensation",
@@ -31,7 +32,14 @@ STAGES = {
     "errors": "Errors",
 }
 #: Modules of ``agents`` whose public classes and functions are part of the API.
-AGENT_MODULES = ("agents", "agents.policies", "agents.numpy_policy", "agents.evaluate")
+AGENT_MODULES = (
+    "agents",
+    "agents.protocol",
+    "agents.policies",
+    "agents.numpy_policy",
+    "agents.evaluate",
+    "agents.ppo_hyperparams",
+)
 PACKAGES = (aeromag_env, agents)
 
 

@@ -23,7 +23,7 @@ from rst import heading, list_table, literal, remove_stale, text, write_if_chang
 
 import aeromag_env
 from aeromag_env.environment import ids, scenarios
-from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig
+from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig, env_config
 
 #: The sections of a Gymnasium environment page, in order.
 SECTIONS = (
@@ -244,12 +244,13 @@ def _meaning(meaning: str) -> str:
 
 def _action_section(env: Any) -> str:
     entries = action_entries(env.unwrapped.config)
-    split = action_entries(EnvConfig(split_q=True))
+    split = action_entries(env_config(action={"permanent": "graded"}))
     table = list_table(
         ["index", "action", "range", "meaning"], _entry_rows(entries, False), "8 14 12 66"
     )
     note = (
-        f"\nWith ``split_q=True`` the action has {len(split)} entries: "
+        "\nWith a separate T_p action (``action={'permanent': 'graded'}``) the action has "
+        f"{len(split)} entries: "
         + ", ".join(literal(e.name) for e in split)
         + ".\n\n"
     )

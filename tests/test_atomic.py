@@ -199,6 +199,7 @@ def short_flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_kill_9_during_compensate_leaves_the_old_set_or_the_new_one(
     tmp_path: Path, short_flight: Path
 ) -> None:
@@ -234,6 +235,7 @@ def _is_new_run(out: Path) -> bool:
     return names == sorted(COMPENSATE_OUTPUTS) and report.get("method") == "kf"
 
 
+@pytest.mark.slow
 def test_kill_9_during_simulate_leaves_the_old_file_or_the_new_one(tmp_path: Path) -> None:
     out = tmp_path / "sim.h5"
     base = ["simulate", "--duration-s", "900", "--quiet", "--out", str(out)]

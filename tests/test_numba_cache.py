@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from aeromag_env.compensation import kalman_batch, kernels
 from aeromag_env.environment import kernels as env_kernels
 from aeromag_env.numba_cache import (
@@ -71,6 +73,7 @@ def _g(folder: Path, keyed: bool) -> str:
     return done.stdout.strip()
 
 
+@pytest.mark.slow
 def test_a_change_to_a_called_module_reaches_the_caller_through_the_cache(tmp_path):
     """The hazard the module exists for: g's cache entry holds f's code and c's constant, and
     numba checks only a.py; keyed on the compiled modules and what they import, a changed b.py

@@ -77,7 +77,7 @@ MAX_STATE = 1e8
 #: RMS innovation). Clean runs stay below 2e3 of the second (measured: every scenario, method
 #: and preset on 4 flights each, the 7 policies of ``aeromag evaluate``); an interference step
 #: of 5 σ on every axis in the quietest noise regime of ``nonstationary`` would reach ~2e4; 1e6
-#: steps of hostile actions (tests/test_faults_env.py's soak) never meet both.
+#: steps of hostile actions (tests/environment/test_faults_env.py's soak) never meet both.
 GATE_NIS = 1e4
 GATE_POWER = 1e5
 #: Within a window after a rejection the power threshold is GATE_POWER_AFTER (10× the RMS): the

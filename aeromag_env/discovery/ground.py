@@ -22,7 +22,7 @@ altitude above the terrain model (``alt − dem``), else the altitude itself (th
 sea level, which is what the simulator's geology assumes); the report says how much came from
 each. A radar that holds its maximum out of range, rather than reporting NaN, is not detected.
 On 50 nT of simulated ground at 400 m the splines leave under 2 % of its RMS
-(``tests/test_discover_ground.py``); over 0–200 nT no plain flight named anything
+(``tests/discovery/test_discover_ground.py``); over 0–200 nT no plain flight named anything
 (``python -m experiments.discovery_ground``).
 """
 

@@ -45,7 +45,7 @@ def test_predict_shape(name):
             policy.predict(np.zeros((4, 2), np.float32))
 
 
-@pytest.mark.parametrize("scenario", ["paper", "nominal"])
+@pytest.mark.parametrize("scenario", [pytest.param("paper", marks=pytest.mark.slow), "nominal"])
 def test_fis_policy_in_the_env_is_the_fakf_filter(scenario):
     """The environment applies eq. 21 exactly as the filter's own fuzzy adaptation does: the
     FIS policy reproduces ``fakf`` (differences come from the float32 observation only)."""

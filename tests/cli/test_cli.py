@@ -102,6 +102,7 @@ def test_output_equal_to_config_input_refused(tmp_path, capsys):
     assert _sha(cfg) == before
 
 
+@pytest.mark.slow
 def test_info_and_demo_through_the_console_script(tmp_path):
     exe = Path(sys.executable).with_name("aeromag")
     demo = subprocess.run(

@@ -42,7 +42,7 @@ METHODS = ("tl", "lsq", "kf")
 
 @pytest.fixture(scope="module")
 def box() -> Flight:
-    """A 15-minute nominal calibration box (seed 3), as in tests/test_mounting.py."""
+    """A 15-minute nominal calibration box (seed 3), as in tests/flight/test_mounting.py."""
     cfg = with_overrides(
         preset("nominal"), {"trajectory.pattern": "calibration", "trajectory.duration_s": 900.0}
     )

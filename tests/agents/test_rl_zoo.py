@@ -34,6 +34,7 @@ def test_the_zoo_file_is_made_from_ppo_json(tmp_path: Path) -> None:
     assert entry["n_steps"] * entry["n_envs"] % entry["batch_size"] == 0
 
 
+@pytest.mark.slow
 def test_rl_zoo3_trains_on_a_registered_id(tmp_path: Path) -> None:
     """4096 steps on 2 environments of 60-s flights (60 steps an episode: 10 samples a step at
     10 Hz), through the zoo's own command line; the model, the normaliser and a Monitor

@@ -16,7 +16,7 @@ from gymnasium.vector import AutoresetMode
 import aeromag_env
 from aeromag_env.environment.ids import SCENARIOS, TRAINING_SCENARIOS, env_id
 from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
-from tests.test_vec_env import _assert_identical
+from tests.environment.test_vec_env import _assert_identical
 
 #: Totals the final info of an episode carries (the single env's and the vector env's).
 TOTALS = ("episode_rmse_nt", "divergences", "outliers_rejected")

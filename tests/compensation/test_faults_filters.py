@@ -173,7 +173,7 @@ def test_the_reference_falls_back_alike(inputs, method):
 def test_the_numpy_reference_applies_the_same_checks(inputs, method):
     """Spike, then a step beyond the noise, on a 2000-sample slice: same counters, same
     estimates to round-off (relative 1e-7: the states differ in the last bits from the first
-    sample, as in tests/test_kalman.py, and the step restarts both)."""
+    sample, as in tests/compensation/test_kalman.py, and the step restarts both)."""
     y, t_b, tdot_b = (a[:2000].copy() for a in inputs[:3])
     y[800, 1] += SPIKE_NT
     y[1400:, 2] += STEP_NT

@@ -24,6 +24,7 @@ from agents.ppo import (
 from agents.ppo_hyperparams import Pretrain
 
 
+@pytest.mark.slow
 def test_numpy_export_reproduces_sb3_actions(tmp_path):
     from stable_baselines3 import PPO
 
@@ -125,6 +126,7 @@ def test_discounted_returns_restart_after_an_episode_end():
     np.testing.assert_allclose(g[:, 1], [2.0, 3.0, 2.0])  # the first episode ends at t = 0
 
 
+@pytest.mark.slow
 def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     """After pretraining on the demonstrator's rollouts the actor's Q and R actions are close to
     the demonstrator's on states it never saw (fresh rollouts), where the untrained ones are not
@@ -204,6 +206,7 @@ def test_training_setup_changes_no_result_and_restores_torch():
         Normal(torch.zeros(1), -torch.ones(1))
 
 
+@pytest.mark.slow
 def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teacher():
     """DAgger with the privileged teacher (the general policy's pretraining): a later round's
     flights go where the student's actions take them, labelled with what the teacher would do
@@ -315,6 +318,7 @@ def test_the_cloning_term_pulls_the_actor_to_the_demonstrations():
     venv.close()
 
 
+@pytest.mark.slow
 def test_training_with_the_cloning_term_keeps_and_reads_back_its_demonstrations(tmp_path):
     """With ``pretrain.bc_minibatches`` a fresh run saves its demonstrations, the trained policy
     stays nearer them than the same run without the term, and a resumed run reads them back (a

@@ -175,7 +175,7 @@ def test_a_logical_in_a_struct_is_skipped_and_a_complex_one_still_is(tmp_path):
 
 
 def test_a_matlab_73_logical_is_skipped_and_a_one_element_logical_kept(tmp_path):
-    from tests.test_formats import write_mat73
+    from tests.flight.test_formats import write_mat73
 
     path = write_mat73(tmp_path / "in.mat", {"tt": np.arange(4.0).reshape(4, 1)})
     logical = np.bytes_(b"logical")

@@ -442,6 +442,7 @@ def test_an_empty_out_is_refused_not_the_current_folder(
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_one_episode_gives_strict_json_and_says_why_there_is_no_interval(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -363,6 +363,7 @@ def test_any_action_is_refused_or_keeps_everything_finite(stepping_env, action):
         stepping_env.reset()
 
 
+@pytest.mark.slow
 def test_window_statistics_after_a_huge_r_swing():
     """The environment's configuration allows R over ±100 decades (absolute mode): the window's
     running sums of tr S then lost the small terms to the subtraction of a huge one (ROR NaN
@@ -545,6 +546,7 @@ def soak(total_steps: int, num_envs: int = 32, seed: int = 20) -> dict[str, floa
     return {"steps": steps, "episodes": episodes, "seconds": time.perf_counter() - t0}
 
 
+@pytest.mark.slow
 def test_soak_200k_steps_stay_finite():
     result = soak(200_000)
     assert result["steps"] >= 200_000 and result["episodes"] > 0

@@ -24,7 +24,7 @@ from aeromag_env.reports.decimate import extreme_indices, time_gaps, with_breaks
 from aeromag_env.reports.html import lookup
 from tests._flights import simulated
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SHOTS = ROOT / "docs" / "reports"
 #: Sample rate of the synthetic flights [Hz] (the simulator's default).
 FS_HZ = 10.0

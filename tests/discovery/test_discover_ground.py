@@ -149,6 +149,7 @@ def test_a_fast_effect_over_ground_is_named_only_with_the_ground_separated(
         assert name not in [e["name"] for e in discover(flight).report["missing_effects"]]
 
 
+@pytest.mark.slow
 def test_the_base_model_reads_only_the_traceless_part_of_a_off_ground(
     ground_flight: Flight,
 ) -> None:
@@ -205,6 +206,7 @@ def test_the_noise_fit_survives_a_correlation_time_that_underflows() -> None:
     assert np.all(np.isfinite(fit.white_std_nt)) and np.all(fit.white_std_nt > 0.5)
 
 
+@pytest.mark.slow
 def test_ground_mode_is_validated_and_reaches_the_cli(
     ground_flight: Flight, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

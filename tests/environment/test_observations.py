@@ -31,7 +31,7 @@ from agents import SHIPPED
 from agents.numpy_policy import NumpyPPOPolicy
 
 ENVIRONMENT = Path(observe.__file__).parent
-HYPERPARAMS = Path(__file__).parents[1] / "agents" / "hyperparams" / "ppo.json"
+HYPERPARAMS = Path(__file__).parents[2] / "agents" / "hyperparams" / "ppo.json"
 
 
 def _subscript_writes(tree: ast.AST, name: str) -> list[int]:

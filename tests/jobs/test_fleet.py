@@ -102,6 +102,7 @@ def test_compensate_fleet_writes_the_one_file_outputs_and_a_summary(
         )
 
 
+@pytest.mark.slow
 def test_discover_fleet_writes_the_one_file_outputs_and_a_summary(
     fleet_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -175,6 +176,7 @@ def test_a_fleet_without_flight_files_is_one_line_error(
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_a_fleet_does_not_import_ray_without_the_flag(fleet_dir: Path, tmp_path: Path) -> None:
     pattern = str(fleet_dir / "[ab][lr][pa]*")  # alpha.h5, bravo.h5
     argv = ["compensate", pattern, "--method", "lsq", "--out", str(tmp_path)]

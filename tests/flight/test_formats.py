@@ -31,7 +31,7 @@ from aeromag_env.flight.aliases import apply_aliases, canonical_name
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.files import convert_flight, load_flight, write_flight
 from tests._synthetic_flights import turning_flight, with_fields
-from tests.test_flightfile import assert_bit_identical, assert_one_line_error
+from tests.flight.test_flightfile import assert_bit_identical, assert_one_line_error
 
 SUFFIXES = (".h5", ".csv", ".xyz", ".mat")
 TEXT_SUFFIXES = (".csv", ".xyz")

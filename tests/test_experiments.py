@@ -50,6 +50,7 @@ def test_design_study_rule_sets_the_scales_it_states():
     assert fired > 0 and quiet > 0
 
 
+@pytest.mark.slow
 def test_import_time_quick(capsys):
     assert run_experiment("import_time", "--quick") == 0
     out = capsys.readouterr().out
@@ -98,6 +99,7 @@ def test_fault_effects_table(capsys):
         assert max(rmse) < 1.10 * rmse[0], row
 
 
+@pytest.mark.slow
 def test_seed_table_tables_each_seed_and_the_iqm(tmp_path, capsys):
     """Two "seeds" (the shipped policy and a copy) on 8 nonstationary test flights: a row each
     with the same numbers, and the IQM line (the score of both)."""

@@ -141,7 +141,11 @@ for i, code in json.load(sys.stdin):
 """
 
 
-@pytest.mark.parametrize("name", list(RUN_PYTHON))
+@pytest.mark.parametrize(
+    "name",
+    # the tutorial (15 s) runs in the slow step; the README's blocks in the default run
+    [pytest.param(n, marks=pytest.mark.slow) if n != "README.md" else n for n in RUN_PYTHON],
+)
 def test_every_python_block_runs(name: str, tmp_path: Path) -> None:
     runnable: list[tuple[int, str]] = [(-1, RUN_PYTHON[name])]
     waiting: list[tuple[int, str]] = []

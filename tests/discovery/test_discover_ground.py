@@ -77,6 +77,7 @@ def test_stronger_ground_gets_closer_knots() -> None:
     assert factors[500.0] < factors[5.0] <= KNOT_FACTORS[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("extra", "source"), [("radar", "radar"), ("dem", "alt − dem")])
 def test_the_clearance_comes_from_the_radar_or_the_terrain_model(
     ground_flight: Flight, extra: str, source: str
@@ -115,6 +116,7 @@ def test_a_radar_out_of_range_leaves_the_clearance_to_the_altitude(ground_flight
     assert min(r.clearance_m for r in ref.runs) == pytest.approx(100.0, abs=1.0)
 
 
+@pytest.mark.slow
 def test_over_ground_nothing_is_named_and_the_gap_no_longer_measures_geology(
     ground_flight: Flight,
 ) -> None:
@@ -132,6 +134,7 @@ def test_over_ground_nothing_is_named_and_the_gap_no_longer_measures_geology(
     assert "isotropic part of A" in sep["ground"]["base_model"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("seed", "name"), [(92_003, "induced_second_order"), (92_006, "sensor_lag")]
 )
@@ -172,6 +175,7 @@ def test_the_base_model_reads_only_the_traceless_part_of_a_off_ground(
     assert np.abs(a_sep - a_plain).max() < 3e-4
 
 
+@pytest.mark.slow
 def test_runs_too_short_for_the_ground_are_dropped(ground_flight: Flight) -> None:
     """A 30-sample calibration island inside a held-out block is its own run, too short: it is
     dropped; the held-out samples on either side stay runs of their own. A spike (an unusable

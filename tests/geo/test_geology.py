@@ -402,6 +402,7 @@ def test_flights_of_other_patterns_lengths_and_seeds_see_the_same_ground():
     np.testing.assert_allclose(seen, _ned_crust(first)[lines], atol=1e-9)
 
 
+@pytest.mark.slow
 def test_each_flight_samples_the_areas_exact_fourier_series():
     """A survey flight and a calibration+survey flight of other lengths and seeds: at 12 samples
     of each (box at 3000 m and lines at 400 m) the NED vector is the area ground's exact

@@ -69,9 +69,9 @@ def _run_demo(out: Path, seed: int) -> dict[str, Any]:
 def _evaluate_tuners(out: Path) -> dict[str, Any]:
     """The baseline tuning policies on a few ``nonstationary`` test flights (seeds ≥ 100 000)."""
     from aeromag_env.cli.evaluate import evaluation_table
-    from aeromag_env.cli.plots import plot_evaluation
     from agents import available_policies
     from agents.evaluate import TEST_SEED_START, evaluate
+    from agents.plots import plot_evaluation
 
     seeds = list(range(TEST_SEED_START, TEST_SEED_START + DEMO_EPISODES))
     results = evaluate("nonstationary", available_policies(), seeds)

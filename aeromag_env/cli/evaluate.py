@@ -1,26 +1,14 @@
-"""``aeromag evaluate``: every tuning policy on the same flights, with paired intervals.
-
-The policies live in the ``agents`` package, imported here lazily (``aeromag_env`` never
-imports ``agents`` at module level).
+"""``aeromag evaluate``: the progress bar and the tables; the job itself is
+:func:`agents.jobs.evaluate_policies` (``agents`` imported here lazily: ``aeromag_env`` never
+imports it at module level).
 """
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 from pathlib import Path
 from typing import Any
-
-from aeromag_env import reports
-from aeromag_env.atomic import check_output_set, output_set, write_text
-from aeromag_env.environment.scenarios import check_scenario
-from aeromag_env.errors import AeromagError
-from aeromag_env.jobs.reports import jsonable
-from aeromag_env.parallel import retry_note, runner
-
-#: The output set of ``aeromag evaluate``, in the folder ``--out``.
-OUTPUTS = ("results.json", "evaluation.png", reports.PAGE)
 
 
 def run_evaluate(
@@ -33,63 +21,35 @@ def run_evaluate(
     ray: str | None = None,
     html: bool = True,
 ) -> dict[str, Any]:
-    """Evaluate, write ``results.json`` and ``evaluation.png``, print a table; return results.
+    """Evaluate, write the output sets, print a table per scenario; return the results.
 
     ``scenario`` may name several, comma-separated: each gets its output set in
-    ``out/<scenario>/`` and the returned dict maps scenario → results. ``ray`` is ``--ray``
-    (None: this process; :func:`aeromag_env.parallel.runner`). ``html``: write
-    ``report.html`` too (with the first flight's Q/R scales under each policy).
+    ``out/<scenario>/`` and the returned dict maps scenario → results
+    (:func:`agents.jobs.evaluate_policies`).
     """
     from tqdm import tqdm
 
-    from agents import POLICIES
-    from agents.evaluate import action_traces, evaluate_scenarios
+    from agents.jobs import evaluate_policies
 
-    scenarios = [s.strip() for s in scenario.split(",") if s.strip()]
-    if not scenarios or len(set(scenarios)) < len(scenarios):
-        raise AeromagError(f"--scenario takes one or more distinct scenarios, got {scenario!r}")
-    for s in scenarios:
-        check_scenario(s)
-    unknown = [p for p in policies if p not in POLICIES and not p.startswith("ppo:")]
-    if unknown or not policies:
-        raise AeromagError(
-            f"unknown policy {unknown[0] if unknown else ''!r}; valid policies: "
-            f"{', '.join(POLICIES)}"
+    n_scenarios = len([s for s in scenario.split(",") if s.strip()])
+    with tqdm(
+        total=episodes * len(policies) * n_scenarios,
+        desc=scenario,
+        unit="episode",
+        disable=quiet or None,
+        leave=False,
+    ) as bar:
+        done = evaluate_policies(
+            scenario, policies, episodes, seed_start, out, ray, html, progress=bar.update
         )
-    if episodes < 1:
-        raise AeromagError(f"--episodes must be ≥ 1, got {episodes}")
-    policy_files = [Path(p[4:]) for p in policies if p.startswith("ppo:")]
-    outs = {s: out if len(scenarios) == 1 else out / s for s in scenarios}
-    outputs = OUTPUTS if html else tuple(n for n in OUTPUTS if n != reports.PAGE)
-    for folder in outs.values():
-        check_output_set(folder, outputs, policy_files)
-    seeds = list(range(seed_start, seed_start + episodes))
-    with (
-        runner(ray) as tasks,
-        tqdm(
-            total=episodes * len(policies) * len(scenarios),
-            desc=scenario,
-            unit="episode",
-            disable=quiet or None,
-            leave=False,
-        ) as bar,
-    ):
-        results = evaluate_scenarios(scenarios, policies, seeds, progress=bar.update, runner=tasks)
-    if note := retry_note(tasks):
-        print(f"aeromag evaluate: {note}", file=sys.stderr)
-    from aeromag_env.cli.plots import plot_evaluation
-
-    for s, folder in outs.items():
-        with output_set(folder, outputs, policy_files) as stage:
-            write_text(stage / "results.json", json.dumps(jsonable(results[s]), indent=2))
-            plot_evaluation(results[s], stage / "evaluation.png")
-            if html:
-                traces = action_traces(s, policies, seeds[0])
-                page = reports.evaluate_page(jsonable(results[s]), traces)
-                write_text(stage / reports.PAGE, page)
-        print(evaluation_table(results[s]))
+    if done.note:
+        print(f"aeromag evaluate: {done.note}", file=sys.stderr)
+    for name, results in done.results.items():
+        folder = out if len(done.results) == 1 else out / name
+        print(evaluation_table(results))
         print(f"wrote {folder}/results.json, evaluation.png")
-    return results[scenarios[0]] if len(scenarios) == 1 else results
+    results = done.results
+    return next(iter(results.values())) if len(results) == 1 else results
 
 
 def evaluation_table(results: dict[str, Any]) -> str:

@@ -1,4 +1,4 @@
-"""Figure of ``aeromag evaluate``: every policy on the same flights (matplotlib, lazily)."""
+"""Figure of an evaluation: every policy on the same flights (matplotlib, lazily)."""
 
 from __future__ import annotations
 

@@ -48,7 +48,7 @@ def compensation_rmse(
         component is finite; for (n, 3) this is ``sqrt(mean(compensation_rmse_per_axis²))``.
     """
     err = _error_rows(true_interf, est_interf, mask)
-    return float(np.sqrt(np.mean(err**2)))
+    return float(_rms(err, axis=None))
 
 
 def compensation_rmse_per_axis(
@@ -58,7 +58,20 @@ def compensation_rmse_per_axis(
     err = _error_rows(true_interf, est_interf, mask)
     if err.ndim != 2:
         raise AeromagError(f"per-axis RMSE needs (n, 3) arrays, got shape {err.shape[:1]}")
-    return np.sqrt(np.mean(err**2, axis=0))
+    return np.asarray(_rms(err, axis=0))
+
+
+def _rms(err: np.ndarray, axis: int | None) -> np.ndarray | float:
+    """``sqrt(mean(err²))`` over ``axis``; where the squares overflow (errors of a corrupted
+    channel, 1e200 nT), the RMS of ``err`` scaled by its largest |value|, times that value: a
+    large finite RMS instead of inf."""
+    with np.errstate(over="ignore"):
+        rms = np.sqrt(np.mean(err**2, axis=axis))
+    if np.all(np.isfinite(rms)):
+        return rms
+    scale = np.max(np.abs(err), axis=axis, keepdims=True, initial=0.0)
+    safe = np.where(scale > 0, scale, 1.0)
+    return np.sqrt(np.mean((err / safe) ** 2, axis=axis)) * np.squeeze(safe, axis=axis)
 
 
 def residual_std(x: np.ndarray, line: np.ndarray | None = None) -> float:

@@ -221,3 +221,19 @@ def test_ratio_statistics_ignores_non_finite_and_masks():
     with pytest.raises(AeromagError, match="no finite") as e:
         ratio_statistics(np.full(5, np.nan))
     assert_one_line_error(e)
+
+
+def test_rmse_of_a_corrupted_channel_is_large_and_finite_without_a_warning() -> None:
+    """A truth channel with a corrupted value (1e300 nT, as a damaged file gives it): the squares
+    overflow, the RMSE is still the RMS of the errors (1e300/sqrt(n) pooled, 1e300/sqrt(n/3) on
+    its axis), finite, with no RuntimeWarning (pytest turns one into an error); ordinary errors
+    are the plain formula bit for bit."""
+    rng = np.random.default_rng(0)
+    true, est = rng.normal(size=(100, 3)), rng.normal(size=(100, 3))
+    assert compensation_rmse(true, est) == float(np.sqrt(np.mean((true - est) ** 2)))
+    true[5, 1] = 1e300
+    pooled = compensation_rmse(true, est)
+    per_axis = compensation_rmse_per_axis(true, est)
+    assert pooled == pytest.approx(1e300 / np.sqrt(300), rel=1e-12)  # the other errors vanish
+    assert per_axis[1] == pytest.approx(1e300 / np.sqrt(100), rel=1e-12)
+    assert np.all(np.isfinite(per_axis)) and per_axis[0] < 10  # [nT] the clean axes untouched

@@ -31,6 +31,18 @@ from agents.hyperparams_file import SCHEMA, schema_problem
 _TRAINABLE = [*SCENARIOS, *TRAINING_SCENARIOS]
 #: The scenarios with an entry: those evaluated, and ``suite`` (the general policy).
 _ENTRIES = [*SCENARIOS, "suite"]
+#: The fields stable-baselines3's PPO takes as they are (``agents.ppo`` passes them to ``PPO``,
+#: ``agents.zoo`` writes them into the RL Zoo file with ``n_envs``).
+SB3_PPO_KEYS = (
+    "n_steps",
+    "batch_size",
+    "n_epochs",
+    "learning_rate",
+    "gamma",
+    "gae_lambda",
+    "ent_coef",
+    "clip_range",
+)
 #: A learning rate falling linearly to 0 from a positive number (RL Zoo's notation).
 _LIN = "^lin_(?=[0.]*[1-9])([0-9]+[.]?[0-9]*|[.][0-9]+)([eE][-+]?[0-9]+)?$"
 

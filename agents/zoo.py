@@ -25,23 +25,13 @@ from typing import Any
 
 from aeromag_env.environment.ids import env_id
 from agents.hyperparams_file import read_hyperparams
-from agents.ppo_hyperparams import PPOHyperparams
+from agents.ppo_hyperparams import SB3_PPO_KEYS, PPOHyperparams
 
 HYPERPARAMS = Path(__file__).parent / "hyperparams"
 #: Timesteps of the shipped policy's training run (``aeromag train --timesteps``).
 ZOO_TIMESTEPS = 1_500_000
 #: PPO's own settings, copied as they are.
-_PPO_KEYS = (
-    "n_envs",
-    "n_steps",
-    "batch_size",
-    "n_epochs",
-    "learning_rate",
-    "gamma",
-    "gae_lambda",
-    "ent_coef",
-    "clip_range",
-)
+_PPO_KEYS = ("n_envs", *SB3_PPO_KEYS)
 #: Clip of the normalised observations (as :func:`agents.ppo.normalized`).
 CLIP_OBS = 10.0
 

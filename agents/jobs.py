@@ -1,14 +1,19 @@
-"""The evaluation job: every tuning policy on the same flights, written as an output set.
+"""The jobs of ``agents``: evaluate every tuning policy, train one run per seed.
 
 :func:`evaluate_policies` does everything ``aeromag evaluate`` does (checks the request, flies
 every policy on the same test seeds of each scenario, here or on Ray, and writes per scenario
-``results.json``, ``evaluation.png`` and ``report.html`` as a set); the command line adds the
-progress bar and prints the tables (:func:`aeromag_env.cli.evaluate.evaluation_table`).
+``results.json``, ``evaluation.png`` and ``report.html`` as a set); :func:`train_policies` does
+``aeromag train --seeds`` (one PPO run per seed, here or on Ray, and the seeds' summary
+``seeds.json`` with ``report.html``). The command line adds the progress bars and prints the
+tables (:mod:`aeromag_env.cli.evaluate`, :mod:`aeromag_env.cli.train`). One training run is
+:func:`agents.ppo.train_ppo`.
 """
 
 from __future__ import annotations
 
 import json
+import math
+import statistics
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +24,7 @@ from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError
 from aeromag_env.jobs.reports import jsonable
-from aeromag_env.parallel import retry_note, runner
+from aeromag_env.parallel import Outcome, Task, failures, retry_note, runner
 from agents import POLICIES
 from agents.evaluate import TEST_SEED_START, action_traces, evaluate_scenarios
 
@@ -143,3 +148,115 @@ def _write(
             traces = action_traces(results["scenario"], policies, seed)
             write_text(stage / reports.PAGE, reports.evaluate_page(jsonable(results), traces))
     return [folder / name for name in outputs]
+
+
+@dataclass(frozen=True)
+class TrainingResult:
+    """What :func:`train_policies` produced.
+
+    Attributes
+    ----------
+    summary : dict
+        The content of ``seeds.json``: per seed its folder, best validation RMSE [nT], steps,
+        attempts and error; the mean and SD of the best validation RMSEs [nT].
+    paths : tuple of Path
+        The summary files written (each seed's files are in ``out/seed_<k>/``).
+    failed : tuple of Outcome
+        The seeds whose run failed (the others completed).
+    """
+
+    summary: dict[str, Any]
+    paths: tuple[Path, ...]
+    failed: tuple[Outcome, ...]
+
+
+def train_policies(
+    scenario: str,
+    seeds: Sequence[int],
+    out: str | Path,
+    timesteps: int | None = None,
+    quick: bool = False,
+    hyperparams: Path | None = None,
+    ray: str | None = None,
+    html: bool = True,
+    progress: Callable[[Outcome], Any] | None = None,
+) -> TrainingResult:
+    """One PPO training run per seed (:func:`agents.ppo.train_ppo`, tasks of a runner, one CPU
+    each), as ``aeromag train --seeds`` runs them.
+
+    Parameters
+    ----------
+    scenario : str
+        The training scenario (``suite`` for the general policy).
+    seeds : sequence of int
+        Distinct training seeds; each run goes to ``out/seed_<k>/`` and resumes from its
+        checkpoint there.
+    out : str or Path
+        The folder of the runs and of the summary (``seeds.json``, ``report.html``).
+    timesteps : int or None
+        Environment steps per run (None: the hyperparameters').
+    quick : bool
+        The ``--quick`` preset (:mod:`agents.quick`).
+    hyperparams : Path or None
+        A hyperparameter file (None: the shipped one).
+    ray : str or None
+        None: one run after another here; ``""`` or an address: on Ray.
+    html : bool
+        Write the seeds' learning curves, ``report.html``, with the summary.
+    progress : callable or None
+        Called with each run's outcome as it ends.
+
+    Returns
+    -------
+    TrainingResult
+        A failed seed is reported in ``failed`` with its folder; the rest complete.
+    """
+    from agents.ppo import CHECKPOINT, HYPERPARAMS, OUTPUTS, train_ppo
+
+    folder = Path(out)
+    hp = hyperparams or HYPERPARAMS
+    for seed in seeds:
+        check_output_set(folder / f"seed_{seed}", (*CHECKPOINT, *OUTPUTS), [hp])
+    outputs = ("seeds.json", reports.PAGE) if html else ("seeds.json",)
+    check_output_set(folder, outputs, [hp])
+    tasks = [
+        Task(
+            f"seed {seed} ({folder / f'seed_{seed}'})",
+            train_ppo,
+            (scenario, timesteps, seed, folder / f"seed_{seed}", quick, False, hp, True),
+        )
+        for seed in seeds
+    ]
+    with runner(ray) as r:
+        outcomes = r.run(tasks, progress)
+    rows = [
+        {
+            "seed": seed,
+            "folder": str(folder / f"seed_{seed}"),
+            "attempts": o.attempts,
+            "best_validation_rmse_nt": o.value["best_validation_rmse_nt"] if o.ok else None,
+            "timesteps": o.value["timesteps"] if o.ok else None,
+            "error": o.error,
+        }
+        for seed, o in zip(seeds, outcomes, strict=True)
+    ]
+    summary = {"scenario": scenario, "runner": r.name, "seeds": rows, **_spread(rows)}
+    with output_set(folder, outputs, [hp]) as stage:
+        write_text(stage / "seeds.json", json.dumps(summary, indent=2))
+        if html:
+            runs = {f"seed {s}": o.value for s, o in zip(seeds, outcomes, strict=True) if o.ok}
+            write_text(stage / reports.PAGE, reports.train_page(runs, f"Training: {scenario}"))
+    paths = tuple(folder / name for name in outputs)
+    return TrainingResult(summary, paths, tuple(failures(outcomes)))
+
+
+def _spread(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Mean and SD of the seeds' finite best validation RMSEs (SD from 2 seeds on)."""
+    finite = [
+        v for r in rows if (v := r["best_validation_rmse_nt"]) is not None and math.isfinite(v)
+    ]
+    sd = statistics.stdev(finite) if len(finite) > 1 else None
+    return {
+        "validation_rmse_nt_mean": statistics.fmean(finite) if finite else None,
+        "validation_rmse_nt_sd": sd,
+    }

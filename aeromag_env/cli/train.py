@@ -10,17 +10,11 @@ printed and written to ``out/seeds.json``; the test-split table over the seeds i
 
 from __future__ import annotations
 
-import json
-import math
-import statistics
 from pathlib import Path
 from typing import Any
 
-from aeromag_env import reports
-from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.cli.limits import check_seed
 from aeromag_env.errors import AeromagError
-from aeromag_env.parallel import Task, failures, runner
 
 #: The most training runs one ``--seeds`` may ask for.
 MAX_SEEDS = 1000
@@ -59,70 +53,35 @@ def train_seeds(
     quiet: bool,
     html: bool = True,
 ) -> dict[str, Any]:
-    """Train one run per seed (tasks of ``--ray``'s runner, one CPU each); write and return
-    the summary (and with ``html`` the seeds' learning curves, ``report.html``). A failed
-    seed is reported with its folder and the rest complete; then the error is raised."""
+    """Train one run per seed (:func:`agents.jobs.train_policies`) with a progress bar, print
+    the seeds' table and return the summary. A failed seed is reported with its folder and the
+    rest complete; then the error is raised."""
     from tqdm import tqdm
 
-    from agents.ppo import CHECKPOINT, HYPERPARAMS, OUTPUTS, train_ppo
+    from agents.jobs import train_policies
 
-    hp = hyperparams or HYPERPARAMS
-    for seed in seeds:
-        check_output_set(out / f"seed_{seed}", (*CHECKPOINT, *OUTPUTS), [hp])
-    outputs = ("seeds.json", reports.PAGE) if html else ("seeds.json",)
-    check_output_set(out, outputs, [hp])
-    tasks = [
-        Task(
-            f"seed {seed} ({out / f'seed_{seed}'})",
-            train_ppo,
-            (scenario, timesteps, seed, out / f"seed_{seed}", quick, False, hp, True),
+    with tqdm(
+        total=len(seeds), desc="training seeds", unit="seed", disable=quiet or None, leave=False
+    ) as bar:
+        done = train_policies(
+            scenario,
+            seeds,
+            out,
+            timesteps,
+            quick,
+            hyperparams,
+            ray,
+            html,
+            progress=lambda o: bar.update(1),
         )
-        for seed in seeds
-    ]
-    with (
-        runner(ray) as r,
-        tqdm(
-            total=len(seeds), desc="training seeds", unit="seed", disable=quiet or None, leave=False
-        ) as bar,
-    ):
-        outcomes = r.run(tasks, lambda o: bar.update(1))
-    rows = [
-        {
-            "seed": seed,
-            "folder": str(out / f"seed_{seed}"),
-            "attempts": o.attempts,
-            "best_validation_rmse_nt": o.value["best_validation_rmse_nt"] if o.ok else None,
-            "timesteps": o.value["timesteps"] if o.ok else None,
-            "error": o.error,
-        }
-        for seed, o in zip(seeds, outcomes, strict=True)
-    ]
-    summary = {"scenario": scenario, "runner": r.name, "seeds": rows, **_spread(rows)}
-    with output_set(out, outputs, [hp]) as stage:
-        write_text(stage / "seeds.json", json.dumps(summary, indent=2))
-        if html:
-            runs = {f"seed {s}": o.value for s, o in zip(seeds, outcomes, strict=True) if o.ok}
-            write_text(stage / reports.PAGE, reports.train_page(runs, f"Training: {scenario}"))
-    print(seed_table(summary))
-    failed = failures(outcomes)
-    if failed:
+    print(seed_table(done.summary))
+    if done.failed:
+        first = done.failed[0]
         raise AeromagError(
-            f"{len(failed)} of {len(seeds)} training run(s) failed; first: "
-            f"{failed[0].label}: {failed[0].error}"
+            f"{len(done.failed)} of {len(seeds)} training run(s) failed; first: "
+            f"{first.label}: {first.error}"
         )
-    return summary
-
-
-def _spread(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """Mean and SD of the seeds' finite best validation RMSEs (SD from 2 seeds on)."""
-    finite = [
-        v for r in rows if (v := r["best_validation_rmse_nt"]) is not None and math.isfinite(v)
-    ]
-    sd = statistics.stdev(finite) if len(finite) > 1 else None
-    return {
-        "validation_rmse_nt_mean": statistics.fmean(finite) if finite else None,
-        "validation_rmse_nt_sd": sd,
-    }
+    return done.summary
 
 
 def seed_table(summary: dict[str, Any]) -> str:

@@ -35,3 +35,26 @@ def test_evaluate_without_out_writes_nothing_and_refuses_in_one_line(tmp_path: P
     with pytest.raises(AeromagError, match="distinct scenarios"):
         evaluate_policies("nominal,nominal", ["fis"])
     assert not any(tmp_path.iterdir())
+
+
+def test_train_policies_runs_each_seed_and_summarises_them(tmp_path: Path, monkeypatch) -> None:
+    """The seeds' summary from each run's result (a stand-in for PPO: the job's bookkeeping is
+    under test, not training); a failed seed is reported and the others complete."""
+    import agents.ppo
+    from agents.jobs import train_policies
+
+    def fake_train(scenario, timesteps, seed, out, *args):
+        if seed == 3:
+            raise ValueError("seed 3 broke")
+        return {"best_validation_rmse_nt": 1.0 + seed, "timesteps": 100 * (seed + 1)}
+
+    monkeypatch.setattr(agents.ppo, "train_ppo", fake_train)
+    done = train_policies("nonstationary", [0, 2, 3], tmp_path, html=False)
+    rows = {r["seed"]: r for r in done.summary["seeds"]}
+    assert [rows[s]["best_validation_rmse_nt"] for s in (0, 2)] == [1.0, 3.0]
+    assert rows[3]["best_validation_rmse_nt"] is None and "seed 3 broke" in rows[3]["error"]
+    assert done.summary["validation_rmse_nt_mean"] == 2.0  # [nT] mean of the finite seeds
+    assert done.summary["validation_rmse_nt_sd"] == pytest.approx(2**0.5)
+    assert [o.label.split()[1] for o in done.failed] == ["3"]
+    assert done.paths == (tmp_path / "seeds.json",)
+    assert json.loads((tmp_path / "seeds.json").read_text()) == done.summary

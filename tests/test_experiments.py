@@ -14,6 +14,7 @@ def test_compare_methods_quick(tmp_path, capsys):
     assert "`tl`" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_evaluate_all_quick(tmp_path):
     assert run_experiment("evaluate_all", "--quick", "--out", str(tmp_path)) == 0
     matrix = (tmp_path / "matrix.md").read_text()
@@ -59,6 +60,7 @@ def test_import_time_quick(capsys):
     assert all(float(r.split()[-2]) > 0 for r in rows)
 
 
+@pytest.mark.slow
 def test_own_flight_file_walkthrough(tmp_path):
     """The README's raw-XYZ walkthrough: every fault it plants is reported, the axis-swapped
     fluxgate is found, TL is fitted on the detected box and beats the vendor's channel, and the
@@ -116,6 +118,7 @@ def test_seed_table_tables_each_seed_and_the_iqm(tmp_path, capsys):
     assert "SD 0 nT" in table and "privileged" in table
 
 
+@pytest.mark.slow
 def test_seed_table_checks_a_policy_across_scenarios(tmp_path):
     """With several scenarios the table adds, per seed, the mean RMSE over them against
     ``fis``'s and the scenarios where the policy is worse than ``tuned_constant`` beyond the

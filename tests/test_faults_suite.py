@@ -116,6 +116,7 @@ def test_bad_input_gets_a_clear_answer(case: Case) -> None:
     assert not failures, "\n".join(failures)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case_id", IN_A_PROCESS)
 def test_a_real_process_exits_alike_without_a_traceback(case_id: str, tmp_path: Path) -> None:
     case = next(c for c in CASES if c.id == case_id)

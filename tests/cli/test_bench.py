@@ -11,6 +11,7 @@ from aeromag_env.compensation.compensate import earth_model
 from tests._helpers import experiment
 
 
+@pytest.mark.slow
 def test_filter_figures_are_positive_rates(nominal_box):
     t_b, td = earth_model(nominal_box)
     y = nominal_box.vector("flux_a") - t_b

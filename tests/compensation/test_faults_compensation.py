@@ -178,6 +178,7 @@ def test_tl_does_not_need_the_attitude(box: Flight) -> None:
     assert np.all(np.isfinite(comp.total_after))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fault", ["spike_flux", "nan_attitude"])
 def test_discover_leaves_the_faulty_samples_out(box: Flight, fault: str) -> None:
     """Before issue 19 a NaN attitude crashed discover and a fluxgate spike took its residual

@@ -1,6 +1,7 @@
 import json
 
 import numpy as np
+import pytest
 
 from aeromag_env.compensation.model import STATE_SCALE
 from aeromag_env.compensation.paper import convergence_time_s
@@ -20,6 +21,7 @@ def test_convergence_time_closed_form():
     assert convergence_time_s(states, tt)["all"] is None
 
 
+@pytest.mark.slow
 def test_quick_reproduction_writes_report_and_figures(tmp_path):
     assert run_experiment("reproduce_paper", "--quick", "--out", str(tmp_path)) == 0
     report = json.loads((tmp_path / "report.json").read_text())

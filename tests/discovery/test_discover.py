@@ -380,6 +380,7 @@ def test_cli_discover_bad_input_exits_2_without_traceback(tmp_path: Path, capsys
     assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_a_slow_drift_the_noise_model_took_in_is_named_by_the_joint_test() -> None:
     """A temperature-driven permanent-field drift at SNR 1 (2.9 nT raw RMS; dev seed 91_002,
     outside the suite's seeds) that the fixed-noise test missed: the base noise model's slow part

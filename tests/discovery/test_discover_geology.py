@@ -17,6 +17,7 @@ from aeromag_env.simulation.config import GeologyConfig
 from aeromag_env.simulation.simulate import simulate_flight
 
 
+@pytest.mark.slow
 def test_a_slow_residual_the_candidates_leave_is_a_caveat_on_stderr_and_in_the_report(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

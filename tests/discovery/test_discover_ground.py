@@ -66,6 +66,7 @@ def test_the_ground_span_takes_the_crust_and_leaves_the_manoeuvres(ground_flight
     assert spacing[400.0] < 4.0 < 10.0 < spacing[3000.0]
 
 
+@pytest.mark.slow
 def test_stronger_ground_gets_closer_knots() -> None:
     """AIC picks closer knots where the ground leaves more of itself between them."""
     factors = {}
@@ -99,6 +100,7 @@ def test_the_clearance_comes_from_the_radar_or_the_terrain_model(
     assert min(r.spacing_s for r in low) < 0.35 * min(r.spacing_s for r in plain.runs)
 
 
+@pytest.mark.slow
 def test_a_radar_out_of_range_leaves_the_clearance_to_the_altitude(ground_flight: Flight) -> None:
     """A radar that reads NaN above 1000 m: the lines take its 100 m, the box at 3000 m its
     altitude (knots over 10 s apart, not the 0.5 s a zero-filled radar would give)."""

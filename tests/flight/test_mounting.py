@@ -303,6 +303,7 @@ def test_info_shows_the_mount_of_each_fluxgate(box_files: dict[str, Path]) -> No
         assert float(line.group(1)) == pytest.approx(true_angle, abs=1.0)
 
 
+@pytest.mark.slow
 def test_discover_rotates_a_remounted_fluxgate_into_body_axes(
     box_files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

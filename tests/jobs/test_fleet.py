@@ -80,6 +80,7 @@ def _check_fleet_run(fleet_dir: Path, out: Path, capsys: pytest.CaptureFixture[s
     assert not _leftovers(out)
 
 
+@pytest.mark.slow
 def test_compensate_fleet_writes_the_one_file_outputs_and_a_summary(
     fleet_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

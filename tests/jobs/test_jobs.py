@@ -120,6 +120,7 @@ def test_compensate_refuses_an_unknown_option_or_method(flight_file: Path) -> No
         am.compensate(flight_file, "lms")
 
 
+@pytest.mark.slow
 def test_discover_cli_and_library_agree(
     flight_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

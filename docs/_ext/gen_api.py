@@ -38,6 +38,7 @@ AGENT_MODULES = (
     "agents.policies",
     "agents.numpy_policy",
     "agents.evaluate",
+    "agents.jobs",
     "agents.ppo_hyperparams",
 )
 PACKAGES = (aeromag_env, agents)

@@ -1,9 +1,14 @@
-"""Read an exported PPO policy file (``.npz``) and check all of it before anything runs it.
+"""Read an exported policy file (``.npz``) and check all of it before anything runs it.
 
-The layout (written by :func:`export_policy`): ``obs_mean`` and ``obs_var`` (n_obs,),
-the scalars ``obs_clip`` and ``obs_eps``, hidden layers ``w0`` (h0, n_obs), ``b0`` (h0,),
-``w1`` (h1, h0), … and the action layer ``w_out`` (n_act, h_last), ``b_out`` (n_act,), all
-real numbers; ``meta`` a JSON object as a 0-d string array, whose ``env_kwargs`` (the
+The layout (written by :func:`export_policy` for PPO and by :func:`export_actor` for the other
+learners): ``obs_mean`` and ``obs_var`` (n_obs,), the scalars ``obs_clip`` and ``obs_eps``,
+optionally an LSTM layer (a recurrent policy: ``lstm_w_ih`` (4H, n_obs), ``lstm_w_hh`` (4H, H),
+``lstm_b`` (4H,), torch's gate order i, f, g, o, the two biases summed), hidden layers ``w0``
+(h0, n_in), ``b0`` (h0,), ``w1`` (h1, h0), … and the action layer ``w_out`` (n_act, h_last),
+``b_out`` (n_act,), all real numbers; ``meta`` a JSON object as a 0-d string array, whose
+``activation`` (of the hidden layers: :data:`ACTIVATIONS`, default ``tanh``) and ``head``
+(:data:`HEADS`: ``clip`` the action layer's output to [-1, 1], PPO's deterministic action, or
+``tanh`` it, SAC's; default ``clip``) say how to run it, and whose ``env_kwargs`` (the
 settings of an :class:`~aeromag_env.environment.config.EnvConfig`: the shipped files name a
 preset, ``{"preset": "general"}``; files written from a hyperparameter file carry its flat
 keys) must give n_obs observations and n_act actions. Nothing is unpickled
@@ -38,6 +43,11 @@ MAX_MEMBERS = 256
 MAX_ABS = 1e100
 SCALARS = ("obs_clip", "obs_eps")
 REQUIRED = ("obs_mean", "obs_var", *SCALARS, "w_out", "b_out", "meta")
+#: The arrays of a recurrent policy's LSTM layer (all three, or none).
+LSTM = ("lstm_w_ih", "lstm_w_hh", "lstm_b")
+#: The hidden layers' activation functions and the output heads a file may name in ``meta``.
+ACTIVATIONS = ("tanh", "relu")
+HEADS = ("clip", "tanh")
 _HIDDEN = re.compile(r"([wb])(\d+)")
 _ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")  # an archive's first member; an empty archive
 #: What reading a broken archive raises: zipfile, zlib and numpy's .npy header parser raise
@@ -57,7 +67,7 @@ def read_policy(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]
     Raises
     ------
     PolicyFileError
-        One line: ``cannot load PPO policy PATH: problem``.
+        One line: ``cannot load policy PATH: problem``.
     """
     path = Path(path)
     try:
@@ -67,7 +77,7 @@ def read_policy(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]
         _check_layers(numbers, meta)
         _check_values(numbers)
     except _Problem as e:
-        raise PolicyFileError(f"cannot load PPO policy {path}: {e}") from None
+        raise PolicyFileError(f"cannot load policy {path}: {e}") from None
     return numbers, meta
 
 
@@ -151,9 +161,13 @@ def _check_names(arrays: dict[str, np.ndarray]) -> None:
     if missing:
         held = ", ".join(sorted(names)) or "none"
         raise _Problem(f"missing arrays {', '.join(missing)} (the file holds {held})")
-    unexpected = sorted(names - hidden - set(REQUIRED))
+    unexpected = sorted(names - hidden - set(REQUIRED) - set(LSTM))
     if unexpected:
         raise _Problem(f"unexpected arrays {', '.join(unexpected)}")
+    lstm = [k for k in LSTM if k in names]
+    if lstm and len(lstm) != len(LSTM):
+        missing_lstm = ", ".join(k for k in LSTM if k not in names)
+        raise _Problem(f"an LSTM layer needs {', '.join(LSTM)}; {missing_lstm} missing")
     for k in sorted(hidden):
         twin = ("b" if k[0] == "w" else "w") + k[1:]
         if twin not in names:
@@ -184,6 +198,9 @@ def _meta(value: np.ndarray) -> dict[str, Any]:
         from_dict(EnvConfig, kwargs)
     except ConfigError as e:
         raise _Problem(f"meta env_kwargs: {e}") from None
+    for key, valid in (("activation", ACTIVATIONS), ("head", HEADS)):
+        if meta.get(key, valid[0]) not in valid:
+            raise _Problem(f"meta {key} must be one of {', '.join(valid)}, got {meta[key]!r}")
     return meta
 
 
@@ -208,6 +225,14 @@ def _check_layers(arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> None:
         if arrays[k].shape != ():
             raise _Problem(f"{k} must be a scalar, got shape {arrays[k].shape}")
     width, prev = n_obs, "an observation has"
+    if "lstm_w_ih" in arrays:
+        hidden = arrays["lstm_w_hh"].shape[-1] if arrays["lstm_w_hh"].ndim == 2 else 0
+        if hidden < 1:
+            raise _Problem(f"lstm_w_hh has shape {arrays['lstm_w_hh'].shape}; expected (4H, H)")
+        _shape(arrays, "lstm_w_ih", (4 * hidden, n_obs))
+        _shape(arrays, "lstm_w_hh", (4 * hidden, hidden))
+        _shape(arrays, "lstm_b", (4 * hidden,))
+        width, prev = hidden, "the LSTM gives"
     for i in range(sum(1 for k in arrays if k.startswith("w") and k[1:].isdigit())):
         width, prev = _layer(arrays, f"w{i}", f"b{i}", width, prev), f"w{i} gives"
     n_act = _layer(arrays, "w_out", "b_out", width, prev)
@@ -252,19 +277,64 @@ def export_policy(model: Any, venv: Any, path: Path, meta: dict[str, Any]) -> Pa
     """Write a stable-baselines3 PPO actor (``model``) and the observation statistics of its
     ``VecNormalize`` (``venv``) as a plain ``.npz`` in the layout above, atomically."""
     policy = model.policy
-    linear = [m for m in policy.mlp_extractor.policy_net if hasattr(m, "weight")]
-    arrays: dict[str, np.ndarray] = {
+    arrays = {**_statistics(venv), **_linears(policy.mlp_extractor.policy_net, policy.action_net)}
+    return write_policy(arrays, meta, path)
+
+
+def export_actor(model: Any, venv: Any, path: Path, meta: dict[str, Any]) -> Path:
+    """Write the deterministic actor of a stable-baselines3 or sb3-contrib model in the layout
+    above: SAC and TQC (ReLU layers, ``tanh`` head: their squashed Gaussian's mean), or
+    RecurrentPPO (its actor LSTM, then tanh layers, ``clip`` head); PPO as
+    :func:`export_policy`. ``meta`` gains ``activation``, ``head`` and ``learner``."""
+    policy, kind = model.policy, type(model).__name__
+    if kind in ("SAC", "TQC"):
+        arrays = _linears(policy.actor.latent_pi, policy.actor.mu)
+        meta = {**meta, "activation": "relu", "head": "tanh"}
+    elif kind == "RecurrentPPO":
+        lstm = policy.lstm_actor
+        if lstm.num_layers != 1:
+            raise ValueError(f"the export takes a one-layer LSTM, got {lstm.num_layers} layers")
+        arrays = {
+            "lstm_w_ih": _numpy(lstm.weight_ih_l0),
+            "lstm_w_hh": _numpy(lstm.weight_hh_l0),
+            "lstm_b": _numpy(lstm.bias_ih_l0) + _numpy(lstm.bias_hh_l0),
+            **_linears(policy.mlp_extractor.policy_net, policy.action_net),
+        }
+        meta = {**meta, "activation": "tanh", "head": "clip"}
+    elif kind == "PPO":
+        arrays = _linears(policy.mlp_extractor.policy_net, policy.action_net)
+        meta = {**meta, "activation": "tanh", "head": "clip"}
+    else:
+        raise ValueError(f"no numpy export for {kind} (SAC, TQC, RecurrentPPO or PPO)")
+    return write_policy({**_statistics(venv), **arrays}, {**meta, "learner": kind}, path)
+
+
+def write_policy(arrays: dict[str, np.ndarray], meta: dict[str, Any], path: Path) -> Path:
+    """Write ``arrays`` (the layout above, without ``meta``) and ``meta`` atomically."""
+    out = {k: np.asarray(v, dtype=np.float64) for k, v in arrays.items()}
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **out, meta=np.array(json.dumps(meta)))  # type: ignore[arg-type]
+    return path
+
+
+def _statistics(venv: Any) -> dict[str, np.ndarray]:
+    """The observation normalisation of a ``VecNormalize``."""
+    return {
         "obs_mean": venv.obs_rms.mean.astype(np.float64),
         "obs_var": venv.obs_rms.var.astype(np.float64),
-        "obs_clip": np.array(venv.clip_obs),
-        "obs_eps": np.array(venv.epsilon),
-        "w_out": policy.action_net.weight.detach().cpu().numpy().astype(np.float64),
-        "b_out": policy.action_net.bias.detach().cpu().numpy().astype(np.float64),
-        "meta": np.array(json.dumps(meta)),
+        "obs_clip": np.array(venv.clip_obs, dtype=np.float64),
+        "obs_eps": np.array(venv.epsilon, dtype=np.float64),
     }
-    for i, layer in enumerate(linear):
-        arrays[f"w{i}"] = layer.weight.detach().cpu().numpy().astype(np.float64)
-        arrays[f"b{i}"] = layer.bias.detach().cpu().numpy().astype(np.float64)
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)  # type: ignore[arg-type]
-    return path
+
+
+def _linears(hidden: Any, out: Any) -> dict[str, np.ndarray]:
+    """The Linear layers of the torch module ``hidden`` as ``w0, b0, …`` and ``out`` as
+    ``w_out, b_out``."""
+    arrays = {"w_out": _numpy(out.weight), "b_out": _numpy(out.bias)}
+    for i, layer in enumerate(m for m in hidden if hasattr(m, "weight")):
+        arrays[f"w{i}"], arrays[f"b{i}"] = _numpy(layer.weight), _numpy(layer.bias)
+    return arrays
+
+
+def _numpy(tensor: Any) -> np.ndarray:
+    return tensor.detach().cpu().numpy().astype(np.float64)

@@ -72,6 +72,49 @@ def write_zoo_file(source: Path, target: Path) -> Path:
     return target
 
 
+#: rl_zoo3's name of each learner of ``learners.json`` (CMA-ES is not an rl_zoo3 algorithm).
+ZOO_ALGOS = {"recurrent_ppo": "ppo_lstm", "sac": "sac", "tqc": "tqc"}
+
+
+def learner_zoo_hyperparams(learner: str, source: Path) -> dict[str, dict[str, Any]]:
+    """The rl_zoo3 entry (under ``AeroMag/Suite-v0``) of ``learner`` in ``learners.json``."""
+    from agents.learners import SCENARIO, learner_hyperparams
+
+    hp = learner_hyperparams(learner, source)
+    policy = "MlpLstmPolicy" if learner == "recurrent_ppo" else "MlpPolicy"
+    entry: dict[str, Any] = {"policy": policy, "n_timesteps": float(hp["timesteps"])}
+    entry["n_envs"] = hp["n_envs"]
+    entry.update(hp["algo"])
+    entry["normalize"] = (
+        f"dict(norm_obs=True, norm_reward={hp['normalize_reward']}, clip_obs={CLIP_OBS})"
+    )
+    kwargs = ", ".join(f"{k}={v!r}" for k, v in hp.get("policy_kwargs", {}).items())
+    entry["policy_kwargs"] = f"dict({kwargs})"
+    entry["monitor_kwargs"] = "dict(info_keywords=('episode_rmse_nt', 'divergences'))"
+    entry["env_kwargs"] = dict(hp["env_kwargs"])
+    return {env_id(SCENARIO): entry}
+
+
+def write_learner_zoo_files(source: Path, folder: Path) -> list[Path]:
+    """Write ``folder/<zoo algo>.yml`` for each learner of ``source`` rl_zoo3 knows."""
+    import yaml
+
+    written = []
+    for learner, algo in ZOO_ALGOS.items():
+        head = (
+            f"# Made from {source.name} by `python -m agents.zoo`: edit that file, not this "
+            f"one.\n# python -m rl_zoo3.train --algo {algo} --env {env_id('suite')} "
+            f"--gym-packages aeromag_env --conf-file agents/hyperparams/{algo}.yml\n"
+        )
+        body = yaml.safe_dump(
+            learner_zoo_hyperparams(learner, source), sort_keys=False, default_flow_style=None
+        )
+        target = folder / f"{algo}.yml"
+        target.write_text(head + body, encoding="utf-8")
+        written.append(target)
+    return written
+
+
 def main(argv: list[str] | None = None) -> int:
     about = (__doc__ or "").split("\n")[0]
     parser = argparse.ArgumentParser(prog="python -m agents.zoo", description=about)
@@ -79,6 +122,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--source", default=str(HYPERPARAMS / "ppo.json"))
     args = parser.parse_args(argv)
     print(f"wrote {write_zoo_file(Path(args.source), Path(args.target))}")
+    folder = Path(args.target).parent
+    for path in write_learner_zoo_files(HYPERPARAMS / "learners.json", folder):
+        print(f"wrote {path}")
     return 0
 
 

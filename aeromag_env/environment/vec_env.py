@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import functools
 from typing import Any
 
 import numpy as np
@@ -86,8 +87,10 @@ class AeroMagCompensationVecEnv(VectorEnv):
     vectorization_mode="vector_entry_point", config=..., autoreset_mode=..., **overrides)``
     with the single environment's ``config`` and keyword shortcuts, ``prefetch`` and
     ``max_episode_steps`` (each environment truncated after that many steps of its episode, as
-    ``gym.make(..., max_episode_steps=N)`` truncates the single one). The per-scenario ids
-    (``AeroMag/Nonstationary-v0``…, :mod:`aeromag_env.environment.ids`) make it too. No
+    ``gym.make(..., max_episode_steps=N)`` truncates the single one), and ``flight_cache``
+    (keep the last N simulated flights: environments reset to the same flight simulate it
+    once). The per-scenario ids (``AeroMag/Nonstationary-v0``…,
+    :mod:`aeromag_env.environment.ids`) make it too. No
     ``render_mode`` None or ``"rgb_array"`` (:meth:`render`: a frame per environment, as the
     single env draws it but against samples). :meth:`close` stops the prefetching worker.
     """
@@ -100,6 +103,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         prefetch: bool = False,
         max_episode_steps: int | None = None,
+        flight_cache: int = 0,
         **overrides: Any,
     ) -> None:
         if not (isinstance(num_envs, int | np.integer) and num_envs >= 1):
@@ -143,6 +147,13 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self._step_arrays: tuple[Packed, Packed, Packed] | None = None
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self._prefetcher = FlightPrefetcher() if prefetch else None
+        if not (isinstance(flight_cache, int | np.integer) and flight_cache >= 0):
+            raise ValueError(f"flight_cache must be an integer ≥ 0, got {flight_cache!r}")
+        # environments that fly the same flight (a search scoring candidates on common flights)
+        # simulate it once; the arrays are only read (copied into the stacked filters)
+        self._simulate = (
+            functools.lru_cache(int(flight_cache))(simulate) if flight_cache else simulate
+        )
 
     @property
     def episode_lengths(self) -> np.ndarray:
@@ -284,7 +295,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         assert rng is not None
         self.flight_seeds[i] = int(rng.integers(2**31))
         key = FlightKey(self.scenarios[i], int(self.flight_seeds[i]), self.config.duration_s)
-        flight = simulate(key) if self._prefetcher is None else self._prefetcher.take(i, key)
+        flight = self._simulate(key) if self._prefetcher is None else self._prefetcher.take(i, key)
         if self.autoreset_mode != AutoresetMode.DISABLED:
             self.prefetch_next(i)  # the autoreset after this flight draws from the generator
         state = FilterState(

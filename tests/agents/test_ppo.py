@@ -84,9 +84,9 @@ def test_linear_learning_rate_schedule_reaches_sb3_and_bad_rates_are_one_line_er
 def test_loading_is_pickle_free_and_errors_are_one_line(tmp_path):
     bad = tmp_path / "bad.npz"
     np.savez(bad, obs_mean=np.array([object()], dtype=object))
-    with pytest.raises(AeromagError, match="cannot load PPO policy"):
+    with pytest.raises(AeromagError, match="cannot load policy"):
         NumpyPPOPolicy.load(bad)
-    with pytest.raises(AeromagError, match="cannot load PPO policy"):
+    with pytest.raises(AeromagError, match="cannot load policy"):
         NumpyPPOPolicy.load(tmp_path / "missing.npz")
 
 

@@ -269,5 +269,5 @@ def test_a_task_that_raises_is_reported_with_its_input(
         errors.append(capsys.readouterr().err)
     assert errors[0] == errors[1]  # the same one line, here or on Ray
     assert errors[0].count("\n") == 1
-    assert f"nominal/ppo:{bad} seeds 100000–100001: cannot load PPO policy" in errors[0]
+    assert f"nominal/ppo:{bad} seeds 100000–100001: cannot load policy" in errors[0]
     assert not (tmp_path / "out" / "results.json").exists()

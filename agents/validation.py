@@ -80,8 +80,8 @@ class Validator:
     def __call__(self, policy: Any) -> dict[str, Any]:
         """The validation point's fields: ``validation_rmse_nt`` (mean over every flight),
         ``validation_rmse_by_scenario`` (the mean per scenario: a learning curve's normalized
-        score is made from it), ``validation_score`` (when ``select_by`` is not ``rmse``) and, per scenario, the mean
-        ratio to the reference (``validation_ratio``)."""
+        score is made from it), ``validation_score`` (when ``select_by`` is not ``rmse``) and,
+        per scenario, the mean ratio to the reference (``validation_ratio``)."""
         each = {s: validation_rmse(policy, s, n) for s, n in self.flights().items()}
         point: dict[str, Any] = {
             "validation_rmse_nt": float(np.mean(np.concatenate(list(each.values())))),

@@ -157,7 +157,7 @@ def test_an_lstm_layer_of_the_wrong_shape_or_incomplete_is_refused(tmp_path):
     with pytest.raises(AeromagError, match=r"lstm_w_ih has shape \(16, 12\); expected \(16, 13\)"):
         NumpyPolicy.load(write_policy(short, meta, tmp_path / "short.npz"))
     partial = {k: v for k, v in ok.items() if k != "lstm_b"}
-    with pytest.raises(AeromagError, match="an LSTM layer needs .*lstm_b missing"):
+    with pytest.raises(AeromagError, match=r"an LSTM layer needs .*lstm_b missing"):
         NumpyPolicy.load(write_policy(partial, meta, tmp_path / "partial.npz"))
 
 

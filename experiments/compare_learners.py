@@ -124,6 +124,7 @@ def evaluate(runs: Path, episodes: int, first_seed: int, data: Path, ray: str | 
             "date": datetime.now(UTC).strftime("%Y-%m-%d"),
             "test_flights": {"first_seed": first_seed, "per_scenario": episodes},
             "scenarios": list(SUITE),
+            "validation_anchors": validation_anchors([r["validation_flights"] for r in runs_json]),
             "runs": runs_json,
         }
         write_text(stage / "runs.json", json.dumps(meta, indent=1))
@@ -140,23 +141,30 @@ def _curves(runs: Path, policies: dict[str, Path]) -> tuple[str, list[dict[str, 
     """The learning curves as CSV rows and each run's summary."""
     text = io.StringIO()
     w = csv.writer(text, lineterminator="\n")
-    w.writerow(["learner", "seed", "timesteps", "seconds", "scenario", "validation_rmse_nt"])
+    w.writerow(
+        [
+            "learner",
+            "seed",
+            "timesteps",
+            "seconds",
+            "train_seconds",
+            "scenario",
+            "flights",
+            "validation_rmse_nt",
+        ]
+    )
     summaries = []
     for key, path in policies.items():
         learner, seed = key.split("/")
         summary = json.loads((path.parent / "training.json").read_text())
         curve = summary.get("curve") or json.loads((path.parent / "curve.json").read_text())
+        per = _validation_flights(summary)
         for point in curve:
+            seconds = round(point["seconds"], 2)
+            train = round(point.get("train_seconds", point["seconds"]), 2)
             for scenario, v in point.get("validation_rmse_by_scenario", {}).items():
                 w.writerow(
-                    [
-                        learner,
-                        seed,
-                        point["timesteps"],
-                        round(point["seconds"], 2),
-                        scenario,
-                        repr(v),
-                    ]
+                    [learner, seed, point["timesteps"], seconds, train, scenario, per, repr(v)]
                 )
         kept = min(curve, key=lambda p: p.get("validation_score", p["validation_rmse_nt"]))
         summaries.append(
@@ -165,12 +173,36 @@ def _curves(runs: Path, policies: dict[str, Path]) -> tuple[str, list[dict[str, 
                 "seed": int(seed),
                 "timesteps": summary["timesteps"],
                 "minutes": round(summary["train_seconds_this_run"] / 60.0, 2),
+                "validation_flights": _validation_flights(summary),
                 "kept_timesteps": kept["timesteps"],
                 "best_validation_score": summary.get("best_validation_score"),
                 "hyperparams": summary.get("hyperparams"),
             }
         )
     return text.getvalue(), summaries
+
+
+def _validation_flights(summary: dict[str, Any]) -> int:
+    """Validation flights per scenario of a run (its ``eval_episodes`` split over the suite)."""
+    return max(int(summary["hyperparams"]["eval_episodes"]) // len(SUITE), 1)
+
+
+def validation_anchors(per_scenario: Sequence[int]) -> dict[str, dict[str, dict[str, float]]]:
+    """The anchors' mean RMSE on the first ``n`` validation flights of each scenario, for each
+    ``n`` of ``per_scenario``: what a learning curve's normalized score is measured against."""
+    from agents import policy_env_kwargs
+    from agents.validation import validation_rmse
+
+    return {
+        str(n): {
+            scenario: {
+                ref: float(validation_rmse(ref, scenario, n, policy_env_kwargs(ref)).mean())
+                for ref in ("tuned_constant", "privileged")
+            }
+            for scenario in SUITE
+        }
+        for n in sorted(set(per_scenario))
+    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -180,9 +180,11 @@ def train_policies(
     ray: str | None = None,
     html: bool = True,
     progress: Callable[[Outcome], Any] | None = None,
+    learner: str = "ppo",
 ) -> TrainingResult:
-    """One PPO training run per seed (:func:`agents.ppo.train_ppo`, tasks of a runner, one CPU
-    each), as ``aeromag train --seeds`` runs them.
+    """One training run per seed (:func:`agents.ppo.train_ppo`, or for another ``learner``
+    :func:`agents.learners.train_learner`; tasks of a runner, one CPU each), as ``aeromag
+    train --seeds`` runs them.
 
     Parameters
     ----------
@@ -205,28 +207,38 @@ def train_policies(
         Write the seeds' learning curves, ``report.html``, with the summary.
     progress : callable or None
         Called with each run's outcome as it ends.
+    learner : str
+        One of :data:`agents.learners.LEARNERS`; all but ``ppo`` train on ``suite`` from
+        ``agents/hyperparams/learners.json`` (or ``hyperparams``) and start afresh on a rerun.
 
     Returns
     -------
     TrainingResult
         A failed seed is reported in ``failed`` with its folder; the rest complete.
     """
-    from agents.ppo import CHECKPOINT, HYPERPARAMS, OUTPUTS, train_ppo
+    from agents import learners, ppo
 
     folder = Path(out)
-    hp = hyperparams or HYPERPARAMS
+    if learner == "ppo":
+        hp = hyperparams or ppo.HYPERPARAMS
+        written: tuple[str, ...] = (*ppo.CHECKPOINT, *ppo.OUTPUTS)
+    else:
+        hp = hyperparams or learners.HYPERPARAMS
+        written = learners.OUTPUTS
     for seed in seeds:
-        check_output_set(folder / f"seed_{seed}", (*CHECKPOINT, *OUTPUTS), [hp])
+        check_output_set(folder / f"seed_{seed}", written, [hp])
     outputs = ("seeds.json", reports.PAGE) if html else ("seeds.json",)
     check_output_set(folder, outputs, [hp])
-    tasks = [
-        Task(
-            f"seed {seed} ({folder / f'seed_{seed}'})",
-            train_ppo,
-            (scenario, timesteps, seed, folder / f"seed_{seed}", quick, False, hp, True),
-        )
-        for seed in seeds
-    ]
+
+    def task(seed: int) -> Task:
+        where = folder / f"seed_{seed}"
+        if learner == "ppo":
+            args: tuple = (scenario, timesteps, seed, where, quick, False, hp, True)
+            return Task(f"seed {seed} ({where})", ppo.train_ppo, args)
+        args = (learner, seed, where, timesteps, quick, False, hp)
+        return Task(f"{learner} seed {seed} ({where})", learners.train_learner, args)
+
+    tasks = [task(seed) for seed in seeds]
     with runner(ray) as r:
         outcomes = r.run(tasks, progress)
     rows = [
@@ -240,12 +252,19 @@ def train_policies(
         }
         for seed, o in zip(seeds, outcomes, strict=True)
     ]
-    summary = {"scenario": scenario, "runner": r.name, "seeds": rows, **_spread(rows)}
+    summary = {
+        "scenario": scenario,
+        "learner": learner,
+        "runner": r.name,
+        "seeds": rows,
+        **_spread(rows),
+    }
     with output_set(folder, outputs, [hp]) as stage:
         write_text(stage / "seeds.json", json.dumps(summary, indent=2))
         if html:
             runs = {f"seed {s}": o.value for s, o in zip(seeds, outcomes, strict=True) if o.ok}
-            write_text(stage / reports.PAGE, reports.train_page(runs, f"Training: {scenario}"))
+            title = f"Training: {learner} on {scenario}"
+            write_text(stage / reports.PAGE, reports.train_page(runs, title))
     paths = tuple(folder / name for name in outputs)
     return TrainingResult(summary, paths, tuple(failures(outcomes)))
 

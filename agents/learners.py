@@ -245,7 +245,7 @@ def _train_sb3(learner: str, hp: dict[str, Any], seed: int, curve: Curve) -> int
     def write(path: Path, meta: dict[str, Any]) -> Path:
         return export_actor(model, venv, path, meta)
 
-    class Validate(BaseCallback):  # type: ignore[misc]
+    class Validate(BaseCallback):
         def _on_training_start(self) -> None:
             self.next = hp["eval_every"]
             curve.validate(0, write)
@@ -282,8 +282,8 @@ def _train_cmaes(hp: dict[str, Any], seed: int, curve: Curve) -> int:
         flight_cache=max(n_flights, int(algo["normalisation_flights"])),
         **hp["env_kwargs"],
     )
-    n_obs = env.single_observation_space.shape[0]
-    n_act = env.single_action_space.shape[0]
+    n_obs = int(np.prod(env.single_observation_space.shape or ()))
+    n_act = int(np.prod(env.single_action_space.shape or ()))
     seeds = seed_stream(0, 1, offset=TRAIN_SEEDS.start + 1000 * seed + 500)
     mean, var, steps = _statistics(env, [next(seeds) for _ in range(algo["normalisation_flights"])])
     norm = {"obs_mean": mean, "obs_var": var, "obs_clip": np.array(10.0), "obs_eps": np.array(1e-8)}

@@ -308,17 +308,24 @@ def cmd_train(args: argparse.Namespace) -> int:
     """
     limits.check_train(args)
     try:
+        from agents import learners
         from agents.ppo import HYPERPARAMS, train_ppo
     except ImportError as e:
         raise AeromagError(
             f"training needs the rl extra (pip install 'aeromag-env[rl]'): {e}"
         ) from None
+    scenario = args.scenario or ("nonstationary" if args.learner == "ppo" else "suite")
+    if args.learner != "ppo" and scenario != "suite":
+        raise AeromagError(
+            f"--learner {args.learner} trains the general tuner on the suite; --scenario "
+            f"{scenario} is for --learner ppo"
+        )
     if args.seeds is not None:  # one run per seed, side by side (--ray) or one after another
         from aeromag_env.cli.train import parse_seeds, train_seeds
 
         hp = Path(args.hyperparams) if args.hyperparams else None
         train_seeds(
-            args.scenario,
+            scenario,
             args.timesteps,
             parse_seeds(args.seeds),
             Path(args.out),
@@ -327,25 +334,36 @@ def cmd_train(args: argparse.Namespace) -> int:
             args.ray,
             args.quiet,
             html=not args.no_html,
+            learner=args.learner,
         )
         print(f"policies: {args.out}/seed_<k>/policy.npz; summary: {args.out}/seeds.json")
         return 0
     if args.ray is not None:
         raise AeromagError("--ray runs several training seeds side by side: give --seeds")
-    summary = train_ppo(
-        args.scenario,
-        args.timesteps,
-        args.seed,
-        Path(args.out),
-        args.quick,
-        progress=not args.quiet,
-        hyperparams=Path(args.hyperparams) if args.hyperparams else HYPERPARAMS,
-    )
+    if args.learner == "ppo":
+        summary = train_ppo(
+            scenario,
+            args.timesteps,
+            args.seed,
+            Path(args.out),
+            args.quick,
+            progress=not args.quiet,
+            hyperparams=Path(args.hyperparams) if args.hyperparams else HYPERPARAMS,
+        )
+    else:
+        summary = learners.train_learner(
+            args.learner,
+            args.seed,
+            Path(args.out),
+            args.timesteps,
+            args.quick,
+            hyperparams=Path(args.hyperparams) if args.hyperparams else learners.HYPERPARAMS,
+        )
     if not args.no_html:  # the learning curve beside training.json
         from aeromag_env import reports
         from aeromag_env.atomic import write_text
 
-        page = reports.train_page({"run": summary}, f"Training: {args.scenario}")
+        page = reports.train_page({"run": summary}, f"Training: {args.learner} on {scenario}")
         write_text(Path(args.out) / reports.PAGE, page)
     print(
         f"trained {summary['timesteps']} steps in {summary['train_seconds_this_run']:.0f} s; "

@@ -302,15 +302,31 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_evaluate)
 
 
+#: The learners of ``aeromag train --learner`` (:data:`agents.learners.LEARNERS`; named here so
+#: that ``aeromag --help`` imports nothing of ``agents``; a test checks the two agree).
+LEARNERS = ("ppo", "recurrent_ppo", "sac", "tqc", "cmaes")
+
+
 def _add_train(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "train",
-        help="train a PPO tuner (needs the rl extra)",
+        help="train a tuner: PPO, or another learner (needs the rl extra)",
         description="Train stable-baselines3 PPO on a scenario (hyperparameters in "
-        "agents/hyperparams/ppo.json); resumes from --out's checkpoint; keeps the "
-        "best validated policy as --out/policy.npz.",
+        "agents/hyperparams/ppo.json; resumes from --out's checkpoint), or with --learner "
+        "another learner on the suite (agents/hyperparams/learners.json; a rerun starts "
+        "afresh); keeps the best validated policy as --out/policy.npz.",
     )
-    p.add_argument("--scenario", default="nonstationary", help="scenario (default nonstationary)")
+    p.add_argument(
+        "--learner",
+        default="ppo",
+        choices=LEARNERS,
+        help="ppo (default), recurrent_ppo, sac, tqc (sb3-contrib) or cmaes (CMA-ES over a "
+        "linear rule); all but ppo train the general tuner on the suite",
+    )
+    p.add_argument(
+        "--scenario",
+        help="scenario (default nonstationary; the other learners train on suite only)",
+    )
     p.add_argument("--timesteps", type=int, help="environment steps (3e6; --quick: 2048)")
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=int, default=0, help="training seed (default 0)")

@@ -52,6 +52,7 @@ def train_seeds(
     ray: str | None,
     quiet: bool,
     html: bool = True,
+    learner: str = "ppo",
 ) -> dict[str, Any]:
     """Train one run per seed (:func:`agents.jobs.train_policies`) with a progress bar, print
     the seeds' table and return the summary. A failed seed is reported with its folder and the
@@ -73,6 +74,7 @@ def train_seeds(
             ray,
             html,
             progress=lambda o: bar.update(1),
+            learner=learner,
         )
     print(seed_table(done.summary))
     if done.failed:

@@ -220,3 +220,49 @@ def test_a_quick_training_run_writes_a_policy_and_a_learning_curve(tmp_path, lea
     env = gym.make("AeroMagCompensation-v0", scenario="paper", preset="general")
     policy = make_policy(f"ppo:{tmp_path / 'policy.npz'}", env)
     assert np.isfinite(run_episode(env, policy, 100_000)["rmse_nt"])
+
+
+def test_the_command_line_names_the_same_learners():
+    from aeromag_env.cli.parser import LEARNERS as CLI_LEARNERS
+
+    assert CLI_LEARNERS == LEARNERS
+
+
+def test_a_learner_other_than_ppo_refuses_a_scenario_other_than_the_suite(tmp_path, capsys):
+    from aeromag_env.cli.main import main
+
+    code = main(
+        ["train", "--learner", "sac", "--scenario", "nonstationary", "--out", str(tmp_path)]
+    )
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--learner sac trains the general tuner on the suite" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_aeromag_train_trains_another_learner_over_seeds(tmp_path, capsys):
+    from aeromag_env.cli.main import main
+
+    out = tmp_path / "runs"
+    args = [
+        "train",
+        "--learner",
+        "cmaes",
+        "--seeds",
+        "0-1",
+        "--quick",
+        "--quiet",
+        "--out",
+        str(out),
+    ]
+    assert main(args) == 0
+    summary = json.loads((out / "seeds.json").read_text())
+    assert summary["learner"] == "cmaes" and [r["seed"] for r in summary["seeds"]] == [0, 1]
+    assert all(r["error"] is None for r in summary["seeds"])
+    assert NumpyPolicy.load(out / "seed_0" / "policy.npz").meta["learner"] == "CMA-ES"
+    last = [
+        json.loads((out / f"seed_{k}" / "training.json").read_text())["curve"][-1] for k in (0, 1)
+    ]
+    assert last[0]["validation_rmse_nt"] != last[1]["validation_rmse_nt"]  # seeds differ
+    assert "Training: cmaes on suite" in (out / "report.html").read_text()

@@ -55,7 +55,9 @@
   is restored to its start, untimed. Only the calls are timed: no action mapping, scoring,
   observation or reset, and Q and R stay the scenario's (no action scales them). It takes its
   turn among the PPO variants (:func:`_interleaved`), as many environment steps per turn as a
-  rollout, so the two are measured over the same minutes. The target is at most 1.5× with 8
+  rollout, so the two are measured over the same minutes (unlike ``K /
+  filter_compiled_samples_per_s``: one flight filtered alone, back to back, away from PPO's
+  rollouts, which may read lower on a busy machine). The target is at most 1.5× with 8
   environments; ``ppo_env_to_filter_ratio_min`` / ``_max``: the range of the ratio within a
   repeat; ``ppo64_*``: the same with 64 environments (both on the cores' threads,
   :mod:`aeromag_env.threads`).

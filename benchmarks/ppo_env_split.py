@@ -6,7 +6,9 @@ entry: 8 batched environments, flights prefetched, torch as in training) learns 
 rollout, then for 49 152 timed steps per repeat; per environment step, medians over the repeats:
 ``step_wait`` (everything the environments cost PPO's loop), of it the compiled step of all
 environments (``kernels.env_step_batch``: the filter over the decision window, the score and the
-observation), and the rest (action check, info dicts, resets).
+observation), and the rest (action check, info dicts, resets). ``aeromag bench`` holds the
+``step_wait`` time against the filter alone (``ppo_env_to_filter_ratio``); this says how much of
+the gap is the compiled step's scoring and observation and how much the Python around it.
 
 Run: ``.venv/bin/python benchmarks/ppo_env_split.py [repeats]`` (default 3)
 """
@@ -38,7 +40,7 @@ def split(repeats: int) -> dict[str, float]:
             venv.venv.step_wait = _timed(venv.venv.step_wait, wait)
             model: Any = ppo.make_ppo(venv, hp, seed=0)
             time.sleep(2.0)  # the prefetching worker starts up
-            model.learn(int(hp["n_steps"]) * int(hp["n_envs"]))
+            model.learn(hp.n_steps * hp.n_envs)
             waits, steps = [], []
             for _ in range(repeats):
                 wait[0] = compiled[0] = 0.0

@@ -55,10 +55,11 @@ def advance_batch(
     """Advance flight i over samples ``k0[i] ≤ k < k1[i]``, for every i, on all cores.
 
     ``modes``, ``k0``, ``k1`` are (N,) int64; ``f`` holds the arrays of
-    :func:`aeromag_env.compensation.kernels.advance` (or them packed), each with a leading
-    flight axis (N, ...).
+    :func:`aeromag_env.compensation.kernels.advance` (or them :func:`packed`), each with a leading
+    flight axis (N, ...); a caller advancing the same arrays again and again packs them once.
     """
-    run_chunks(_advance_range, int(modes.shape[0]), modes, k0, k1, packed(f))
+    arrays = f if type(f) is tuple else packed(f)  # a plain tuple: packed already
+    run_chunks(_advance_range, int(modes.shape[0]), modes, k0, k1, arrays)
 
 
 class BatchFilterState:

@@ -180,10 +180,11 @@ def run_benchmarks(
 ) -> dict[str, Any]:
     """Run every benchmark, print a table with ratios, write ``out/bench.json``. ``ray`` is
     ``--ray`` (None: the Ray figures are not measured and Ray is not imported); ``only``
-    ``"ray"`` or ``"discover"`` measures those figures alone. ``quick``: the sizes of
+    ``"ray"``, ``"discover"`` or ``"ppo"`` (PPO at 8 and 64 environments: the speed targets'
+    figures) measures those figures alone. ``quick``: the sizes of
     :data:`agents.quick.QUICK` (about a minute; the figures are then only indicative)."""
     check_output_set(out, ("bench.json",))  # before minutes of work
-    from aeromag_env.cli.bench_envs import bench_env, bench_ppo
+    from aeromag_env.cli.bench_envs import bench_env
     from agents.quick import QUICK
 
     q = QUICK
@@ -196,14 +197,30 @@ def run_benchmarks(
     if only == "discover":
         figures |= bench_discover(hour_flight(hours), 1 if quick else 3)
         return _report(out, figures, [_discover_row(figures)], quick, repeats, load_before)
+    if only == "ppo":
+        figures |= _bench_ppo_both(quick)
+        rows = _ppo_rows(figures, "ppo") + _ppo_rows(figures, "ppo64")
+        return _report(out, figures, rows, quick, repeats, load_before)
     figures |= bench_simulate(repeats, hours)
     hour = hour_flight(hours)
     figures |= bench_filter_figures(
         hour, q.bench_filter_samples if quick else FILTER_SAMPLES, repeats
     )
     figures |= bench_env(repeats)
+    figures |= _bench_ppo_both(quick)
+    figures |= bench_discover(hour, 1 if quick else 3)
+    if not quick or q.bench_memory:
+        figures |= bench_memory()
+    return _report(out, figures, _rows(figures) + ray_rows(figures), quick, repeats, load_before)
+
+
+def _bench_ppo_both(quick: bool) -> dict[str, Any]:
+    """PPO's figures with 8 environments and (unless ``quick`` skips them) with 64."""
+    from aeromag_env.cli.bench_envs import bench_ppo
+    from agents.quick import QUICK as q
+
     sizes = {k: q.ppo[k] for k in ("n_steps", "batch_size")} if quick else {}
-    figures |= bench_ppo(
+    figures = bench_ppo(
         q.bench_ppo_timesteps if quick else 49152, 1 if quick else PPO_REPEATS, **sizes
     )
     if not quick or q.bench_ppo64:
@@ -214,10 +231,7 @@ def run_benchmarks(
             prefix="ppo64",
             **sizes,
         )
-    figures |= bench_discover(hour, 1 if quick else 3)
-    if not quick or q.bench_memory:
-        figures |= bench_memory()
-    return _report(out, figures, _rows(figures) + ray_rows(figures), quick, repeats, load_before)
+    return figures
 
 
 def _report(

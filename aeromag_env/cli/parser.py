@@ -386,9 +386,10 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
     p.add_argument(
         "--only",
-        choices=("ray", "discover"),
+        choices=("ray", "discover", "ppo"),
         help="ray: only the Ray figures (needs --ray [ADDRESS]); discover: only the discrepancy "
-        "workflow's seconds per flight-hour",
+        "workflow's seconds per flight-hour; ppo: only PPO's figures at 8 and 64 environments "
+        "(the speed targets)",
     )
     _add_ray_option(p)
     p.set_defaults(func=cmd_bench)

@@ -391,3 +391,17 @@ def test_zero_cost_env_episodes_are_as_long_in_steps_as_the_flights():
         done = bool(env.step_wait()[2].all())
         steps += 1
     assert steps == -(-samples // window) and steps < samples
+
+
+@pytest.mark.slow
+def test_bench_only_ppo_measures_the_speed_targets_figures_alone(tmp_path, capsys):
+    from aeromag_env.cli.main import main
+
+    assert main(["bench", "--only", "ppo", "--quick", "--out", str(tmp_path)]) == 0
+    result = json.loads((tmp_path / "bench.json").read_text())
+    figures = result["figures"]
+    assert all(k.startswith("ppo") for k in figures) and "ppo_env_to_filter_ratio" in figures
+    ratio = figures["ppo_env_us_per_step"] / figures["ppo_filter_us_per_step"]
+    assert figures["ppo_env_to_filter_ratio"] == pytest.approx(ratio)
+    assert all(r["benchmark"].startswith("PPO") for r in result["rows"])
+    assert "≤ 1.5× the filter" in capsys.readouterr().out

@@ -1,11 +1,13 @@
 """The learners' benchmark: train every learner over seeds, fly the test flights, write the data.
 
-Three steps, each resumable by its files::
+Four steps, each resumable by its files::
 
     python -m experiments.compare_learners train --learners recurrent_ppo,sac --seeds 0-4 \\
         [--out results/learners] [--ray [ADDRESS]]
     python -m experiments.compare_learners evaluate [--runs results/learners] \\
         [--episodes 30] [--first-seed 200000] [--data docs/learners] [--ray [ADDRESS]]
+    python -m experiments.compare_learners select [--runs results/learners] \
+        [--flights 8] [--data docs/learners] [--ray [ADDRESS]]
     python scripts/results_pages.py       # the page docs/results/learners.md from the data
 
 ``train`` runs :func:`agents.learners.train_learner` once per learner × seed (tasks of a runner:
@@ -19,6 +21,13 @@ wall-clock seconds, the validation RMSE per scenario), ``runs.json`` (per run it
 steps, validation score, hyperparameters) and ``policies/<learner>_seed<k>.npz`` (every seed's
 exported policy). The test flights are fresh (seeds from ``--first-seed``, never flown for a
 choice): versions were chosen on validation flights only.
+
+``select`` chooses the policy to ship on validation flights only: every run's exported policy
+flies the same ``--flights`` validation flights per scenario (the first of each scenario's
+validation seeds; the training runs kept their checkpoint on 4 or 16 of them), scored as the
+runs were (the worst scenario's mean RMSE ratio to the tuned constant); the learner with the
+lowest mean score over its seeds wins, and of it the seed with the lowest score. Writes
+``DATA/selection.json``; nothing of the test flights is read.
 """
 
 from __future__ import annotations
@@ -205,6 +214,50 @@ def validation_anchors(per_scenario: Sequence[int]) -> dict[str, dict[str, dict[
     }
 
 
+def _validate(path: str, flights: int) -> dict[str, Any]:
+    from agents.numpy_policy import NumpyPolicy
+    from agents.validation import Validator
+
+    validator = Validator("worst_ratio_to_tuned_constant", "suite", flights * len(SUITE))
+    return validator(NumpyPolicy.load(path))
+
+
+def select(runs: Path, flights: int, data: Path, ray: str | None) -> int:
+    policies = _policies(runs)
+    tasks = [Task(key, _validate, (str(path), flights)) for key, path in policies.items()]
+    with runner(ray) as r:
+        outcomes = r.run(tasks)
+    failed = [o for o in outcomes if not o.ok]
+    if failed:
+        print(f"{failed[0].label}: {failed[0].error}", file=sys.stderr)
+        return 1
+    scored = {t.label: o.value for t, o in zip(tasks, outcomes, strict=True)}
+    by_learner: dict[str, list[float]] = {}
+    for key, point in scored.items():
+        by_learner.setdefault(key.split("/")[0], []).append(point["validation_score"])
+    means = {learner: sum(v) / len(v) for learner, v in by_learner.items()}
+    best = min(means, key=means.__getitem__)
+    seed = min(
+        (k for k in scored if k.startswith(f"{best}/")),
+        key=lambda k: scored[k]["validation_score"],
+    )
+    result = {
+        "command": " ".join(["python -m experiments.compare_learners", *sys.argv[1:]]),
+        "date": datetime.now(UTC).strftime("%Y-%m-%d"),
+        "validation_flights_per_scenario": flights,
+        "score": "worst scenario's mean RMSE ratio to tuned_constant (lower is better)",
+        "runs": scored,
+        "learner_mean_score": means,
+        "chosen": {"learner": best, "seed": int(seed.split("/")[1])},
+    }
+    data.mkdir(parents=True, exist_ok=True)
+    write_text(data / "selection.json", json.dumps(result, indent=1))
+    for learner, mean in sorted(means.items(), key=lambda kv: kv[1]):
+        print(f"{learner:15s} mean validation score {mean:.3f} over {len(by_learner[learner])}")
+    print(f"chosen: {best} seed {result['chosen']['seed']}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="step", required=True)
@@ -217,7 +270,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     e.add_argument("--episodes", type=int, default=30)
     e.add_argument("--first-seed", type=int, default=FIRST_SEED)
     e.add_argument("--data", default=str(DATA))
-    for p in (t, e):
+    c = sub.add_parser("select", help="choose the policy to ship, on validation flights")
+    c.add_argument("--runs", default=str(RUNS))
+    c.add_argument("--flights", type=int, default=8)
+    c.add_argument("--data", default=str(DATA))
+    for p in (t, e, c):
         p.add_argument("--ray", nargs="?", const="local", metavar="ADDRESS")
     args = parser.parse_args(argv)
     if args.step == "train":
@@ -226,6 +283,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if unknown:
             parser.error(f"unknown learners {', '.join(unknown)}; valid: {', '.join(LEARNERS)}")
         return train(learners, args.seeds, Path(args.out), args.ray)
+    if args.step == "select":
+        return select(Path(args.runs), args.flights, Path(args.data), args.ray)
     return evaluate(Path(args.runs), args.episodes, args.first_seed, Path(args.data), args.ray)
 
 

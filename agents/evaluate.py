@@ -290,8 +290,9 @@ def iqm_interval(
     """Interquartile mean of normalized scores ``(runs, tasks)`` (training seeds × scenarios)
     and its 95 % stratified-bootstrap percentile interval: runs are resampled with replacement
     within each task, as rliable's ``get_interval_estimates`` does (Agarwal et al. 2021). The
-    IQM is scipy's 25 %-trimmed mean of all scores; rliable itself is not used: its 1.2 release
-    fails to import beside pandas 3 (arch 7) and to bootstrap with arch 8."""
+    IQM is scipy's 25 %-trimmed mean of all scores, which is rliable's ``metrics.aggregate_iqm``
+    (``tests/agents/test_benchmark.py`` checks that they agree); rliable itself is a dev extra
+    (its 1.2 release needs pandas < 3 and arch < 8), not needed here."""
     scores = np.asarray(scores, dtype=float)
     if scores.ndim != 2 or scores.shape[0] < 1:
         raise ValueError(f"scores must be (runs, tasks), got shape {scores.shape}")

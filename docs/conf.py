@@ -48,6 +48,7 @@ exclude_patterns = [
     "paper/**",
     "ppo/**",
     "general/**",
+    "learners/**",
     "auto_examples/*.ipynb",
     "auto_examples/*.py",
     "auto_examples/*.zip",

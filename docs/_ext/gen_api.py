@@ -39,6 +39,7 @@ AGENT_MODULES = (
     "agents.numpy_policy",
     "agents.evaluate",
     "agents.jobs",
+    "agents.learners",
     "agents.ppo_hyperparams",
 )
 PACKAGES = (aeromag_env, agents)

@@ -392,6 +392,70 @@ def _runs_table(d: Learners) -> list[str]:
     ]
 
 
+def _selection(docs: Path, d: Learners) -> list[str]:
+    """The policy chosen to ship (``selection.json``: validation flights only) and how that one
+    seed did on the test flights, scenario by scenario, against the tuned constant."""
+    path = docs / "learners" / "selection.json"
+    if not path.exists():
+        return []
+    sel = read(docs, "learners/selection.json")
+    learner, seed = sel["chosen"]["learner"], int(sel["chosen"]["seed"])
+    means = sel["learner_mean_score"]
+    rows = [
+        [f"`{n}`", num(means[n]), str(sum(1 for k in sel["runs"] if k.startswith(f"{n}/")))]
+        for n in sorted(means, key=means.__getitem__)
+    ]
+    lines = [
+        "## The policy chosen to ship",
+        "",
+        source_line(docs, [("learners/selection.json", sel["command"])]),
+        "",
+        f"Chosen on validation flights only ({sel['validation_flights_per_scenario']} per "
+        "scenario, the same for every seed of every learner; the score is the worst scenario's "
+        "mean RMSE ratio to `tuned_constant`, lower is better): the learner with the lowest mean "
+        "score over its seeds, and of it the seed with the lowest score.",
+        "",
+        *table(["learner", "mean validation score over seeds", "seeds"], rows),
+        "",
+        f"Chosen: **`{learner}`, training seed {seed}**.",
+    ]
+    r = d.result.learners.get(learner)
+    if r is None or seed not in r.seeds:
+        return [*lines, ""]
+    i = r.seeds.index(seed)
+    tc = d.result.reference_rmse["tuned_constant"]
+    tc_cvar = d.result.reference_cvar["tuned_constant"]
+    test = [
+        [
+            f"`{s}`",
+            num(r.rmse[i, k]),
+            num(tc[k]),
+            num(r.cvar[i, k]),
+            num(tc_cvar[k]),
+            "yes" if r.worse[i, k] else "no",
+        ]
+        for k, s in enumerate(d.result.flights.scenarios)
+    ]
+    return [
+        *lines,
+        "",
+        "Its test flights, flown once (the same flights as the tables above):",
+        "",
+        *table(
+            [
+                "scenario",
+                "RMSE [nT]",
+                "tuned_constant [nT]",
+                "worst 10 % [nT]",
+                "tuned_constant's worst 10 % [nT]",
+                "worse beyond the paired 95 % CI",
+            ],
+            test,
+        ),
+        "",
+    ]
+
+
 def learners_page(docs: Path) -> str:
     """``learners.md``: the learners for the general tuner on the same test flights."""
     d = learners(docs)
@@ -423,6 +487,7 @@ def learners_page(docs: Path) -> str:
         *_tail_table(d),
         *_aggregate_tables(d),
         *_bar_table(d),
+        *_selection(docs, d),
         *_curve_table(d),
         *_runs_table(d),
     ]

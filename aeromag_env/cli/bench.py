@@ -197,8 +197,8 @@ def run_benchmarks(
     if only == "discover":
         figures |= bench_discover(hour_flight(hours), 1 if quick else 3)
         return _report(out, figures, [_discover_row(figures)], quick, repeats, load_before)
-    if only == "ppo":
-        figures |= _bench_ppo_both(quick)
+    if only == "ppo":  # a third of the full run's steps per repeat: three runs in a quarter hour
+        figures |= _bench_ppo_both(quick, scale=3)
         rows = _ppo_rows(figures, "ppo") + _ppo_rows(figures, "ppo64")
         return _report(out, figures, rows, quick, repeats, load_before)
     figures |= bench_simulate(repeats, hours)
@@ -214,18 +214,19 @@ def run_benchmarks(
     return _report(out, figures, _rows(figures) + ray_rows(figures), quick, repeats, load_before)
 
 
-def _bench_ppo_both(quick: bool) -> dict[str, Any]:
-    """PPO's figures with 8 environments and (unless ``quick`` skips them) with 64."""
+def _bench_ppo_both(quick: bool, scale: int = 1) -> dict[str, Any]:
+    """PPO's figures with 8 environments and (unless ``quick`` skips them) with 64; each repeat
+    ``1/scale`` of a full run's steps (the same number of repeats)."""
     from aeromag_env.cli.bench_envs import bench_ppo
     from agents.quick import QUICK as q
 
     sizes = {k: q.ppo[k] for k in ("n_steps", "batch_size")} if quick else {}
     figures = bench_ppo(
-        q.bench_ppo_timesteps if quick else 49152, 1 if quick else PPO_REPEATS, **sizes
+        q.bench_ppo_timesteps if quick else 49152 // scale, 1 if quick else PPO_REPEATS, **sizes
     )
     if not quick or q.bench_ppo64:
         figures |= bench_ppo(
-            4096 if quick else 163840,
+            4096 if quick else 163840 // scale // 64 * 64,
             1 if quick else PPO64_REPEATS,
             n_envs=64,
             prefix="ppo64",

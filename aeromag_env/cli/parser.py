@@ -389,7 +389,7 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
         choices=("ray", "discover", "ppo"),
         help="ray: only the Ray figures (needs --ray [ADDRESS]); discover: only the discrepancy "
         "workflow's seconds per flight-hour; ppo: only PPO's figures at 8 and 64 environments "
-        "(the speed targets)",
+        "(the speed targets; 5 repeats of a third of a full run's steps each)",
     )
     _add_ray_option(p)
     p.set_defaults(func=cmd_bench)

@@ -226,7 +226,7 @@ def _bench_ppo_both(quick: bool, scale: int = 1) -> dict[str, Any]:
     )
     if not quick or q.bench_ppo64:
         figures |= bench_ppo(
-            4096 if quick else 163840 // scale // 64 * 64,
+            4096 if quick else -(-163840 // scale // 16384) * 16384,  # whole rollouts
             1 if quick else PPO64_REPEATS,
             n_envs=64,
             prefix="ppo64",

@@ -8,6 +8,7 @@ Four steps, each resumable by its files::
         [--episodes 30] [--first-seed 200000] [--data docs/learners] [--ray [ADDRESS]]
     python -m experiments.compare_learners select [--runs results/learners] \
         [--flights 8] [--data docs/learners] [--ray [ADDRESS]]
+    python -m experiments.compare_learners ship   # the chosen policy as agents/trained/…
     python scripts/results_pages.py       # the page docs/results/learners.md from the data
 
 ``train`` runs :func:`agents.learners.train_learner` once per learner × seed (tasks of a runner:
@@ -258,6 +259,33 @@ def select(runs: Path, flights: int, data: Path, ray: str | None) -> int:
     return 0
 
 
+def ship(runs: Path, data: Path, target: Path) -> int:
+    """Write the policy ``select`` chose as the shipped general policy ``target``, its settings
+    named by their preset (``general``) as the shipped files name theirs; unchanged when the
+    arrays are already the shipped ones."""
+    import numpy as np
+
+    from aeromag_env.environment.config import PRESETS, env_config
+    from agents.policy_file import read_policy, write_policy
+
+    chosen = json.loads((data / "selection.json").read_text())["chosen"]
+    source = runs / chosen["learner"] / f"seed_{chosen['seed']}" / "policy.npz"
+    arrays, meta = read_policy(source)
+    if env_config(meta.get("env_kwargs", {})) != PRESETS["general"]:
+        print(f"{source} was not trained with the general preset's settings", file=sys.stderr)
+        return 2
+    if target.exists():
+        shipped, _ = read_policy(target)
+        same = shipped.keys() == arrays.keys()
+        if same and all(np.array_equal(shipped[k], arrays[k]) for k in arrays):
+            print(f"{target} already holds {chosen['learner']} seed {chosen['seed']}'s policy")
+            return 0
+    meta = {**meta, "env_kwargs": {"preset": "general"}, "learner": chosen["learner"]}
+    write_policy(arrays, meta, target)
+    print(f"wrote {target}: {chosen['learner']} seed {chosen['seed']}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="step", required=True)
@@ -276,6 +304,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     c.add_argument("--data", default=str(DATA))
     for p in (t, e, c):
         p.add_argument("--ray", nargs="?", const="local", metavar="ADDRESS")
+    h = sub.add_parser("ship", help="write the chosen policy as the shipped general policy")
+    h.add_argument("--runs", default=str(RUNS))
+    h.add_argument("--data", default=str(DATA))
     args = parser.parse_args(argv)
     if args.step == "train":
         learners = args.learners.split(",")
@@ -283,6 +314,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if unknown:
             parser.error(f"unknown learners {', '.join(unknown)}; valid: {', '.join(LEARNERS)}")
         return train(learners, args.seeds, Path(args.out), args.ray)
+    if args.step == "ship":
+        from agents import GENERAL_PPO
+
+        return ship(Path(args.runs), Path(args.data), GENERAL_PPO)
     if args.step == "select":
         return select(Path(args.runs), args.flights, Path(args.data), args.ray)
     return evaluate(Path(args.runs), args.episodes, args.first_seed, Path(args.data), args.ray)

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.atomic import check_output_set, write_text
+from aeromag_env.environment.ids import SUITE
 from aeromag_env.errors import HyperparameterError
 from agents.evaluate import TRAIN_SEEDS
 from agents.imitation import seed_stream
@@ -60,7 +61,7 @@ COMMON_KEYS = (
 CMAES_KEYS = ("popsize", "sigma0", "flights", "normalisation_flights")
 #: Sizes of a ``quick`` run (a test's): a few thousand steps, one validation flight per scenario.
 QUICK = {"timesteps": 2048, "n_envs": 2, "eval_every": 1024, "eval_episodes": 7, "prefetch": False}
-QUICK_CMAES = {"popsize": 4, "flights": 2, "normalisation_flights": 1}
+QUICK_CMAES = {"popsize": 3, "flights": 7, "normalisation_flights": 1}
 
 
 def learner_hyperparams(learner: str, path: Path = HYPERPARAMS) -> dict[str, Any]:
@@ -265,8 +266,9 @@ def _train_sb3(learner: str, hp: dict[str, Any], seed: int, curve: Curve) -> int
 
 def _train_cmaes(hp: dict[str, Any], seed: int, curve: Curve) -> int:
     """CMA-ES over ``(W, b)`` of ``a = tanh(W x̂ + b)``: each generation's candidates fly the
-    same ``flights`` training flights (one batched environment of popsize × flights, the
-    flights simulated once); a candidate's loss is minus its mean reward per step over them.
+    same ``flights`` training flights, as many of each scenario of the suite (one batched
+    environment of popsize × flights, the flights simulated once); a candidate's loss is minus
+    its mean reward per step over them.
     The normalisation of ``x̂`` is fixed first, from the zero rule's observations on
     ``normalisation_flights`` training flights (as ARS normalises, but frozen)."""
     import cma
@@ -275,6 +277,12 @@ def _train_cmaes(hp: dict[str, Any], seed: int, curve: Curve) -> int:
 
     algo = hp["algo"]
     pop, n_flights = int(algo["popsize"]), int(algo["flights"])
+    if n_flights < 1 or n_flights % len(SUITE):
+        raise HyperparameterError(
+            f"learners.cmaes.algo.flights must be a multiple of the suite's {len(SUITE)} "
+            f"scenarios, got {n_flights}"
+        )
+    scenarios = [SUITE[j % len(SUITE)] for j in range(n_flights)]
     env = AeroMagCompensationVecEnv(
         pop * n_flights,
         scenario=SCENARIO,
@@ -310,7 +318,7 @@ def _train_cmaes(hp: dict[str, Any], seed: int, curve: Curve) -> int:
     while steps < hp["timesteps"]:
         thetas = np.array(es.ask())
         flights = [next(seeds) for _ in range(n_flights)]
-        loss, used = _generation(env, thetas, flights, mean, scale, n_act, n_obs)
+        loss, used = _generation(env, thetas, flights, scenarios, mean, scale, n_act, n_obs)
         es.tell(list(thetas), list(loss))
         steps += used
         if steps >= next_eval or steps >= hp["timesteps"]:
@@ -346,17 +354,19 @@ def _generation(
     env: Any,
     thetas: np.ndarray,
     flights: list[int],
+    scenarios: list[str],
     mean: np.ndarray,
     scale: np.ndarray,
     n_act: int,
     n_obs: int,
 ) -> tuple[np.ndarray, int]:
     """Each candidate's loss (minus its mean over ``flights`` of the mean reward per step) and
-    the environment steps spent; environment ``c·F + j`` flies flight ``j`` for candidate ``c``."""
+    the environment steps spent; environment ``c·F + j`` flies flight ``j`` (of scenario
+    ``scenarios[j]``) for candidate ``c``."""
     pop, n_flights = len(thetas), len(flights)
     w = thetas[:, : n_act * n_obs].reshape(pop, n_act, n_obs)
     b = thetas[:, n_act * n_obs :]
-    obs, _ = env.reset(seed=flights * pop)
+    obs = _reset(env, flights, scenarios, np.ones(env.num_envs, bool))
     total = np.zeros(pop * n_flights)
     count = np.zeros(pop * n_flights)
     alive = np.ones(pop * n_flights, bool)
@@ -369,6 +379,20 @@ def _generation(
         ended = term | trunc
         alive &= ~ended
         if ended.any():  # fly the same (cached) flight again until every candidate is done
-            obs, _ = env.reset(seed=flights * pop, options={"reset_mask": ended})
+            obs = _reset(env, flights, scenarios, ended)
     per_flight = (total / np.maximum(count, 1)).reshape(pop, n_flights)
     return -per_flight.mean(axis=1), int(count.sum())
+
+
+def _reset(env: Any, flights: list[int], scenarios: list[str], mask: np.ndarray) -> np.ndarray:
+    """Reset the environments of ``mask``: environment ``i`` to flight ``flights[i % F]`` of
+    scenario ``scenarios[i % F]``; the observations of every environment."""
+    which = np.arange(env.num_envs) % len(flights)
+    seeds = [flights[i] for i in which]
+    obs = None
+    for scenario in dict.fromkeys(scenarios):
+        picked = mask & np.array([scenarios[i] == scenario for i in which])
+        if picked.any():
+            obs, _ = env.reset(seed=seeds, options={"reset_mask": picked, "scenario": scenario})
+    assert obs is not None
+    return obs

@@ -196,6 +196,7 @@ def learners_site(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[
     return out, generate(out, docs)
 
 
+@pytest.mark.slow  # the synthetic benchmark's bootstraps: about 10 s
 def test_the_learners_page_has_every_learner_and_scenario(
     learners_site: tuple[Path, dict[str, str]],
 ) -> None:
@@ -221,6 +222,7 @@ def test_the_learners_page_has_every_learner_and_scenario(
     assert f"{FLIGHTS} test flights per scenario (seeds {FIRST:,}–{FIRST + FLIGHTS - 1:,}" in page
 
 
+@pytest.mark.slow  # the synthetic benchmark's bootstraps: about 10 s
 def test_the_learners_bar_and_verdict(learners_site: tuple[Path, dict[str, str]]) -> None:
     _, pages = learners_site
     page = pages["learners.md"]
@@ -236,6 +238,7 @@ def test_the_learners_bar_and_verdict(learners_site: tuple[Path, dict[str, str]]
     assert agg["`recurrent_ppo`"][1] == "4"
 
 
+@pytest.mark.slow  # the synthetic benchmark's bootstraps: about 10 s
 def test_the_learners_curves_and_figures(learners_site: tuple[Path, dict[str, str]]) -> None:
     out, pages = learners_site
     rows = list(csv.DictReader(pages["learners_curves.csv"].splitlines()))

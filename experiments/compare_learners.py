@@ -224,8 +224,11 @@ def _validate(path: str, flights: int) -> dict[str, Any]:
 
 
 def select(runs: Path, flights: int, data: Path, ray: str | None) -> int:
+    # by its module's name, not __main__'s, so that a Ray worker can import it
+    from experiments.compare_learners import _validate as validate
+
     policies = _policies(runs)
-    tasks = [Task(key, _validate, (str(path), flights)) for key, path in policies.items()]
+    tasks = [Task(key, validate, (str(path), flights)) for key, path in policies.items()]
     with runner(ray) as r:
         outcomes = r.run(tasks)
     failed = [o for o in outcomes if not o.ok]

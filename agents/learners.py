@@ -215,7 +215,12 @@ def _training_env(hp: dict[str, Any], seed: int) -> Any:
     n = int(hp["n_envs"])
     streams = [seed_stream(rank, n, offset=1000 * seed) for rank in range(n)]
     venv = AeroMagSB3VecEnv(
-        n, scenario=SCENARIO, reset_seeds=streams, prefetch=hp["prefetch"], **hp["env_kwargs"]
+        n,
+        scenario=SCENARIO,
+        reset_seeds=streams,
+        prefetch=hp["prefetch"],
+        step_infos="episode_end",  # SB3's learners read infos at episode ends only
+        **hp["env_kwargs"],
     )
     gamma = float(hp["algo"].get("gamma", 0.99))
     return VecNormalize(

@@ -105,6 +105,7 @@ def make_training_env(scenario: str, hp: PPOHyperparams, seed: int) -> Any:
             scenario=scenario,
             reset_seeds=streams,
             prefetch=hp.prefetch,
+            step_infos="episode_end",  # PPO reads infos at episode ends only
             **hp.env_kwargs,
         )
     else:

@@ -211,16 +211,27 @@ class AeroMagCompensationVecEnv(VectorEnv):
         return obs, rewards, terminated, truncated, infos
 
     def step_rows(
-        self, actions: np.ndarray
+        self, actions: np.ndarray, every: bool = True
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         """:meth:`step` with every environment's info as its own dict (the single env's info),
         for adapters that want one dict per environment (stable-baselines3): building them
-        straight from the outcome rows skips the batched layout. Autoreset must be disabled."""
+        straight from the outcome rows skips the batched layout. With ``every=False`` only the
+        environments whose episode ended get their info, the others an empty dict (a trainer
+        that reads infos only at episode ends: PPO, SAC). Autoreset must be disabled."""
         if self.autoreset_mode != AutoresetMode.DISABLED:
             raise ValueError("step_rows needs autoreset_mode=AutoresetMode.DISABLED")
         active = self._restart_ended({})
         rewards, terminated, truncated = self._advance(actions, active)
-        rows = info_rows(self._out, self._need_filters().ints, self.flight_seeds)
+        ints = self._need_filters().ints
+        if every:
+            rows = info_rows(self._out, ints, self.flight_seeds)
+        else:
+            rows = [{} for _ in range(self.num_envs)]
+            if self._ended.any():
+                ended = np.flatnonzero(self._ended)
+                ended_rows = info_rows(self._out[ended], ints[ended], self.flight_seeds[ended])
+                for i, row in zip(ended.tolist(), ended_rows, strict=True):
+                    rows[i] = row
         return self._obs.copy(), rewards, terminated, truncated, rows
 
     def _advance(

@@ -18,12 +18,16 @@ def _hp(kind, **kw):
     return replace(base, vec_env=kind, **kw)
 
 
-def test_training_env_rollouts_equal_dummy_vec_env():
+@pytest.mark.parametrize("step_infos", ["every", "episode_end"])
+def test_training_env_rollouts_equal_dummy_vec_env(step_infos):
     """Same training seeds, same actions → the same normalised observations, rewards, dones and
-    infos (terminal observations, truncation flags) as DummyVecEnv over single envs."""
+    infos (terminal observations, truncation flags) as DummyVecEnv over single envs; with
+    ``episode_end`` (training's) the infos of the environments that ended, empty dicts else."""
     ours = make_training_env("nonstationary", _hp("batched"), seed=0)
-    dummy = make_training_env("nonstationary", _hp("dummy"), seed=0)
     assert isinstance(ours.venv, AeroMagSB3VecEnv)
+    assert not ours.venv._every_info  # training builds infos at episode ends only
+    ours.venv._every_info = step_infos == "every"
+    dummy = make_training_env("nonstationary", _hp("dummy"), seed=0)
     np.testing.assert_array_equal(ours.reset(), dummy.reset())
     assert ours.venv.reset_infos == dummy.venv.reset_infos
     rng = np.random.default_rng(1)
@@ -34,12 +38,20 @@ def test_training_env_rollouts_equal_dummy_vec_env():
         np.testing.assert_array_equal(o1, o2)
         np.testing.assert_array_equal(r1, r2)
         np.testing.assert_array_equal(d1, d2)
-        for a, b in zip(i1, i2, strict=True):
+        for a, b, done in zip(i1, i2, d1, strict=True):
+            if step_infos == "episode_end" and not done:
+                assert a == {}
+                continue
             assert a.keys() == b.keys()
             for key in a:
                 np.testing.assert_array_equal(a[key], b[key], err_msg=key)
         ends += int(d1.any())
     assert ends == 2 and ours.venv.reset_infos == dummy.venv.reset_infos
+
+
+def test_step_infos_other_than_the_two_is_refused():
+    with pytest.raises(ValueError, match="step_infos must be one of"):
+        AeroMagSB3VecEnv(1, duration_s=5.0, step_infos="never")
 
 
 def test_tiny_ppo_trains_identically_with_either_vectorisation():

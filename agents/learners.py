@@ -86,7 +86,7 @@ def learner_hyperparams(learner: str, path: Path = HYPERPARAMS) -> dict[str, Any
     if missing:
         raise HyperparameterError(f"{path}: learners.{learner}: missing {', '.join(missing)}")
     algo = hp.setdefault("algo", {})
-    valid = CMAES_KEYS if learner == "cmaes" else list(constructor_defaults(learner))
+    valid = CMAES_KEYS if learner == "cmaes" else list(constructor_parameters(learner))
     bad = sorted(set(algo) - set(valid))
     if bad:
         raise HyperparameterError(f"{path}: learners.{learner}.algo: unknown keys {', '.join(bad)}")
@@ -110,12 +110,12 @@ def _algorithm(learner: str) -> Any:
     raise HyperparameterError(f"unknown learner {learner!r}; valid: {', '.join(LEARNERS)}")
 
 
-def constructor_defaults(learner: str) -> dict[str, Any]:
-    """The constructor parameters of ``learner``'s algorithm that a learner's ``algo`` may set,
-    each with its default (:data:`inspect.Parameter.empty` when it has none)."""
+def constructor_parameters(learner: str) -> dict[str, inspect.Parameter]:
+    """The constructor parameters of ``learner``'s algorithm that a learner's ``algo`` may set
+    (with their annotations and defaults)."""
     fixed = {"self", "policy", "env", "policy_kwargs", "verbose", "seed", "device"}
     params = inspect.signature(_algorithm(learner).__init__).parameters
-    return {k: p.default for k, p in params.items() if k not in fixed and not k.startswith("_")}
+    return {k: p for k, p in params.items() if k not in fixed and not k.startswith("_")}
 
 
 def algorithm_name(learner: str) -> str:

@@ -1,6 +1,6 @@
-"""``aeromag tune --learner`` (:mod:`agents.tune_learners`, :func:`agents.tune_space.
-read_learner_space`): bad learners' spaces, ``cmaes`` and refused output sets get one line before
-any Ray starts (default suite); a quick search on the session's Ray writes a learners file that
+"""``aeromag tune --learner`` (:mod:`agents.tune_learners`, the learners' spaces of
+:mod:`agents.tune_space`): bad spaces, ``cmaes`` and refused output sets get one line before any
+Ray starts (default suite); a quick search on the session's Ray writes a learners file that
 training reads, holding the best trial's sample (``-m ray``)."""
 
 from __future__ import annotations

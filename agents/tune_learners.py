@@ -16,7 +16,8 @@ untrained policy's, alike for every trial). The search is seeded (the same ``--s
 same samples).
 
 The outputs, written as a set: ``learners.json``, the base learners file with the learner's
-``algo`` updated by the best trial's values (the lowest score any trial reported) and its
+``algo`` updated by the best trial's values (the lowest score any trial reported for a
+trained policy: the step-0 point, alike in every trial, ranks none) and its
 ``comment`` saying so, ready for ``aeromag train --learner L --hyperparams``; and
 ``tune.json``, every trial. Ray is imported by :mod:`agents.tune` only (extra ray).
 """
@@ -201,11 +202,12 @@ def run_learner_trial(config: dict[str, Any], job: LearnerTuneJob) -> None:
     def report(point: dict[str, Any]) -> None:
         nonlocal best
         score = selection_score(point)
-        best = min(best, score)
+        if point["timesteps"] > 0:  # step 0 is the untrained policy, alike in every trial
+            best = min(best, score)
         tune.report(
             {
                 METRIC: score,
-                "best_validation_score": best,
+                "best_validation_score": best if best < math.inf else None,  # none trained yet
                 "validation_rmse_nt": point["validation_rmse_nt"],
                 "timesteps": point["timesteps"],
             }

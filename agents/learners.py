@@ -86,7 +86,7 @@ def learner_hyperparams(learner: str, path: Path = HYPERPARAMS) -> dict[str, Any
     if missing:
         raise HyperparameterError(f"{path}: learners.{learner}: missing {', '.join(missing)}")
     algo = hp.setdefault("algo", {})
-    valid = CMAES_KEYS if learner == "cmaes" else _constructor_keys(learner)
+    valid = CMAES_KEYS if learner == "cmaes" else list(constructor_parameters(learner))
     bad = sorted(set(algo) - set(valid))
     if bad:
         raise HyperparameterError(f"{path}: learners.{learner}.algo: unknown keys {', '.join(bad)}")
@@ -110,10 +110,17 @@ def _algorithm(learner: str) -> Any:
     raise HyperparameterError(f"unknown learner {learner!r}; valid: {', '.join(LEARNERS)}")
 
 
-def _constructor_keys(learner: str) -> list[str]:
+def constructor_parameters(learner: str) -> dict[str, inspect.Parameter]:
+    """The constructor parameters of ``learner``'s algorithm that a learner's ``algo`` may set
+    (with their annotations and defaults)."""
     fixed = {"self", "policy", "env", "policy_kwargs", "verbose", "seed", "device"}
     params = inspect.signature(_algorithm(learner).__init__).parameters
-    return [k for k in params if k not in fixed and not k.startswith("_")]
+    return {k: p for k, p in params.items() if k not in fixed and not k.startswith("_")}
+
+
+def algorithm_name(learner: str) -> str:
+    """The class name of ``learner``'s algorithm (``SAC``, ``TQC``, ``RecurrentPPO``)."""
+    return str(_algorithm(learner).__name__)
 
 
 def train_learner(
@@ -137,6 +144,20 @@ def train_learner(
     if learner not in LEARNERS:
         raise HyperparameterError(f"unknown learner {learner!r}; valid: {', '.join(LEARNERS)}")
     check_output_set(out, OUTPUTS, [hyperparams])
+    hp = learner_settings(learner, hyperparams, quick=quick, timesteps=timesteps)
+    return run_learner(learner, hp, seed, out)
+
+
+def learner_settings(
+    learner: str,
+    hyperparams: Path = HYPERPARAMS,
+    *,
+    quick: bool = False,
+    timesteps: int | None = None,
+) -> dict[str, Any]:
+    """What :func:`train_learner` trains ``learner`` with: its entry of ``hyperparams``
+    (:func:`learner_hyperparams`), with :data:`QUICK`'s sizes for ``quick`` and ``timesteps``
+    (when given) for the entry's."""
     hp = learner_hyperparams(learner, hyperparams)
     if quick:
         hp.update(QUICK)
@@ -144,10 +165,23 @@ def train_learner(
             hp["algo"] = {**hp["algo"], **QUICK_CMAES}
     if timesteps is not None:
         hp["timesteps"] = int(timesteps)
+    return hp
+
+
+def run_learner(
+    learner: str,
+    hp: dict[str, Any],
+    seed: int,
+    out: Path,
+    on_validation: Callable[[dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
+    """Train ``learner`` (not ``ppo``) with the settings ``hp`` (of :func:`learner_settings`)
+    into ``out`` and write ``training.json``; ``on_validation(point)`` is called after each
+    validation point of the curve (:class:`Curve`). Returns the summary."""
     out.mkdir(parents=True, exist_ok=True)
     from agents.ppo import training_torch
 
-    curve = Curve(out, learner, seed, hp)
+    curve = Curve(out, learner, seed, hp, on_validation)
     t0 = time.perf_counter()
     with training_torch():
         if learner == "cmaes":
@@ -169,12 +203,27 @@ def train_learner(
     return summary
 
 
+def selection_score(point: dict[str, Any]) -> float:
+    """The score a validation point is selected by (lower is better): ``validation_score``
+    (the entry's ``select_by``) when there is one, else the mean validation RMSE [nT]."""
+    return float(point.get("validation_score", point["validation_rmse_nt"]))
+
+
 class Curve:
     """Validation points of one run (environment steps, wall-clock seconds, the validator's
-    scores) and the best candidate so far kept as ``policy.npz``."""
+    scores) and the best candidate so far kept as ``policy.npz``; ``on_validation(point)``, when
+    given, is called with each point once it is recorded (``aeromag tune`` reports it)."""
 
-    def __init__(self, out: Path, learner: str, seed: int, hp: dict[str, Any]) -> None:
+    def __init__(
+        self,
+        out: Path,
+        learner: str,
+        seed: int,
+        hp: dict[str, Any],
+        on_validation: Callable[[dict[str, Any]], None] | None = None,
+    ) -> None:
         self.out, self.learner, self.seed, self.hp = out, learner, seed, hp
+        self.on_validation = on_validation
         self.validator = Validator(hp["select_by"], SCENARIO, hp["eval_episodes"])
         self.points: list[dict[str, Any]] = []
         self.best, self.best_rmse = float("inf"), float("inf")
@@ -199,10 +248,12 @@ class Curve:
         point["seconds"] = time.perf_counter() - self.t0
         point["train_seconds"] = point["seconds"] - self.validation_seconds
         self.points.append(point)
-        score = point.get("validation_score", point["validation_rmse_nt"])
+        score = selection_score(point)
         if score < self.best:
             self.best, self.best_rmse = score, point["validation_rmse_nt"]
             candidate.replace(self.out / "policy.npz")
+        if self.on_validation is not None:
+            self.on_validation(point)
 
 
 def _training_env(hp: dict[str, Any], seed: int) -> Any:

@@ -14,7 +14,9 @@ The outputs, written as a set: ``ppo.json``, a hyperparameter file (the schema o
 ``agents/hyperparams/ppo.json``, validated after writing) whose entry for the scenario is the base
 entry with the tuned keys of the best trial (lowest validation RMSE reported), ready for
 ``aeromag train --hyperparams``; and ``tune.json``, every trial (its configuration, last and
-best validation RMSE, reports, whether ASHA stopped it). Ray is imported here only (extra ray).
+best validation RMSE, reports, whether ASHA stopped it). The search machinery (:func:`ray_session`,
+:func:`run_search`, :func:`best_trial`, :func:`write_outputs`) serves the other learners' search
+too (:mod:`agents.tune_learners`). Ray is imported here and there only (extra ray).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import logging
 import math
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -117,9 +119,19 @@ def tune_ppo(
     job = _job(scenario, hyperparams, seed, timesteps, quick)
     t0 = time.perf_counter()
     with ray_session(ray_address) as ray:
-        trials = _search(job, space, samples)
+        trials = run_search(
+            run_trial,
+            job,
+            space,
+            samples=samples,
+            seed=seed,
+            metric=METRIC,
+            max_t=job.reports,
+            grace=GRACE,
+            record=lambda result: _record(result, list(space), job),
+        )
         cpus = int(ray.cluster_resources().get("CPU", 1))
-    best = _best(trials)
+    best = best_trial(trials, "best_validation_rmse_nt")
     summary = {
         "scenario": scenario,
         "samples": samples,
@@ -138,7 +150,8 @@ def tune_ppo(
         "trials": trials,
     }
     entry = {**read_hyperparams(hyperparams)["scenarios"][scenario], **best["config"]}
-    _write(out, [space_path, hyperparams], _tuned_table(entry, summary), summary)
+    table = _tuned_table(entry, summary)
+    write_outputs(out, OUTPUTS, [space_path, hyperparams], table, read_hyperparams, summary)
     return summary
 
 
@@ -183,18 +196,32 @@ def ray_session(address: str | None) -> Iterator[Any]:
             ray.shutdown()
 
 
-def _search(job: TuneJob, space: dict[str, Any], samples: int) -> list[dict[str, Any]]:
-    """Run the trials on Ray Tune; one record per trial, in the order they were drawn."""
+def run_search(
+    trial: Callable[[dict[str, Any], Any], None],
+    job: Any,
+    space: dict[str, Any],
+    *,
+    samples: int,
+    seed: int,
+    metric: str,
+    max_t: int,
+    grace: int,
+    record: Callable[[Any], dict[str, Any]],
+) -> list[dict[str, Any]]:
+    """Run ``samples`` trials ``trial(config, job)`` on Ray Tune, each on one CPU, ``config``
+    drawn from ``space`` (:func:`agents.tune_space.tune_domains`; seeded by ``seed``), ``metric``
+    minimised, ASHA counting reports (first rung after ``grace``, at most ``max_t``); one
+    ``record(result)`` per trial, in the order they were drawn."""
     from ray import tune
     from ray.tune.schedulers import ASHAScheduler
     from ray.tune.search.basic_variant import BasicVariantGenerator
 
-    trainable = tune.with_resources(tune.with_parameters(run_trial, job=job), {"cpu": 1})
-    scheduler = ASHAScheduler(max_t=job.reports, grace_period=GRACE, reduction_factor=REDUCTION)
+    trainable = tune.with_resources(tune.with_parameters(trial, job=job), {"cpu": 1})
+    scheduler = ASHAScheduler(max_t=max_t, grace_period=grace, reduction_factor=REDUCTION)
     with tempfile.TemporaryDirectory(prefix="aeromag-tune-") as storage:
-        search = BasicVariantGenerator(random_state=job.seed)
+        search = BasicVariantGenerator(random_state=seed)
         config = tune.TuneConfig(
-            metric=METRIC, mode="min", num_samples=samples, scheduler=scheduler, search_alg=search
+            metric=metric, mode="min", num_samples=samples, scheduler=scheduler, search_alg=search
         )
         run = tune.RunConfig(name="aeromag-tune", storage_path=storage, verbose=0)
         tuner = tune.Tuner(
@@ -202,36 +229,47 @@ def _search(job: TuneJob, space: dict[str, Any], samples: int) -> list[dict[str,
         )
         with contextlib.redirect_stdout(io.StringIO()):  # Tune's banner prints even at verbose 0
             grid = tuner.fit()
-        return [_record(grid[i], list(space), job) for i in range(len(grid))]
+        return [record(grid[i]) for i in range(len(grid))]  # the error files are in storage
+
+
+def trial_fields(result: Any, keys: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """A trial's first fields of ``tune.json`` (its id, the sampled ``keys``, its reports and
+    its error as one line, or None) and its last reported metrics."""
+    metrics = result.metrics or {}
+    error = None if result.error is None else one_line(result.error)
+    fields = {
+        "trial": metrics.get("trial_id", Path(result.path).name),
+        "config": plain({k: result.config[k] for k in keys}),
+        "reports": int(metrics.get("training_iteration", 0)),
+        "error": error,
+    }
+    return fields, metrics
 
 
 def _record(result: Any, keys: list[str], job: TuneJob) -> dict[str, Any]:
     """A trial's line of ``tune.json``."""
-    metrics = result.metrics or {}
-    reports = int(metrics.get("training_iteration", 0))
-    error = None if result.error is None else one_line(result.error)
+    fields, metrics = trial_fields(result, keys)
+    error = fields.pop("error")
     return {
-        "trial": metrics.get("trial_id", Path(result.path).name),
-        "config": plain({k: result.config[k] for k in keys}),
-        "reports": reports,
+        **fields,
         "timesteps": int(metrics.get("timesteps", 0)),
         "last_validation_rmse_nt": metrics.get(METRIC),  # None: no validation (an error)
         "best_validation_rmse_nt": metrics.get("best_validation_rmse_nt"),
         "validation_seeds": metrics.get("validation_seeds"),
-        "stopped_by_asha": error is None and reports < job.reports,
+        "stopped_by_asha": error is None and fields["reports"] < job.reports,
         "error": error,
     }
 
 
-def _best(trials: list[dict[str, Any]]) -> dict[str, Any]:
-    """The trial with the lowest validation RMSE it reported."""
-    done = [t for t in trials if t["best_validation_rmse_nt"] is not None]
+def best_trial(trials: list[dict[str, Any]], key: str) -> dict[str, Any]:
+    """The trial with the lowest ``key`` (the best score it reported)."""
+    done = [t for t in trials if t[key] is not None]
     if not done:
         errors = [t["error"] for t in trials if t["error"]]
         raise AeromagError(
             "no trial of aeromag tune finished a validation" + (f": {errors[0]}" if errors else "")
         )
-    return min(done, key=lambda t: t["best_validation_rmse_nt"])
+    return min(done, key=lambda t: t[key])
 
 
 def run_trial(config: dict[str, Any], job: TuneJob) -> None:
@@ -300,10 +338,17 @@ def _tuned_table(entry: dict[str, Any], summary: dict[str, Any]) -> dict[str, An
     return {"version": version, "comment": comment, "scenarios": {summary["scenario"]: entry}}
 
 
-def _write(out: Path, inputs: list[Path], table: dict[str, Any], summary: dict[str, Any]) -> None:
-    """``ppo.json`` (checked as ``aeromag train --hyperparams`` will read it) and ``tune.json``,
-    as a set."""
-    with output_set(out, OUTPUTS, inputs) as stage:
-        write_text(stage / "ppo.json", json.dumps(table, indent=2) + "\n")
-        read_hyperparams(stage / "ppo.json")
-        write_text(stage / "tune.json", json.dumps(summary, indent=2) + "\n")
+def write_outputs(
+    out: Path,
+    outputs: tuple[str, str],
+    inputs: list[Path],
+    table: dict[str, Any],
+    check: Callable[[Path], Any],
+    summary: dict[str, Any],
+) -> None:
+    """The hyperparameter file ``outputs[0]`` (``table``, read back with ``check`` as training
+    will read it) and ``outputs[1]`` (``summary``), as a set."""
+    with output_set(out, outputs, inputs) as stage:
+        write_text(stage / outputs[0], json.dumps(table, indent=2) + "\n")
+        check(stage / outputs[0])
+        write_text(stage / outputs[1], json.dumps(summary, indent=2) + "\n")

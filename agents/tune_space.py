@@ -16,12 +16,22 @@ cannot say: which fields each distribution needs, ``low < high``, ``loguniform``
 that every bound and value is one the hyperparameter file accepts for that key (its range in
 ``ppo.schema.json``), so no trial is sampled that training would refuse. Every problem is a
 one-line :class:`~aeromag_env.errors.HyperparameterError` naming the file and the field.
-Ray is imported by :func:`tune_domains` only.
+
+The learners' file (``agents/hyperparams/tune_space_learners.json``, :func:`read_learner_space`)
+holds one such space per learner of ``aeromag tune --learner`` under ``learners``, its keys
+constructor parameters of the learner's algorithm (a learner's ``algo`` in
+``agents/hyperparams/learners.json``). The same distribution checks apply, with the kind and the
+valid values of a key taken from the constructor's annotation (``int``, ``float``, ``str``,
+``bool``, ``None``); there is no range to check them against. Ray is imported by
+:func:`tune_domains` only.
 """
 
 from __future__ import annotations
 
 import json
+import types
+import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +40,9 @@ from agents.hyperparams_file import SCHEMA, read_checked, value_problem
 
 SPACE = Path(__file__).with_name("hyperparams") / "tune_space.json"
 SPACE_SCHEMA = SPACE.with_name("tune_space.schema.json")
+#: The learners' search spaces (``aeromag tune --learner``) and their schema.
+LEARNER_SPACES = SPACE.with_name("tune_space_learners.json")
+LEARNER_SPACES_SCHEMA = SPACE.with_name("tune_space_learners.schema.json")
 #: The fields of each distribution (besides ``distribution``).
 FIELDS = {
     "uniform": ("low", "high"),
@@ -55,7 +68,7 @@ def read_space(path: str | Path = SPACE) -> dict[str, dict[str, Any]]:
     space = read_checked(path, SPACE_SCHEMA, "search space")["space"]
     kinds = _kinds()
     for key, dim in space.items():
-        problem = _dimension_problem(key, dim, kinds[key])
+        problem = dimension_problem(key, dim, kinds[key], value_problem)
         if problem is not None:
             raise HyperparameterError(f"bad search space in {path}: space.{key}: {problem}")
     return space
@@ -71,8 +84,77 @@ def _kinds() -> dict[str, str]:
     return kinds
 
 
-def _dimension_problem(key: str, dim: dict[str, Any], kind: str) -> str | None:
-    """What is wrong with the distribution ``dim`` of ``key`` (of ``kind``), or None."""
+def read_learner_space(learner: str, path: str | Path = LEARNER_SPACES) -> dict[str, Any]:
+    """The search space of ``learner`` in the learners' file ``path``, validated (every
+    learner's space in it, so that a bad file is refused whichever learner is asked for).
+
+    Returns
+    -------
+    dict
+        ``{key: distribution}`` as :func:`read_space`'s, each key a constructor parameter of
+        the learner's algorithm.
+
+    Raises
+    ------
+    HyperparameterError
+        One line: ``bad search space in PATH: learners.LEARNER.KEY: problem``.
+    """
+    from agents.learners import algorithm_name, constructor_parameters
+
+    spaces = read_checked(path, LEARNER_SPACES_SCHEMA, "search space")["learners"]
+    for name, space in spaces.items():
+        params = constructor_parameters(name)
+        for key, dim in space.items():
+            where = f"bad search space in {path}: learners.{name}.{key}"
+            if key not in params:
+                raise HyperparameterError(
+                    f"{where}: not a constructor parameter of {algorithm_name(name)}; valid: "
+                    f"{', '.join(params)}"
+                )
+            members = _json_types(params[key].annotation)
+            problem = dimension_problem(key, dim, _kind(members), _annotation_check(members))
+            if problem is not None:
+                raise HyperparameterError(f"{where}: {problem}")
+    if learner not in spaces:
+        raise HyperparameterError(
+            f"bad search space in {path}: learners: no space for {learner}; it has "
+            f"{', '.join(spaces)}"
+        )
+    return dict(spaces[learner])
+
+
+def _json_types(annotation: Any) -> tuple[type, ...]:
+    """The members of a constructor annotation that a JSON value can be (``int``, ``float``,
+    ``str``, ``bool``, ``None``): ``float | Callable`` gives ``(float,)``."""
+    union = typing.get_origin(annotation) in (typing.Union, types.UnionType)
+    members = typing.get_args(annotation) if union else (annotation,)
+    return tuple(m for m in members if m in (int, float, str, bool, type(None)))
+
+
+def _kind(members: tuple[type, ...]) -> str:
+    """The kind of a constructor parameter of annotation ``members``: integer, number or other."""
+    return "integer" if int in members else "number" if float in members else ""
+
+
+def _annotation_check(members: tuple[type, ...]) -> Callable[[str, Any], str | None]:
+    """What is wrong with a value of a constructor parameter of annotation ``members``."""
+
+    def problem(key: str, value: Any) -> str | None:
+        if not members:  # a dict, a class, a callable: nothing a JSON value is checked against
+            return None
+        if type(value) in members or (float in members and type(value) is int):
+            return None
+        names = " or ".join("None" if m is type(None) else m.__name__ for m in members)
+        return f"the constructor takes {names}"
+
+    return problem
+
+
+def dimension_problem(
+    key: str, dim: dict[str, Any], kind: str, value_problem: Callable[[str, Any], str | None]
+) -> str | None:
+    """What is wrong with the distribution ``dim`` of ``key`` (of ``kind``: integer, number or
+    other), its bounds or values checked by ``value_problem(key, value)``; or None."""
     name = dim["distribution"]
     given = set(dim) - {"distribution"}
     if given != set(FIELDS[name]):

@@ -374,7 +374,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_tune(args: argparse.Namespace) -> int:
-    """``aeromag tune``: search PPO hyperparameters with Ray Tune (:mod:`aeromag_env.cli.tune`).
+    """``aeromag tune``: search a learner's hyperparameters with Ray Tune
+    (:mod:`aeromag_env.cli.tune`).
 
     Parameters
     ----------

@@ -351,23 +351,45 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
 def _add_tune(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "tune",
-        help="search PPO hyperparameters with Ray Tune (needs the rl and ray extras)",
-        description="Random search over PPO hyperparameters (the --space file) with Ray Tune "
-        "and ASHA early stopping: each trial trains PPO on the scenario, validates on the "
+        help="search a learner's hyperparameters with Ray Tune (needs the rl and ray extras)",
+        description="Random search over a learner's hyperparameters (the --space file) with Ray "
+        "Tune and ASHA early stopping: each trial trains the learner, validates on the "
         "validation seeds [50000, 100000) only, and ASHA stops the trials that validate badly. "
-        "Writes --out/ppo.json (the hyperparameter file with the best trial's values, for "
-        "aeromag train --hyperparams) and --out/tune.json (every trial). Always runs on Ray: "
-        "on this machine's cores, or on a cluster with --ray ADDRESS.",
+        "PPO (the default) trains on --scenario and writes --out/ppo.json (the hyperparameter "
+        "file with the best trial's values, for aeromag train --hyperparams); --learner sac, "
+        "tqc or recurrent_ppo trains on the suite and writes --out/learners.json (for aeromag "
+        "train --learner L --hyperparams). Both write --out/tune.json (every trial). Always "
+        "runs on Ray: on this machine's cores, or on a cluster with --ray ADDRESS.",
     )
-    p.add_argument("--scenario", default="nonstationary", help="scenario (default nonstationary)")
-    p.add_argument("--space", help="search space file (default agents/hyperparams/tune_space.json)")
+    p.add_argument(
+        "--learner",
+        default="ppo",
+        choices=LEARNERS,
+        help="ppo (default), recurrent_ppo, sac or tqc (cmaes is not searched); all but ppo "
+        "train the general tuner on the suite",
+    )
+    p.add_argument(
+        "--scenario", help="scenario (default nonstationary; the other learners: suite only)"
+    )
+    p.add_argument(
+        "--space",
+        help="search space file (default agents/hyperparams/tune_space.json; other learners: "
+        "tune_space_learners.json)",
+    )
     p.add_argument("--samples", type=int, help="trials (configurations; 16, --quick: 2)")
-    p.add_argument("--timesteps", type=int, help="environment steps per trial (5e5; --quick: 1024)")
+    p.add_argument(
+        "--timesteps",
+        type=int,
+        help="environment steps per trial (5e5, other learners: their learners.json timesteps; "
+        "--quick: 1024, other learners 2048)",
+    )
     p.add_argument("--seed", type=int, default=0, help="sampling and training seed (default 0)")
     p.add_argument("--out", default="results/tune", help="output folder (default results/tune)")
     p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
     p.add_argument(
-        "--hyperparams", help="base hyperparameter file (default agents/hyperparams/ppo.json)"
+        "--hyperparams",
+        help="base hyperparameter file (default agents/hyperparams/ppo.json; other learners: "
+        "learners.json)",
     )
     _add_ray_option(p)
     p.set_defaults(func=cmd_tune)

@@ -13,7 +13,15 @@ from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 from aeromag_env.errors import AeromagError, HyperparameterError
 from agents import make_policy
 from agents.evaluate import run_episode
-from agents.learners import HYPERPARAMS, LEARNERS, learner_hyperparams, train_learner
+from agents.learners import (
+    HYPERPARAMS,
+    LEARNERS,
+    learner_hyperparams,
+    learner_settings,
+    run_learner,
+    selection_score,
+    train_learner,
+)
 from agents.numpy_policy import NumpyPolicy
 from agents.policy_file import export_actor, write_policy
 
@@ -213,6 +221,24 @@ def test_a_quick_training_run_writes_a_policy_and_a_learning_curve(tmp_path, lea
     env = gym.make("AeroMagCompensation-v0", scenario="paper", preset="general")
     policy = make_policy(f"ppo:{tmp_path / 'policy.npz'}", env)
     assert np.isfinite(run_episode(env, policy, 100_000)["rmse_nt"])
+
+
+def test_the_validation_hook_sees_every_point_of_the_curve_with_its_score(tmp_path):
+    """``aeromag tune`` reports through ``on_validation``: once per validation point (at 0, 32
+    and 64 steps), each the point the curve keeps, whose score selects the kept policy. A tiny
+    run (64 steps of one environment, one validation flight scored against the privileged
+    policy's: a score that is not the RMSE) so that it stays in the default suite."""
+    hp = learner_settings("sac", quick=True, timesteps=64)
+    hp.update(n_envs=1, eval_every=32, eval_episodes=1, select_by="ratio_to_privileged")
+    seen: list[dict] = []
+    summary = run_learner("sac", hp, 0, tmp_path, on_validation=lambda p: seen.append(dict(p)))
+    assert [p["timesteps"] for p in seen] == [0, 32, 64]
+    assert seen == summary["curve"]
+    scores = [selection_score(p) for p in seen]
+    assert (
+        scores == [p["validation_score"] for p in seen] != [p["validation_rmse_nt"] for p in seen]
+    )
+    assert summary["best_validation_score"] == min(scores)
 
 
 def test_the_command_line_names_the_same_learners():

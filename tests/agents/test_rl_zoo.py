@@ -87,12 +87,15 @@ def test_rl_zoo3_trains_on_a_registered_id(tmp_path: Path) -> None:
 
 
 def test_the_learners_zoo_files_are_made_from_learners_json(tmp_path: Path) -> None:
+    from agents.learners import learner_hyperparams
     from agents.zoo import ZOO_ALGOS, write_learner_zoo_files
 
     fresh = write_learner_zoo_files(HYPERPARAMS / "learners.json", tmp_path)
     assert [p.name for p in fresh] == [f"{a}.yml" for a in ZOO_ALGOS.values()]
-    for path in fresh:
+    for learner, path in zip(ZOO_ALGOS, fresh, strict=True):
         shipped = yaml.safe_load((HYPERPARAMS / path.name).read_text(encoding="utf-8"))
         assert shipped == yaml.safe_load(path.read_text()), "run `python -m agents.zoo`"
         (entry,) = shipped.values()
-        assert entry["gamma"] == 0.7 and entry["env_kwargs"] == {"preset": "general"}
+        hp = learner_hyperparams(learner)
+        assert entry["gamma"] == hp["algo"]["gamma"] and entry["n_envs"] == hp["n_envs"]
+        assert entry["env_kwargs"] == {"preset": "general"}

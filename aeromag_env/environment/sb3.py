@@ -118,11 +118,11 @@ class AeroMagSB3VecEnv(VecEnv):
             self._actions, self._every_info
         )
         dones = terminated | truncated
+        ended = np.flatnonzero(dones).tolist()
         limits = (truncated & ~terminated).tolist()
-        for i in range(self.num_envs) if self._every_info else np.flatnonzero(dones).tolist():
+        for i in range(self.num_envs) if self._every_info else ended:
             info_list[i]["TimeLimit.truncated"] = limits[i]
-        if dones.any():
-            ended = np.flatnonzero(dones).tolist()
+        if ended:
             for i in ended:
                 info_list[i]["terminal_observation"] = obs[i].copy()
             seeds = self._next_seeds([None] * self.num_envs, dones)

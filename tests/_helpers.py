@@ -55,3 +55,14 @@ def run_experiment(name: str, *argv: str) -> int:
         except SystemExit as e:
             return e.code if isinstance(e.code, int) else 0 if e.code is None else 1
     return 0
+
+
+def run_cli(argv: list[str]) -> int:
+    """``aeromag ARGV`` in this process: its exit status (argparse's errors exit through
+    ``SystemExit``)."""
+    from aeromag_env.cli.main import main
+
+    try:
+        return main(argv)
+    except SystemExit as e:
+        return int(e.code or 0)

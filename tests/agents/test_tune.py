@@ -11,7 +11,6 @@ from pathlib import Path
 
 import pytest
 
-from aeromag_env.cli.main import main
 from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.evaluate import TEST_SEED_START, VALIDATION_SEEDS
 from agents.hyperparams_file import read_hyperparams
@@ -20,6 +19,7 @@ from agents.ppo_hyperparams import PPOHyperparams
 from agents.tune import OUTPUTS, ray_session
 from agents.tune_space import SPACE, read_space
 from agents.validation import validation_seeds
+from tests._helpers import run_cli
 
 #: A small space of the three kinds of distribution (the shipped one has six keys).
 SMALL = {
@@ -33,13 +33,6 @@ def _space(tmp_path: Path, space: object, name: str = "space.json") -> Path:
     path = tmp_path / name
     path.write_text(json.dumps({"version": 1, "space": space}))
     return path
-
-
-def _cli(argv: list[str]) -> int:
-    try:
-        return main(argv)
-    except SystemExit as e:  # argparse errors exit through SystemExit
-        return int(e.code or 0)
 
 
 def test_shipped_space_reads_and_tunes_keys_of_the_hyperparameter_file() -> None:
@@ -77,7 +70,7 @@ def test_bad_space_is_one_line_naming_the_field(tmp_path, space, message) -> Non
 def test_bad_space_on_the_command_line_exits_2_before_ray(tmp_path, capsys) -> None:
     path = _space(tmp_path, {"gamma": {"distribution": "uniform", "low": 0.9, "high": 0.6}})
     out = tmp_path / "out"
-    assert _cli(["tune", "--space", str(path), "--quick", "--out", str(out)]) == 2
+    assert run_cli(["tune", "--space", str(path), "--quick", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "needs low < high" in err and err.count("\n") == 1
     assert not out.exists()
@@ -93,7 +86,7 @@ def test_output_set_refused_when_a_target_is_an_input(tmp_path, capsys, option) 
     target = out / ("ppo.json" if option == "--hyperparams" else "tune.json")
     target.write_bytes(source.read_bytes())
     before = target.read_bytes()
-    assert _cli(["tune", option, str(target), "--quick", "--out", str(out)]) == 2
+    assert run_cli(["tune", option, str(target), "--quick", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "is the input file" in err and err.count("\n") == 1
     assert target.read_bytes() == before and sorted(p.name for p in out.iterdir()) == [target.name]
@@ -104,7 +97,7 @@ def test_output_set_refused_when_a_target_is_an_input(tmp_path, capsys, option) 
     [(["--samples", "0"], "--samples must be in [1, 1000]"), (["--seed", "-1"], "--seed must")],
 )
 def test_bad_options_exit_2(tmp_path, capsys, argv, message) -> None:
-    assert _cli(["tune", "--out", str(tmp_path / "out"), *argv]) == 2
+    assert run_cli(["tune", "--out", str(tmp_path / "out"), *argv]) == 2
     assert message in capsys.readouterr().err
 
 
@@ -147,7 +140,7 @@ def test_quick_search_writes_the_best_trial_as_a_hyperparameter_file(
         str(out),
         "--ray",
     ]
-    assert _cli(argv) == 0
+    assert run_cli(argv) == 0
     assert "best: trial" in capsys.readouterr().out
     assert ray.is_initialized()  # the session's Ray was joined, not shut down
     assert sorted(p.name for p in out.iterdir()) == sorted(OUTPUTS)

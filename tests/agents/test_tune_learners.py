@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from aeromag_env.cli.main import main
 from aeromag_env.errors import HyperparameterError
 from agents.learners import HYPERPARAMS, learner_hyperparams
 from agents.tune_learners import OUTPUTS, SEARCHED
@@ -20,6 +19,7 @@ from agents.tune_space import (
     SPACE_SCHEMA,
     read_learner_space,
 )
+from tests._helpers import run_cli
 
 GAMMA = {"distribution": "uniform", "low": 0.6, "high": 0.9}
 
@@ -28,13 +28,6 @@ def _spaces(tmp_path: Path, learners: object, name: str = "spaces.json") -> Path
     path = tmp_path / name
     path.write_text(json.dumps({"version": 1, "learners": learners}))
     return path
-
-
-def _cli(argv: list[str]) -> int:
-    try:
-        return main(argv)
-    except SystemExit as e:  # argparse errors exit through SystemExit
-        return int(e.code or 0)
 
 
 @pytest.mark.parametrize("learner", SEARCHED)
@@ -103,7 +96,7 @@ def test_a_space_of_mixed_annotations_takes_each_of_its_types(tmp_path) -> None:
 )
 def test_refused_learner_or_scenario_exits_2_before_ray(tmp_path, capsys, argv, message) -> None:
     out = tmp_path / "out"
-    assert _cli(["tune", *argv, "--quick", "--out", str(out)]) == 2
+    assert run_cli(["tune", *argv, "--quick", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
     assert not out.exists()
@@ -113,7 +106,7 @@ def test_bad_learner_space_on_the_command_line_exits_2_before_ray(tmp_path, caps
     path = _spaces(tmp_path, {"sac": {"n_epochs": GAMMA}})
     out = tmp_path / "out"
     argv = ["tune", "--learner", "sac", "--space", str(path), "--quick", "--out", str(out)]
-    assert _cli(argv) == 2
+    assert run_cli(argv) == 2
     err = capsys.readouterr().err
     assert "not a constructor parameter of SAC" in err and err.count("\n") == 1
     assert not out.exists()
@@ -127,7 +120,7 @@ def test_output_set_refused_when_the_base_learners_file_is_a_target(tmp_path, ca
     target = out / "learners.json"
     target.write_bytes(HYPERPARAMS.read_bytes())
     argv = ["tune", "--learner", "tqc", "--hyperparams", str(target), "--quick", "--out", str(out)]
-    assert _cli(argv) == 2
+    assert run_cli(argv) == 2
     err = capsys.readouterr().err
     assert "is the input file" in err and err.count("\n") == 1
     assert target.read_bytes() == HYPERPARAMS.read_bytes()
@@ -143,7 +136,7 @@ def test_quick_learner_search_writes_the_best_trial_into_a_learners_file(
     sample over the base, and loads as ``aeromag train --learner sac --hyperparams`` reads it."""
     out = tmp_path / "out"
     argv = ["tune", "--learner", "sac", "--quick", "--seed", "1", "--out", str(out), "--ray"]
-    assert _cli(argv) == 0
+    assert run_cli(argv) == 0
     assert "best: trial" in capsys.readouterr().out
     assert sorted(p.name for p in out.iterdir()) == sorted(OUTPUTS)
     summary = json.loads((out / "tune.json").read_text())

@@ -34,7 +34,8 @@ def run_chunks(kernel: Callable[..., None], n: int, *args: object) -> None:
     """``kernel(lo, hi, *args)`` for contiguous chunks ``[lo, hi)`` covering ``[0, n)``, on up
     to :func:`cores` threads (this one included); returns when all are done, re-raising the
     first error."""
-    workers = max(1, min(cores(), n // MIN_CHUNK))
+    # (cores() is a system call, skipped when there is one chunk anyway: a small batch's step)
+    workers = 1 if n < 2 * MIN_CHUNK else min(cores(), n // MIN_CHUNK)
     if workers == 1:
         kernel(0, n, *args)
         return

@@ -16,6 +16,15 @@ def test_chunks_cover_every_index_once():
     assert cores() >= 1
 
 
+def test_one_core_runs_a_large_batch_as_one_chunk(monkeypatch):
+    from aeromag_env import threads
+
+    monkeypatch.setattr(threads, "cores", lambda: 1)
+    chunks = []
+    run_chunks(lambda lo, hi: chunks.append((lo, hi)), 64)
+    assert chunks == [(0, 64)]
+
+
 def test_an_error_in_any_chunk_is_raised():
     def kernel(lo, hi):
         if hi == 64:

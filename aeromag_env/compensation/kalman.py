@@ -89,11 +89,15 @@ class FilterState:
         self.cfg = cfg
         self.mode = int(MODE[cfg.method])
         self.d = STATE_SCALE.copy()
-        self.valid = np.all(np.isfinite(y) & np.isfinite(t_b) & np.isfinite(tdot_b), axis=1)
+        finite = np.isfinite(y), np.isfinite(t_b), np.isfinite(tdot_b)
+        both = finite[0] & finite[1] & finite[2]
+        # every axis finite: all(axis=1) by its three columns (reducing over the 3-wide axis is
+        # ten times slower, a quarter of a training environment's reset)
+        self.valid = both[:, 0] & both[:, 1] & both[:, 2]
         # non-finite inputs become 0 in the arrays the loop reads; those samples only predict
-        self.y = np.where(np.isfinite(y), y, 0.0)
-        self.t = np.ascontiguousarray(np.where(np.isfinite(t_b), t_b, 0.0))
-        self.td = np.ascontiguousarray(np.where(np.isfinite(tdot_b), tdot_b, 0.0))
+        self.y = np.where(finite[0], y, 0.0)
+        self.t = np.ascontiguousarray(np.where(finite[1], t_b, 0.0))
+        self.td = np.ascontiguousarray(np.where(finite[2], tdot_b, 0.0))
         self.z = cfg.initial_state() / self.d
         self.p0 = cfg.initial_covariance() / np.outer(self.d, self.d)
         self.p = self.p0.copy()

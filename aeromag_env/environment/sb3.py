@@ -118,10 +118,13 @@ class AeroMagSB3VecEnv(VecEnv):
             self._actions, self._every_info
         )
         dones = terminated | truncated
-        ended = np.flatnonzero(dones).tolist()
-        limits = (truncated & ~terminated).tolist()
-        for i in range(self.num_envs) if self._every_info else ended:
-            info_list[i]["TimeLimit.truncated"] = limits[i]
+        ended = dones.nonzero()[0].tolist()
+        # the infos that carry TimeLimit.truncated (with "episode_end", most steps: none)
+        labelled = range(self.num_envs) if self._every_info else ended
+        if labelled:
+            limits = (truncated & ~terminated).tolist()
+            for i in labelled:
+                info_list[i]["TimeLimit.truncated"] = limits[i]
         if ended:
             for i in ended:
                 info_list[i]["terminal_observation"] = obs[i].copy()

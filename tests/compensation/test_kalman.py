@@ -132,6 +132,18 @@ def test_kf_matches_batch_lsq_on_nominal_flights_on_average():
     assert mean + 2.02 * sem < 1.10  # t(0.975, 39 dof) = 2.02
 
 
+def test_a_sample_is_valid_when_every_axis_of_every_input_is_finite(short_paper):
+    y, t_b, td = (a[:20].copy() for a in short_paper)
+    for row, (a, axis, bad) in enumerate(
+        [(y, 0, np.nan), (y, 2, np.inf), (t_b, 1, -np.inf), (td, 0, np.nan), (td, 2, np.inf)]
+    ):
+        a[2 * row, axis] = bad
+    state = FilterState(FilterConfig(), y, t_b, td)
+    expected = np.all(np.isfinite(y) & np.isfinite(t_b) & np.isfinite(td), axis=1)
+    np.testing.assert_array_equal(state.valid, expected)
+    assert state.valid.shape == (20,) and np.count_nonzero(~state.valid) == 5
+
+
 def test_nonfinite_samples_are_skipped_and_counted(short_paper):
     y, t_b, td = (a.copy() for a in short_paper)
     y[100:110] = np.nan

@@ -415,7 +415,25 @@ def _ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
         )
     if f"{prefix}_env_to_filter_ratio" in f:  # not in older bench.json files
         rows.append(_filter_row(f, prefix, n))
+    if f"{prefix}_env_to_filter_in_ppo_ratio" in f:  # from 2026-11-28 on
+        rows.append(_filter_in_ppo_row(f, prefix, n))
     return rows
+
+
+def _filter_in_ppo_row(f: dict[str, Any], prefix: str, n: int) -> Row:
+    """The environments' cost per step against the same bare filter stepped inside PPO (a
+    diagnostic: no target; what the environments cost beyond it is their own work)."""
+    ratio = f[f"{prefix}_env_to_filter_in_ppo_ratio"]
+    low = f[f"{prefix}_env_to_filter_in_ppo_ratio_min"]
+    high = f[f"{prefix}_env_to_filter_in_ppo_ratio_max"]
+    return (
+        f"PPO learn, the envs per step vs the filter inside PPO, {n} envs",
+        f"{f[f'{prefix}_env_us_per_step']:.1f} µs per env step",
+        f"{ratio:.2f}× the filter's {f[f'{prefix}_filter_in_ppo_us_per_step']:.1f} µs stepped "
+        f"inside PPO as the envs are (repeats {low:.2f}–{high:.2f})",
+        "",
+        None,
+    )
 
 
 def _filter_row(f: dict[str, Any], prefix: str, n: int) -> Row:

@@ -61,6 +61,15 @@
   environments; ``ppo_env_to_filter_ratio_min`` / ``_max``: the range of the ratio within a
   repeat; ``ppo64_*``: the same with 64 environments (both on the cores' threads,
   :mod:`aeromag_env.threads`).
+* ``ppo_env_to_filter_in_ppo_ratio`` — a diagnostic beside it, no target: the same
+  environments' cost over ``ppo_filter_in_ppo_us_per_step``, the same bare filter on the same
+  flights stepped inside PPO as the environments are (:data:`IN_PPO`: PPO learning on the
+  zero-cost environment whose ``step_wait`` advances every flight by one decision window, only
+  those calls timed), so that the policy's forward pass, the rollout buffer and the updates
+  run between its calls as they run between the environments' steps. What the environments
+  cost beyond it is their own work (the action, the score, the observation, the Python around
+  the step, the resets); what the filter costs there beyond the back-to-back figure is what
+  running inside PPO costs any kernel.
 """
 
 from __future__ import annotations
@@ -142,6 +151,10 @@ Seconds = dict[str, dict[str, list[float]]]
 #: resets done there), the policy's forward pass in the rollouts, the updates (``train``).
 PARTS = ("env", "forward", "update")
 
+#: The run that steps the bare filter inside PPO (:func:`bench_ppo`): a diagnostic beside the
+#: speed target's bare filter, which runs in a turn of its own, back to back.
+IN_PPO = "filter_in_ppo"
+
 #: PPO variants: name → hyperparameter overrides (the rest as ``aeromag train``); ``free``: the
 #: zero-cost stand-in environment (:func:`free_vec_env`), PPO's own cost alone.
 PPO_VARIANTS: dict[str, dict[str, Any] | None] = {
@@ -181,6 +194,7 @@ def bench_ppo(
     free, bare = _stand_ins(
         ppo.make_training_env("nonstationary", hp.with_values(prefetch=False), 0)
     )
+    inside = bare.fresh()  # the same flights, advanced inside PPO's own rollouts
     with ppo.training_torch():
         models: dict[str, Any] = {}
         running = {name: {part: [0.0] for part in PARTS} for name in PPO_VARIANTS}
@@ -195,6 +209,11 @@ def bench_ppo(
             inner.step_wait = _timed(inner.step_wait, totals["env"])
             model.policy.forward = _timed(model.policy.forward, totals["forward"])
             model.train = _timed(model.train, totals["update"])
+        # the bare filter as the environments run: in the zero-cost env's step_wait, one
+        # decision window of every flight per step, PPO's rollouts and updates around it
+        situ = free(functools.partial(inside, hp.n_envs))
+        models[IN_PPO] = ppo.make_ppo(ppo.normalized(situ, hp), hp, seed=0)
+        running[IN_PPO] = {"kernel": inside.seconds}
         time.sleep(2.0)  # a prefetching worker starts up (in training: once per run)
         rollout = hp.n_steps * hp.n_envs
         for model in models.values():
@@ -236,19 +255,25 @@ def filter_figures(prefix: str, parts: Seconds, timesteps: int, window: int) -> 
     """The batched + prefetch environments' and the bare filter's µs per environment step
     (medians over the repeats), the quotient of the two medians and the range of the quotient
     within a repeat; ``parts``: the seconds of :func:`_interleaved` (``batched``'s ``env``,
-    ``filter``'s ``kernel``: one entry per repeat of ``timesteps`` environment steps)."""
+    ``filter``'s ``kernel``: one entry per repeat of ``timesteps`` environment steps). The same
+    against the filter stepped inside PPO (:data:`IN_PPO`'s ``kernel``) when it ran:
+    ``{prefix}_filter_in_ppo_us_per_step``, ``{prefix}_env_to_filter_in_ppo_ratio…``."""
     env = [1e6 * s / timesteps for s in parts["batched"]["env"]]
-    kernel = [1e6 * s / timesteps for s in parts["filter"]["kernel"]]
-    paired = [e / k for e, k in zip(env, kernel, strict=True)]
-    env_us, filter_us = statistics.median(env), statistics.median(kernel)
-    return {
-        f"{prefix}_decision_window": window,
-        f"{prefix}_env_us_per_step": env_us,
-        f"{prefix}_filter_us_per_step": filter_us,
-        f"{prefix}_env_to_filter_ratio": env_us / filter_us,
-        f"{prefix}_env_to_filter_ratio_min": min(paired),
-        f"{prefix}_env_to_filter_ratio_max": max(paired),
-    }
+    figures: dict[str, Any] = {f"{prefix}_decision_window": window}
+    for name in ("filter", IN_PPO):
+        if name not in parts:  # (IN_PPO: from 2026-11-28 on)
+            continue
+        kernel = [1e6 * s / timesteps for s in parts[name]["kernel"]]
+        paired = [e / k for e, k in zip(env, kernel, strict=True)]
+        env_us, filter_us = statistics.median(env), statistics.median(kernel)
+        figures |= {
+            f"{prefix}_env_us_per_step": env_us,
+            f"{prefix}_{name}_us_per_step": filter_us,
+            f"{prefix}_env_to_{name}_ratio": env_us / filter_us,
+            f"{prefix}_env_to_{name}_ratio_min": min(paired),
+            f"{prefix}_env_to_{name}_ratio_max": max(paired),
+        }
+    return figures
 
 
 def _interleaved(
@@ -288,11 +313,12 @@ def _interleaved(
     return seconds, parts
 
 
-def _stand_ins(venv: Any) -> tuple[Callable[[], Any], BareFilter]:
+def _stand_ins(venv: Any) -> tuple[Callable[..., Any], BareFilter]:
     """The training environments ``venv`` (batched, under ``VecNormalize``; reset here, then
-    closed) stood in for: a factory of :func:`free_vec_env` with their spaces, number of
-    environments and episode length (in steps: the longest flight over the decision window),
-    and the bare filter on the flights of their first reset."""
+    closed) stood in for: a factory of :func:`free_vec_env` (its optional argument the
+    ``work`` of each step) with their spaces, number of environments and episode length (in
+    steps: the longest flight over the decision window), and the bare filter on the flights of
+    their first reset."""
     venv.reset()
     batched = venv.venv.venv
     n_envs, window = venv.num_envs, int(batched.config.decision_window)
@@ -300,7 +326,7 @@ def _stand_ins(venv: Any) -> tuple[Callable[[], Any], BareFilter]:
     spaces = (venv.observation_space, venv.action_space)
     bare = BareFilter(batched.filters, window)
     venv.close()
-    return lambda: free_vec_env(n_envs, *spaces, steps), bare
+    return lambda work=None: free_vec_env(n_envs, *spaces, steps, work), bare
 
 
 class BareFilter:
@@ -331,6 +357,10 @@ class BareFilter:
         self.filters = copy.deepcopy(filters)
         self._arrays = packed(filter_arrays(self.filters))
 
+    def fresh(self) -> BareFilter:
+        """Another bare filter on the same flights, from their start, with its own clock."""
+        return BareFilter(self._fresh, self.window)
+
     def __call__(self, steps: int) -> None:
         f = self.filters
         k = f.ints[:, INTS.k]
@@ -349,10 +379,17 @@ class BareFilter:
             getattr(self.filters, name)[i] = getattr(self._fresh, name)[i]
 
 
-def free_vec_env(n_envs: int, observation_space: Any, action_space: Any, episode_steps: int) -> Any:
+def free_vec_env(
+    n_envs: int,
+    observation_space: Any,
+    action_space: Any,
+    episode_steps: int,
+    work: Callable[[], object] | None = None,
+) -> Any:
     """An SB3 ``VecEnv`` that costs nothing: a fixed observation, zero reward, every episode
     ``episode_steps`` long and ended as a time limit (with the info entries SB3 reads). PPO
-    trained on it measures its own cost per step: the ceiling of any environment's speed-up."""
+    trained on it measures its own cost per step: the ceiling of any environment's speed-up.
+    With ``work``, each ``step_wait`` calls it first (the bare filter stepped inside PPO)."""
     from stable_baselines3.common.vec_env import VecEnv
 
     obs = np.clip(
@@ -374,6 +411,8 @@ def free_vec_env(n_envs: int, observation_space: Any, action_space: Any, episode
             pass
 
         def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+            if work is not None:
+                work()
             self.steps += 1
             end = self.steps % episode_steps == 0
             infos: list[dict] = [{"TimeLimit.truncated": end} for _ in range(n_envs)]

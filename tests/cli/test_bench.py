@@ -330,6 +330,56 @@ def test_filter_figures_are_medians_per_env_step_and_their_quotient():
     )
 
 
+def test_filter_figures_against_the_filter_inside_ppo_pair_each_repeat():
+    from aeromag_env.cli.bench_envs import IN_PPO, filter_figures
+
+    parts = {
+        "batched": {"env": [0.3, 0.2, 0.6]},
+        "filter": {"kernel": [0.1, 0.05, 0.1]},
+        IN_PPO: {"kernel": [0.2, 0.1, 0.4]},
+    }
+    figures = filter_figures("ppo", parts, timesteps=10_000, window=10)
+    assert figures["ppo_env_to_filter_ratio"] == pytest.approx(3.0, rel=1e-12)  # unchanged
+    assert figures["ppo_filter_in_ppo_us_per_step"] == pytest.approx(20.0, rel=1e-12)
+    assert figures["ppo_env_to_filter_in_ppo_ratio"] == pytest.approx(1.5, rel=1e-12)
+    assert figures["ppo_env_to_filter_in_ppo_ratio_min"] == pytest.approx(1.5, rel=1e-12)
+    assert figures["ppo_env_to_filter_in_ppo_ratio_max"] == pytest.approx(2.0, rel=1e-12)
+
+
+def test_filter_in_ppo_row_is_a_diagnostic_without_a_target():
+    inside = {
+        "ppo_filter_in_ppo_us_per_step": 18.0,
+        "ppo_env_to_filter_in_ppo_ratio": 1.3,
+        "ppo_env_to_filter_in_ppo_ratio_min": 1.2,
+        "ppo_env_to_filter_in_ppo_ratio_max": 1.4,
+    }
+    rows = {r[0]: r for r in _rows({**FIGURES, **TARGET_FIGURES, **inside})}
+    assert rows["PPO learn, the envs per step vs the filter inside PPO, 8 envs"][1:] == (
+        "23.4 µs per env step",
+        "1.30× the filter's 18.0 µs stepped inside PPO as the envs are (repeats 1.20–1.40)",
+        "",
+        None,
+    )
+    # the target's row still compares with the filter run back to back
+    assert rows["PPO learn, the envs per step vs the bare filter, 8 envs"][4] is False
+    assert not any("inside PPO" in r[0] for r in _rows({**FIGURES, **TARGET_FIGURES}))
+
+
+def test_zero_cost_env_does_its_work_once_per_step():
+    from gymnasium import spaces
+
+    from aeromag_env.cli.bench_envs import free_vec_env
+
+    calls = []
+    box = spaces.Box(-1.0, 1.0, (3,), np.float32)
+    env = free_vec_env(2, box, box, episode_steps=3, work=lambda: calls.append(1))
+    env.reset()
+    for _ in range(4):
+        env.step_async(np.zeros((2, 3), np.float32))
+        env.step_wait()
+    assert len(calls) == 4
+
+
 def test_bare_filter_advances_a_window_per_step_and_restarts_ended_flights():
     from aeromag_env.cli.bench_envs import BareFilter
 
@@ -345,6 +395,7 @@ def test_bare_filter_advances_a_window_per_step_and_restarts_ended_flights():
     reference = copy.deepcopy(start)
     reference.advance(90)
     np.testing.assert_array_equal(bare.filters.est, reference.est)  # the same kernel: bitwise
+    reference_at_90 = copy.deepcopy(reference)
     bare(2)  # flight 0 ends at 95 and starts over; flight 1 goes on
     assert list(bare.filters.k) == [0, 100]
     np.testing.assert_array_equal(bare.filters.est[0], start.est[0])
@@ -352,6 +403,10 @@ def test_bare_filter_advances_a_window_per_step_and_restarts_ended_flights():
     reference.advance(100)
     np.testing.assert_array_equal(bare.filters.est[1], reference.est[1])
     assert bare.seconds[0] > 0.0
+    again = bare.fresh()  # the same flights from their start, its own clock
+    assert list(again.filters.k) == [0, 0] and again.seconds == [0.0]
+    again(2 * 9)
+    np.testing.assert_array_equal(again.filters.est, reference_at_90.est)
 
 
 @pytest.mark.slow
@@ -364,6 +419,8 @@ def test_bench_ppo_reports_the_environments_against_the_bare_filter():
     assert figures["ppo_env_us_per_step"] == figures["ppo_batched_env_us_per_step"]
     assert figures["ppo_env_to_filter_ratio_min"] <= figures["ppo_env_to_filter_ratio_max"]
     assert figures["ppo_decision_window"] == 10 and figures["ppo_filter_us_per_step"] > 0
+    inside = figures["ppo_env_us_per_step"] / figures["ppo_filter_in_ppo_us_per_step"]
+    assert figures["ppo_env_to_filter_in_ppo_ratio"] == pytest.approx(inside, rel=1e-15)
 
 
 def test_bench_ppo_wants_whole_steps_of_every_environment():

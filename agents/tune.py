@@ -41,7 +41,7 @@ from agents.hyperparams_file import read_hyperparams
 from agents.ppo import HYPERPARAMS, load_hyperparams, training_torch
 from agents.ppo_hyperparams import PPOHyperparams
 from agents.quick import QUICK, quick_hyperparams, sized
-from agents.tune_space import plain, read_space, tune_domains
+from agents.tune_space import plain, read_space, recorded_path, tune_domains
 from agents.validation import validation_seeds
 
 #: The outputs in ``--out``, written as a set.
@@ -141,16 +141,16 @@ def tune_ppo(
         "reports_per_trial": job.reports,
         "metric": METRIC,
         "validation_episodes": job.hp.eval_episodes,
-        "space_file": str(space_path),
+        "space_file": recorded_path(space_path),
         "space": space,
-        "hyperparams": str(hyperparams),
+        "hyperparams": recorded_path(hyperparams),
         "cpus": cpus,
         "seconds": time.perf_counter() - t0,
         "best": best,
         "trials": trials,
     }
     entry = {**read_hyperparams(hyperparams)["scenarios"][scenario], **best["config"]}
-    table = _tuned_table(entry, summary)
+    table = _tuned_table(entry, summary, Path(hyperparams))
     write_outputs(out, OUTPUTS, [space_path, hyperparams], table, read_hyperparams, summary)
     return summary
 
@@ -324,8 +324,10 @@ def _validate(model: Any, venv: Any, hp: PPOHyperparams, job: TuneJob, tmp: Path
     return float(validation_rmse(policy, job.scenario, hp.eval_episodes).mean())
 
 
-def _tuned_table(entry: dict[str, Any], summary: dict[str, Any]) -> dict[str, Any]:
-    """The hyperparameter file of the tuned entry (the base file's version)."""
+def _tuned_table(
+    entry: dict[str, Any], summary: dict[str, Any], hyperparams: Path
+) -> dict[str, Any]:
+    """The hyperparameter file of the tuned entry (the base file ``hyperparams``'s version)."""
     best = summary["best"]
     comment = (
         f"Tuned by aeromag tune on {summary['scenario']}: {', '.join(best['config'])} of trial "
@@ -334,7 +336,7 @@ def _tuned_table(entry: dict[str, Any], summary: dict[str, Any]) -> dict[str, An
         f"{summary['timesteps']} timesteps each, seed {summary['seed']}; the other keys from "
         f"{summary['hyperparams']}. tune.json beside this file has every trial."
     )
-    version = read_hyperparams(summary["hyperparams"])["version"]
+    version = read_hyperparams(hyperparams)["version"]
     return {"version": version, "comment": comment, "scenarios": {summary["scenario"]: entry}}
 
 

@@ -51,7 +51,7 @@ from agents.tune import (
     trial_fields,
     write_outputs,
 )
-from agents.tune_space import LEARNER_SPACES, plain, read_learner_space
+from agents.tune_space import LEARNER_SPACES, plain, read_learner_space, recorded_path
 
 #: The learners ``aeromag tune --learner`` searches (``ppo``: :func:`agents.tune.tune_ppo`).
 SEARCHED = ("recurrent_ppo", "sac", "tqc")
@@ -152,9 +152,9 @@ def tune_learner(
         "eval_every": hp["eval_every"],
         "validation_episodes": hp["eval_episodes"],
         "reduction_factor": REDUCTION,
-        "space_file": str(space_path),
+        "space_file": recorded_path(space_path),
         "space": space,
-        "hyperparams": str(hyperparams),
+        "hyperparams": recorded_path(hyperparams),
         "cpus": cpus,
         "seconds": time.perf_counter() - t0,
         "best": best,

@@ -200,3 +200,14 @@ def tune_domains(space: dict[str, dict[str, Any]]) -> dict[str, Any]:
 def plain(config: dict[str, Any]) -> dict[str, Any]:
     """``config`` with numpy scalars (Tune draws them) as Python numbers, for JSON."""
     return {k: v.item() if hasattr(v, "item") else v for k, v in config.items()}
+
+
+def recorded_path(path: str | Path) -> str:
+    """``path`` as a search's record names it: relative to the working directory when it lies
+    under it (a checkout's own files by their repository path, so that a committed record does
+    not carry the machine it ran on), else as given."""
+    p = Path(path)
+    try:
+        return p.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return str(path)

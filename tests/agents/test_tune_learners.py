@@ -161,3 +161,16 @@ def test_quick_learner_search_writes_the_best_trial_into_a_learners_file(
     }
     for other in ("tqc", "recurrent_ppo", "cmaes"):  # the other learners as they were
         assert learner_hyperparams(other, out / "learners.json") == learner_hyperparams(other)
+
+
+def test_a_search_record_names_the_checkouts_files_by_their_repository_path(
+    tmp_path, monkeypatch
+) -> None:
+    from agents.tune_space import LEARNER_SPACES, recorded_path
+
+    repo = LEARNER_SPACES.parents[2]
+    monkeypatch.chdir(repo)
+    assert recorded_path(LEARNER_SPACES) == "agents/hyperparams/tune_space_learners.json"
+    assert recorded_path("agents/hyperparams/learners.json") == "agents/hyperparams/learners.json"
+    outside = tmp_path / "mine.json"  # not under the working directory: as given
+    assert recorded_path(outside) == str(outside)

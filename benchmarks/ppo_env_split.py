@@ -6,7 +6,9 @@ entry: 8 batched environments, flights prefetched, torch as in training) learns 
 rollout, then for 49 152 timed steps per repeat; per environment step, medians over the repeats:
 ``step_wait`` (everything the environments cost PPO's loop), of it the compiled step of all
 environments (``kernels.env_step_batch``: the filter over the decision window, the score and the
-observation), and the rest (action check, info dicts, resets). ``aeromag bench`` holds the
+observation), the resets at episode ends (loading the next flight, prefetched by the worker
+process), and the rest (the Python around the step: action check, flags, info dicts, copies).
+``aeromag bench`` holds the
 ``step_wait`` time against the filter alone (``ppo_env_to_filter_ratio``); this says how much of
 the gap is the compiled step's scoring and observation and how much the Python around it.
 
@@ -27,33 +29,40 @@ TIMESTEPS = 49_152
 
 
 def split(repeats: int) -> dict[str, float]:
-    """µs per environment step in ``step_wait``, in the compiled step, and the rest."""
+    """µs per environment step in ``step_wait``, in the compiled step, in the resets, and the
+    rest."""
     from agents import ppo
 
     hp = ppo.load_hyperparams("nonstationary")
-    wait, compiled = [0.0], [0.0]
+    wait, compiled, resets = [0.0], [0.0], [0.0]
     original = kernels.env_step_batch
     kernels.env_step_batch = _timed(original, compiled)
     try:
         with ppo.training_torch():
             venv = ppo.make_training_env("nonstationary", hp, seed=0)
             venv.venv.step_wait = _timed(venv.venv.step_wait, wait)
+            batched = venv.venv.venv  # the adapter resets the ended environments through it
+            batched.reset = _timed(batched.reset, resets)
             model: Any = ppo.make_ppo(venv, hp, seed=0)
             time.sleep(2.0)  # the prefetching worker starts up
             model.learn(hp.n_steps * hp.n_envs)
-            waits, steps = [], []
+            waits, steps, loads = [], [], []
             for _ in range(repeats):
-                wait[0] = compiled[0] = 0.0
+                wait[0] = compiled[0] = resets[0] = 0.0
                 model.learn(TIMESTEPS, reset_num_timesteps=False)
                 waits.append(1e6 * wait[0] / TIMESTEPS)
                 steps.append(1e6 * compiled[0] / TIMESTEPS)
+                loads.append(1e6 * resets[0] / TIMESTEPS)
             venv.close()
     finally:
         kernels.env_step_batch = original
     return {
         "step_wait_us_per_env_step": statistics.median(waits),
         "compiled_step_us_per_env_step": statistics.median(steps),
-        "rest_us_per_env_step": statistics.median(w - c for w, c in zip(waits, steps, strict=True)),
+        "resets_us_per_env_step": statistics.median(loads),
+        "rest_us_per_env_step": statistics.median(
+            w - c - r for w, c, r in zip(waits, steps, loads, strict=True)
+        ),
     }
 
 

@@ -181,8 +181,10 @@ def bench_ppo(
     the batched variant's ratio to ``DummyVecEnv`` in the same repeat; the environment's
     share ``1 − batched / free`` of each repeat, its median and range; and the environments'
     cost per step against the bare compiled filter's (:class:`BareFilter`, taking its turn
-    with them). Figures are named ``{prefix}_{variant}_…``, ``{prefix}_env_share…`` and
-    ``{prefix}_{env,filter}_us_per_step``, ``{prefix}_env_to_filter_ratio…``. ``timesteps``
+    with them) and against the same filter stepped inside PPO (:data:`IN_PPO`, a turn of its
+    own). Figures are named ``{prefix}_{variant}_…``, ``{prefix}_env_share…``,
+    ``{prefix}_{env,filter,filter_in_ppo}_us_per_step`` and ``{prefix}_env_to_filter_ratio…``,
+    ``{prefix}_env_to_filter_in_ppo_ratio…``. ``timesteps``
     must be a multiple of the number of environments (the filter then advances as many
     environment steps)."""
     from agents import ppo

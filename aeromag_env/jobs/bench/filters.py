@@ -32,6 +32,7 @@ from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kalman_reference import run_reference
 from aeromag_env.compensation.model import FilterConfig, measurement_rows
+from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.interference import N_STATES
 
 #: Flights advanced together for ``filter_batched_samples_per_s``.
@@ -95,3 +96,13 @@ def bench_filters(
         cases["filterpy_samples_per_s"] = (lambda: None, lambda _: run_filterpy(*flight), n)
     figures: dict[str, float | None] = {"filterpy_samples_per_s": None}
     return figures | median_rates(cases, repeats)
+
+
+def bench_filter_figures(flight: Flight, samples: int, repeats: int) -> dict[str, float | None]:
+    """:func:`bench_filters` on the first ``samples`` samples of ``flight``'s fluxgate
+    ``flux_a``."""
+    from aeromag_env.compensation.compensate import earth_model
+
+    t_b, tdot_b = earth_model(flight)
+    y = flight.vector("flux_a") - t_b
+    return bench_filters(y[:samples], t_b[:samples], tdot_b[:samples], repeats)

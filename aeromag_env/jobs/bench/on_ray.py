@@ -19,10 +19,8 @@ import statistics
 import time
 from typing import Any
 
+from aeromag_env.jobs.bench.table import Row
 from aeromag_env.parallel import SerialRunner, Task, runner
-
-#: A row of ``aeromag bench``'s table: benchmark, median, ratio, target, target met.
-Row = tuple[str, str, str, str, bool | None]
 
 #: The evaluation timed: ``aeromag evaluate``'s default policies on this many test flights.
 FLIGHTS, SCENARIO = 64, "nonstationary"
@@ -39,8 +37,9 @@ def noop() -> None:
 def bench_ray(address: str, quick: bool = False) -> dict[str, Any]:
     """The figures above; ``address`` as ``--ray`` (``local``: a Ray started here with this
     machine's cores)."""
-    from agents.evaluate import TEST_SEED_START, evaluate_scenarios
-    from agents.quick import QUICK
+    from agents.evaluation.episodes import evaluate_scenarios
+    from agents.evaluation.seeds import TEST_SEED_START
+    from agents.training.quick import QUICK
 
     flights, repeats = (QUICK.bench_ray_flights, 1) if quick else (FLIGHTS, 3)
     seeds = list(range(TEST_SEED_START, TEST_SEED_START + flights))

@@ -10,9 +10,9 @@
   of training that batching does not speed up.
 * ``ppo_batched_steps_per_s``, ``ppo_dummyvec_steps_per_s`` — stable-baselines3 PPO
   ``learn`` throughput (environment steps per second, resets and updates included) with the
-  training environments of ``aeromag train`` (``agents/hyperparams/ppo.json``, scenario
+  training environments of ``aeromag train`` (``agents/training/hyperparams/ppo.json``, scenario
   ``nonstationary``: its 8 envs, n_steps, batch size, epochs, network; torch set up as in
-  training, :func:`agents.ppo.training_torch`): batched with flights prefetched in a worker
+  training, :func:`agents.training.ppo.training_torch`): batched with flights prefetched in a worker
   process (the default), SB3's ``DummyVecEnv``, and ``ppo_batched_no_prefetch_steps_per_s``
   (batched stepping alone). The four run side by side in one process, taking turns one
   rollout (and its update) at a time, the order rotating each turn, so that the slow drifts of
@@ -187,7 +187,7 @@ def bench_ppo(
     ``{prefix}_env_to_filter_in_ppo_ratio…``. ``timesteps``
     must be a multiple of the number of environments (the filter then advances as many
     environment steps)."""
-    from agents import ppo
+    from agents.training import ppo
 
     hp = ppo.load_hyperparams("nonstationary")
     hp = hp.with_values(n_envs=n_envs or hp.n_envs, **sizes)
@@ -208,9 +208,9 @@ def bench_ppo(
                 venv = ppo.make_training_env("nonstationary", hp.with_values(**overrides), seed=0)
             model = models[name] = ppo.make_ppo(venv, hp, seed=0)
             inner, totals = venv.venv, running[name]
-            inner.step_wait = _timed(inner.step_wait, totals["env"])
-            model.policy.forward = _timed(model.policy.forward, totals["forward"])
-            model.train = _timed(model.train, totals["update"])
+            inner.step_wait = timed(inner.step_wait, totals["env"])
+            model.policy.forward = timed(model.policy.forward, totals["forward"])
+            model.train = timed(model.train, totals["update"])
         # the bare filter as the environments run: in the zero-cost env's step_wait, one
         # decision window of every flight per step, PPO's rollouts and updates around it
         situ = free(functools.partial(inside, hp.n_envs))
@@ -443,7 +443,7 @@ def free_vec_env(
     return FreeVecEnv()
 
 
-def _timed(fn: Callable[..., Any], total: list[float]) -> Callable[..., Any]:
+def timed(fn: Callable[..., Any], total: list[float]) -> Callable[..., Any]:
     """``fn`` that adds its wall time to ``total[0]``."""
 
     def wrapper(*args: Any, **kwargs: Any) -> Any:

@@ -1,4 +1,4 @@
-"""``aeromag demo``: the main job, end to end, in under a minute.
+"""The main job, end to end, in under a minute: :func:`demo`, the job of ``aeromag demo``.
 
 Simulates a 30-minute ``nominal`` calibration flight, compensates it with the paper's filters
 (plain and fuzzy adaptive), the offline batch least squares and the industry Tolles–Lawson fit,
@@ -9,6 +9,7 @@ flights; writes the flight, figures, and a summary table (Markdown and JSON).
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +20,7 @@ from aeromag_env.compensation.plots import plot_compensation
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.flight.files import write_flight
 from aeromag_env.flight.plot import plot_flight
+from aeromag_env.jobs.limits import check_seed
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
 
@@ -35,14 +37,53 @@ OUTPUTS = (
 )
 
 
-def run_demo(out: Path, seed: int = 0) -> dict[str, Any]:
-    """Run the demo; return the summary (also written to ``out/summary.json``).
+@dataclass(frozen=True)
+class DemoResult:
+    """What :func:`demo` produced.
 
-    The files (:data:`OUTPUTS`) are written as a set (:func:`aeromag_env.atomic.output_set`).
+    Attributes
+    ----------
+    summary : dict
+        ``summary.json``'s content: the seed, each method's figures of merit, the tuners'
+        evaluation (``results.json`` layout).
+    text : str
+        ``summary.md``: the methods' table and the tuners' table.
+    paths : tuple of Path
+        The files written (:data:`OUTPUTS`).
     """
-    check_output_set(out, OUTPUTS)
-    with output_set(out, OUTPUTS) as stage:
-        return _run_demo(stage, seed)
+
+    summary: dict[str, Any]
+    text: str
+    paths: tuple[Path, ...]
+
+
+def demo(out: str | Path = "results/demo", *, seed: int = 0) -> DemoResult:
+    """Run the demo, as ``aeromag demo`` does; the files (:data:`OUTPUTS`) are written as a set
+    (:func:`aeromag_env.atomic.output_set`).
+
+    Parameters
+    ----------
+    out : str or Path
+        The output folder.
+    seed : int
+        The calibration flight's seed, in ``[0, 2³² − 1]``.
+
+    Returns
+    -------
+    DemoResult
+
+    Raises
+    ------
+    AeromagError
+        A seed outside its range or an output that is not writable (one line), before the work.
+    """
+    check_seed("seed", seed)
+    folder = Path(out)
+    check_output_set(folder, OUTPUTS)
+    with output_set(folder, OUTPUTS) as stage:
+        summary = _run_demo(stage, seed)
+    text = (folder / "summary.md").read_text(encoding="utf-8")
+    return DemoResult(summary, text, tuple(folder / name for name in OUTPUTS))
 
 
 def _run_demo(out: Path, seed: int) -> dict[str, Any]:
@@ -68,10 +109,11 @@ def _run_demo(out: Path, seed: int) -> dict[str, Any]:
 
 def _evaluate_tuners(out: Path) -> dict[str, Any]:
     """The baseline tuning policies on a few ``nonstationary`` test flights (seeds ≥ 100 000)."""
-    from aeromag_env.cli.evaluate import evaluation_table
-    from agents import available_policies
-    from agents.evaluate import TEST_SEED_START, evaluate
-    from agents.plots import plot_evaluation
+    from aeromag_env.jobs.evaluate import evaluation_table
+    from agents.evaluation.episodes import evaluate
+    from agents.evaluation.plots import plot_evaluation
+    from agents.evaluation.seeds import TEST_SEED_START
+    from agents.policies import available_policies
 
     seeds = list(range(TEST_SEED_START, TEST_SEED_START + DEMO_EPISODES))
     results = evaluate("nonstationary", available_policies(), seeds)

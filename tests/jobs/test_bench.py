@@ -7,11 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from aeromag_env.cli.bench import _report, _rows, peak_rss_mb
-from aeromag_env.cli.bench_filters import bench_filters
 from aeromag_env.compensation.compensate import earth_model
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.model import FilterConfig
+from aeromag_env.jobs.bench import BenchRequest, _report
+from aeromag_env.jobs.bench.filters import bench_filters
+from aeromag_env.jobs.bench.table import rows as table_rows
+from aeromag_env.jobs.bench.workflows import peak_rss_mb
 from tests._flights import simulated
 from tests._helpers import assert_one_line_error, experiment
 
@@ -66,7 +68,7 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
         "ppo64_batched_ratio_min": 1.1,
         "ppo64_batched_ratio_max": 1.3,
     }
-    rows = {r[0]: r for r in _rows(figures)}
+    rows = {r[0]: r for r in table_rows(figures)}
     assert rows["filter, compiled, 1 flight"][2:] == ("n/a", "≥ 30× filterpy", None)
     assert rows["env steps, 64 envs batched, K = 10"][2] == "4.0× 1 env"
     assert rows["PPO learn, batched + prefetch, 8 envs"][2:] == (
@@ -87,7 +89,7 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
     )
     assert "PPO learn, zero-cost env, 8 envs" not in rows  # older bench.json: not measured
     assert rows["discover 1 flight-hour"][1:] == ("n/a", "n/a", "≤ 5 s", None)
-    assert {r[0]: r for r in _rows(FIGURES)}["discover 1 flight-hour"][1:] == (
+    assert {r[0]: r for r in table_rows(FIGURES)}["discover 1 flight-hour"][1:] == (
         "5.00 s",
         "720× real time",
         "≤ 5 s",
@@ -121,7 +123,7 @@ TARGET_FIGURES = {
 
 
 def test_env_share_rows_carry_the_target_at_64_envs_only():
-    rows = {r[0]: r for r in _rows({**FIGURES, **TARGET_FIGURES})}
+    rows = {r[0]: r for r in table_rows({**FIGURES, **TARGET_FIGURES})}
     assert rows["PPO learn, the env's share, 64 envs"][1:] == (
         "12.0%",
         "1 − batched/zero-cost, paired repeats 10.0–17.0%",
@@ -130,12 +132,12 @@ def test_env_share_rows_carry_the_target_at_64_envs_only():
     )
     assert rows["PPO learn, the env's share, 8 envs"][3:] == ("", None)
     slow = {**FIGURES, **TARGET_FIGURES, "ppo64_env_share": 0.21}
-    assert {r[0]: r for r in _rows(slow)}["PPO learn, the env's share, 64 envs"][4] is False
-    assert "PPO learn, the env's share, 8 envs" not in {r[0] for r in _rows(FIGURES)}
+    assert {r[0]: r for r in table_rows(slow)}["PPO learn, the env's share, 64 envs"][4] is False
+    assert "PPO learn, the env's share, 8 envs" not in {r[0] for r in table_rows(FIGURES)}
 
 
 def test_filter_rows_give_the_ratio_to_the_bare_filter_with_its_target_at_8_envs():
-    rows = {r[0]: r for r in _rows({**FIGURES, **TARGET_FIGURES})}
+    rows = {r[0]: r for r in table_rows({**FIGURES, **TARGET_FIGURES})}
     assert rows["PPO learn, the envs per step vs the bare filter, 8 envs"][1:] == (
         "23.4 µs per env step",
         "3.00× the filter's 7.8 µs for K = 10 samples (repeats 2.70–3.30)",
@@ -149,21 +151,24 @@ def test_filter_rows_give_the_ratio_to_the_bare_filter_with_its_target_at_8_envs
         None,
     )
     fast = {**FIGURES, **TARGET_FIGURES, "ppo_env_to_filter_ratio": 1.5}
-    met = {r[0]: r for r in _rows(fast)}["PPO learn, the envs per step vs the bare filter, 8 envs"]
+    met = {r[0]: r for r in table_rows(fast)}[
+        "PPO learn, the envs per step vs the bare filter, 8 envs"
+    ]
     assert met[4] is True
-    assert not any("bare filter" in r[0] for r in _rows(FIGURES))  # an older bench.json
+    assert not any("bare filter" in r[0] for r in table_rows(FIGURES))  # an older bench.json
 
 
-def test_report_writes_and_prints_the_two_targets(tmp_path, capsys):
+def test_report_writes_and_prints_the_two_targets(tmp_path):
     figures = {**FIGURES, **TARGET_FIGURES}
-    result = _report(tmp_path, figures, _rows(figures), True, 1, None)
+    request = BenchRequest(out=tmp_path, quick=True)
+    result = _report(request, figures, table_rows(figures), None)
     written = json.loads((tmp_path / "bench.json").read_text())
-    assert written == json.loads(json.dumps(result))
+    assert written == json.loads(json.dumps(result.report))
     assert written["figures"]["ppo_env_to_filter_ratio"] == pytest.approx(23.4 / 7.8, rel=1e-15)
     targets = {r["benchmark"]: r["target"] for r in written["rows"]}
     assert targets["PPO learn, the envs per step vs the bare filter, 8 envs"] == "≤ 1.5× the filter"
     assert targets["PPO learn, the env's share, 64 envs"] == "≤ 20%"
-    printed = capsys.readouterr().out.splitlines()
+    printed = result.table.splitlines()
 
     def line(name):
         (found,) = [x for x in printed if x.startswith(f"{name} ")]
@@ -179,7 +184,7 @@ def test_report_writes_and_prints_the_two_targets(tmp_path, capsys):
 def test_zero_cost_env_ends_episodes_as_sb3_expects():
     from gymnasium import spaces
 
-    from aeromag_env.cli.bench_envs import free_vec_env
+    from aeromag_env.jobs.bench.envs import free_vec_env
 
     obs_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
     env = free_vec_env(2, obs_space, spaces.Box(-1.0, 1.0, (3,), np.float32), episode_steps=3)
@@ -258,7 +263,7 @@ def test_extra_time_row_splits_the_batched_runs_extra_time_by_part():
             for i, variant in enumerate(("batched", "free"))
         },
     }
-    rows = {r[0]: r for r in _rows(figures)}
+    rows = {r[0]: r for r in table_rows(figures)}
     assert rows["PPO learn, batched + prefetch beyond zero-cost, 8 envs"][1:] == (
         "50 µs per env step",
         "environments 38; policy forward 10; updates -1; rest 3 µs more",
@@ -282,7 +287,7 @@ class _FakeModel:
 
 
 def test_interleaved_takes_turns_a_rollout_at_a_time_and_restarts_the_totals_each_repeat():
-    from aeromag_env.cli.bench_envs import PARTS, _interleaved
+    from aeromag_env.jobs.bench.envs import PARTS, _interleaved
 
     log: list = []
     running = {name: {part: [7.0] for part in PARTS} for name in "ab"}
@@ -313,7 +318,7 @@ def test_interleaved_takes_turns_a_rollout_at_a_time_and_restarts_the_totals_eac
 
 
 def test_filter_figures_are_medians_per_env_step_and_their_quotient():
-    from aeromag_env.cli.bench_envs import filter_figures
+    from aeromag_env.jobs.bench.envs import filter_figures
 
     parts = {"batched": {"env": [0.3, 0.2, 0.6]}, "filter": {"kernel": [0.1, 0.05, 0.1]}}
     figures = filter_figures("ppo64", parts, timesteps=10_000, window=10)
@@ -331,7 +336,7 @@ def test_filter_figures_are_medians_per_env_step_and_their_quotient():
 
 
 def test_filter_figures_against_the_filter_inside_ppo_pair_each_repeat():
-    from aeromag_env.cli.bench_envs import IN_PPO, filter_figures
+    from aeromag_env.jobs.bench.envs import IN_PPO, filter_figures
 
     parts = {
         "batched": {"env": [0.3, 0.2, 0.6]},
@@ -353,7 +358,7 @@ def test_filter_in_ppo_row_is_a_diagnostic_without_a_target():
         "ppo_env_to_filter_in_ppo_ratio_min": 1.2,
         "ppo_env_to_filter_in_ppo_ratio_max": 1.4,
     }
-    rows = {r[0]: r for r in _rows({**FIGURES, **TARGET_FIGURES, **inside})}
+    rows = {r[0]: r for r in table_rows({**FIGURES, **TARGET_FIGURES, **inside})}
     assert rows["PPO learn, the envs per step vs the filter inside PPO, 8 envs"][1:] == (
         "23.4 µs per env step",
         "1.30× the filter's 18.0 µs stepped inside PPO as the envs are (repeats 1.20–1.40)",
@@ -362,13 +367,13 @@ def test_filter_in_ppo_row_is_a_diagnostic_without_a_target():
     )
     # the target's row still compares with the filter run back to back
     assert rows["PPO learn, the envs per step vs the bare filter, 8 envs"][4] is False
-    assert not any("inside PPO" in r[0] for r in _rows({**FIGURES, **TARGET_FIGURES}))
+    assert not any("inside PPO" in r[0] for r in table_rows({**FIGURES, **TARGET_FIGURES}))
 
 
 def test_zero_cost_env_does_its_work_once_per_step():
     from gymnasium import spaces
 
-    from aeromag_env.cli.bench_envs import free_vec_env
+    from aeromag_env.jobs.bench.envs import free_vec_env
 
     calls = []
     box = spaces.Box(-1.0, 1.0, (3,), np.float32)
@@ -381,7 +386,7 @@ def test_zero_cost_env_does_its_work_once_per_step():
 
 
 def test_bare_filter_advances_a_window_per_step_and_restarts_ended_flights():
-    from aeromag_env.cli.bench_envs import BareFilter
+    from aeromag_env.jobs.bench.envs import BareFilter
 
     f = simulated("paper", 1)
     t_b, td = earth_model(f, "backward")
@@ -411,7 +416,7 @@ def test_bare_filter_advances_a_window_per_step_and_restarts_ended_flights():
 
 @pytest.mark.slow
 def test_bench_ppo_reports_the_environments_against_the_bare_filter():
-    from aeromag_env.cli.bench_envs import bench_ppo
+    from aeromag_env.jobs.bench.envs import bench_ppo
 
     figures = bench_ppo(64, 2, n_envs=2, n_steps=16, batch_size=16)
     ratio = figures["ppo_env_us_per_step"] / figures["ppo_filter_us_per_step"]
@@ -424,7 +429,7 @@ def test_bench_ppo_reports_the_environments_against_the_bare_filter():
 
 
 def test_bench_ppo_wants_whole_steps_of_every_environment():
-    from aeromag_env.cli.bench_envs import bench_ppo
+    from aeromag_env.jobs.bench.envs import bench_ppo
 
     with pytest.raises(ValueError) as error:
         bench_ppo(63, 1, n_envs=2)
@@ -432,8 +437,8 @@ def test_bench_ppo_wants_whole_steps_of_every_environment():
 
 
 def test_zero_cost_env_episodes_are_as_long_in_steps_as_the_flights():
-    from aeromag_env.cli.bench_envs import _stand_ins
-    from agents import ppo
+    from aeromag_env.jobs.bench.envs import _stand_ins
+    from agents.training import ppo
 
     hp = ppo.load_hyperparams("nonstationary").with_values(n_envs=2, prefetch=False)
     venv = ppo.make_training_env("nonstationary", hp, seed=0)

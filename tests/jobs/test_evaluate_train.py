@@ -1,4 +1,4 @@
-"""The evaluation job (agents.jobs): the command line and the library door agree."""
+"""The evaluation and training jobs: the command line and the library door agree."""
 
 from __future__ import annotations
 
@@ -9,17 +9,15 @@ import pytest
 
 from aeromag_env.cli.main import main
 from aeromag_env.errors import AeromagError
+from aeromag_env.jobs.evaluate import evaluate
 from aeromag_env.jobs.reports import jsonable
-from agents.jobs import evaluate_policies
 
 
 def test_evaluate_cli_and_library_write_the_same_set(tmp_path: Path, capsys) -> None:
     argv = ["--scenario", "nominal", "--policies", "constant,fis", "--episodes", "2", "--quiet"]
     assert main(["evaluate", *argv, "--no-html", "--out", str(tmp_path / "cli")]) == 0
     capsys.readouterr()
-    done = evaluate_policies(
-        "nominal", ["constant", "fis"], episodes=2, out=tmp_path / "lib", html=False
-    )
+    done = evaluate("nominal", ["constant", "fis"], episodes=2, out=tmp_path / "lib", html=False)
     cli = (tmp_path / "cli" / "results.json").read_text()
     assert (tmp_path / "lib" / "results.json").read_text() == cli
     assert done.paths == (tmp_path / "lib" / "results.json", tmp_path / "lib" / "evaluation.png")
@@ -28,28 +26,29 @@ def test_evaluate_cli_and_library_write_the_same_set(tmp_path: Path, capsys) -> 
 
 
 def test_evaluate_without_out_writes_nothing_and_refuses_in_one_line(tmp_path: Path) -> None:
-    done = evaluate_policies(["nominal"], ["constant"], episodes=1)
+    done = evaluate(["nominal"], ["constant"], episodes=1)
     assert done.paths == () and set(done.results) == {"nominal"}
-    with pytest.raises(AeromagError, match="unknown policy 'nope'"):
-        evaluate_policies("nominal", ["nope"], out=tmp_path)
+    with pytest.raises(AeromagError, match=r"policies takes names of .* got 'nope'"):
+        evaluate("nominal", ["nope"], out=tmp_path)
     with pytest.raises(AeromagError, match="distinct scenarios"):
-        evaluate_policies("nominal,nominal", ["fis"])
+        evaluate("nominal,nominal", ["fis"])
     assert not any(tmp_path.iterdir())
 
 
 def test_train_policies_runs_each_seed_and_summarises_them(tmp_path: Path, monkeypatch) -> None:
     """The seeds' summary from each run's result (a stand-in for PPO: the job's bookkeeping is
     under test, not training); a failed seed is reported and the others complete."""
-    import agents.ppo
-    from agents.jobs import train_policies
+    import agents.training.ppo
+    from aeromag_env.jobs.train import train
 
     def fake_train(scenario, timesteps, seed, out, *args):
         if seed == 3:
             raise ValueError("seed 3 broke")
         return {"best_validation_rmse_nt": 1.0 + seed, "timesteps": 100 * (seed + 1)}
 
-    monkeypatch.setattr(agents.ppo, "train_ppo", fake_train)
-    done = train_policies("nonstationary", [0, 2, 3], tmp_path, html=False)
+    monkeypatch.setattr(agents.training.ppo, "train_ppo", fake_train)
+    monkeypatch.setattr("aeromag_env.jobs.train._require_rl_extra", lambda: None)
+    done = train(tmp_path, scenario="nonstationary", seeds=[0, 2, 3], html=False)
     rows = {r["seed"]: r for r in done.summary["seeds"]}
     assert [rows[s]["best_validation_rmse_nt"] for s in (0, 2)] == [1.0, 3.0]
     assert rows[3]["best_validation_rmse_nt"] is None and "seed 3 broke" in rows[3]["error"]

@@ -118,10 +118,9 @@ def ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
     """Batched + prefetch (with the 1.5× target and the range of its ratio over the repeats),
     batched alone, DummyVecEnv, and the zero-cost environment (PPO alone: the ceiling) when
     measured (older bench.json files lack it); then the environment's share of the time (with
-    its target at 64 environments, :data:`ENV_SHARE_TARGETS`) and the environments' cost per step
-    against
-    the bare filter's (with its target at 8, :data:`ENV_TO_FILTER_TARGETS`) when measured; none
-    when the figures were not measured (``--quick`` skips the 64 environments)."""
+    its target at 64 environments, :data:`ENV_SHARE_TARGETS`) and the environments' cost per
+    step against the bare filter's (with its target at 8, :data:`ENV_TO_FILTER_TARGETS`) when
+    measured; none when the figures were not measured (``--quick`` skips the 64 environments)."""
     if f"{prefix}_n_envs" not in f:
         return []
     n, dummy = f[f"{prefix}_n_envs"], f[f"{prefix}_dummyvec_steps_per_s"]

@@ -297,15 +297,16 @@ def test_mat5_data_stored_in_a_smaller_type_still_reads(tmp_path, compressed) ->
 
 @pytest.mark.parametrize("suffix", [".h5", ".mat"])
 def test_an_hdf5_global_heap_the_library_would_loop_on_is_refused(tmp_path, suffix) -> None:
-    """The free space of the collection holding a string attribute given size 0: HDF5 took
-    it as a step of 0 bytes and never returned (HDF5 and MAT v7.3 alike)."""
+    """The free space of the collection holding a string attribute the reader reads (a file
+    attribute; a MATLAB class stored as a variable-length string) given size 0: HDF5 took it
+    as a step of 0 bytes and never returned (HDF5 and MAT v7.3 alike)."""
     path = tmp_path / f"in{suffix}"
     if suffix == ".mat":
         write_mat73(path, {"tt": np.arange(5.0).reshape(-1, 1)})
+        with h5py.File(path, "a") as f:
+            f["tt"].attrs["MATLAB_class"] = "double"  # kept in a global heap
     else:
-        write_flight(Flight({"tt": np.arange(5.0)}), path)
-    with h5py.File(path, "a") as f:
-        f["tt"].attrs["note"] = "a variable-length string, kept in a global heap"
+        write_flight(Flight({"tt": np.arange(5.0)}, {"note": "kept in a global heap"}), path)
     data = bytearray(path.read_bytes())
     at = data.index(b"GCOL") + 16  # the collection's header: signature, version, size
     while struct.unpack_from("<H", data, at)[0] != 0:  # to the free-space object

@@ -7,9 +7,12 @@ other work under pytest-xdist make any time limit a matter of chance). So the RE
 command passes or fails alike on every machine, every time.
 
 ``HYPOTHESIS_PROFILE=explore`` (CI's slow step) draws fresh random examples, four times as
-many (:func:`tests._helpers.examples`), and keeps what fails in hypothesis's database
-(``.hypothesis/``) to replay it first on the next exploring run. A failure found so is fixed
-and kept as an ``@example`` on its test, where the default run tries it every time.
+many (:func:`tests._helpers.examples`; 60 instead of 25 for the fault suite's examples of a
+few seconds each), and keeps what fails in hypothesis's database (``.hypothesis/``) to replay
+it first on the next exploring run. A failure found so is fixed and kept as an ``@example`` on
+its test, where the default run tries it every time. The profile is loaded here whatever the
+environment says, so hypothesis's own ``ci`` profile (which it loads when ``CI`` is set) does
+not make CI's run differ from a developer's.
 """
 
 from __future__ import annotations

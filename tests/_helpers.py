@@ -1,8 +1,9 @@
 """Helpers the tests share: the one-line-error check, the shipped artefacts, the experiment
-scripts (run as scripts: the tests never import ``experiments``)."""
+scripts (run as scripts: the tests never import ``experiments``), the property tests' budget."""
 
 from __future__ import annotations
 
+import os
 import re
 import runpy
 import sys
@@ -20,6 +21,30 @@ SHIPPED = {
     "hyperparams": ROOT / "agents" / "training" / "hyperparams" / "ppo.json",
 }
 EXPERIMENTS = ROOT / "experiments"
+
+#: The environment variable naming the hypothesis profile of a run (``tests/conftest.py``
+#: registers them): :data:`DETERMINISTIC` unless it says :data:`EXPLORE`.
+PROFILE_VARIABLE = "HYPOTHESIS_PROFILE"
+#: The default run's profile: every property test draws the same examples on every machine.
+DETERMINISTIC = "deterministic"
+#: The profile of CI's slow step: fresh random examples, :data:`EXPLORE_FACTOR` times as many.
+EXPLORE = "explore"
+EXPLORE_FACTOR = 4
+
+
+def hypothesis_profile() -> str:
+    """The hypothesis profile this run loads (:data:`PROFILE_VARIABLE`)."""
+    return os.environ.get(PROFILE_VARIABLE, DETERMINISTIC)
+
+
+def examples(n: int, explore: int | None = None) -> int:
+    """A property test's ``max_examples``: ``n`` in the default run; under the explore profile
+    ``explore``, by default :data:`EXPLORE_FACTOR` times ``n`` (a test's own setting outweighs
+    its profile's). A test whose example takes seconds names a smaller ``explore``, so that
+    CI's exploring step stays within a few minutes."""
+    if hypothesis_profile() != EXPLORE:
+        return n
+    return EXPLORE_FACTOR * n if explore is None else explore
 
 
 def assert_one_line_error(

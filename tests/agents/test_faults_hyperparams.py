@@ -26,7 +26,7 @@ from aeromag_env.cli.main import main
 from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS
 from aeromag_env.errors import HyperparameterError
 from agents.training.ppo import HYPERPARAMS, VEC_ENVS, _ppo_kwargs, load_hyperparams
-from tests._helpers import assert_one_line_error
+from tests._helpers import assert_one_line_error, examples
 
 SHIPPED = json.loads(HYPERPARAMS.read_text(encoding="utf-8"))
 SCHEMA = json.loads(HYPERPARAMS.with_name("ppo.schema.json").read_text(encoding="utf-8"))
@@ -391,7 +391,9 @@ JSON_VALUES = st.recursive(
 
 
 @settings(
-    max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=examples(300),
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(key=st.sampled_from(sorted(HP)), value=JSON_VALUES)
 def test_any_value_for_any_key_loads_or_names_the_key(tmp_path, key, value):

@@ -26,7 +26,7 @@ from aeromag_env.cli.main import main
 from aeromag_env.errors import AeromagError, PolicyFileError
 from agents.policies import DEFAULT_PPO, make_policy, policy_env_kwargs
 from agents.policies.numpy_policy import NumpyPPOPolicy
-from tests._helpers import assert_one_line_error
+from tests._helpers import assert_one_line_error, examples
 
 Arrays = dict[str, np.ndarray]
 
@@ -277,7 +277,9 @@ def test_cli_evaluate_with_a_broken_policy_exits_2_with_one_line(tmp_path, capsy
 
 
 @settings(
-    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=examples(150),
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(position=st.integers(0, len(GOOD) - 1), value=st.integers(0, 255))
 def test_any_corrupted_byte_loads_or_is_refused(tmp_path, position, value):

@@ -32,7 +32,7 @@ from aeromag_env.environment.spaces import check_actions
 from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 from aeromag_env.errors import AeromagError, ConfigError
 from agents.evaluation.episodes import evaluate
-from tests._helpers import assert_one_line_error
+from tests._helpers import assert_one_line_error, examples
 
 NAN, INF = math.nan, math.inf
 #: (field, bad value, what the message must say besides the field's name).
@@ -314,7 +314,7 @@ HOSTILE = (
 FIELDS = sorted([*EnvConfig.__dataclass_fields__, *LEGACY_KEYS, *LEGACY_SWITCHES])
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(400), deadline=None)
 @given(field=st.sampled_from(FIELDS), value=HOSTILE)
 def test_any_value_for_any_config_field(field, value):
     """Either the value is refused with a one-line ConfigError naming the field (directly and
@@ -347,7 +347,7 @@ def stepping_env() -> gym.Env:
     return env
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(action=ACTION_ARRAYS | st.lists(st.floats(), min_size=3, max_size=3))
 def test_any_action_is_refused_or_keeps_everything_finite(stepping_env, action):
     try:

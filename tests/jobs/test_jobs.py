@@ -27,7 +27,6 @@ from tests._flights import simulated
 
 #: The fluxgate's turn about the body z axis [deg].
 YAW_DEG = 45.0
-WARNING_PREFIX = "aeromag compensate: warning: "
 
 
 def _rotated(flight: Flight, yaw_deg: float) -> Flight:
@@ -60,8 +59,9 @@ def _cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[str, list[str]
     capsys.readouterr()
     assert main(list(argv)) == 0
     out, err = capsys.readouterr()
-    said = [line.removeprefix(WARNING_PREFIX) for line in err.splitlines()]
-    assert all(line.startswith(WARNING_PREFIX) for line in err.splitlines())
+    prefix = f"aeromag {argv[0]}: warning: "
+    said = [line.removeprefix(prefix) for line in err.splitlines()]
+    assert all(line.startswith(prefix) for line in err.splitlines()), err
     return out, said
 
 

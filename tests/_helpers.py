@@ -1,5 +1,5 @@
 """Helpers the tests share: the one-line-error check, the shipped artefacts, the experiment
-scripts (run as scripts: the tests never import ``experiments``)."""
+scripts (run as scripts, as their users run them: the tests never import ``experiments``)."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ SHIPPED = {
     "hyperparams": ROOT / "agents" / "training" / "hyperparams" / "ppo.json",
 }
 EXPERIMENTS = ROOT / "experiments"
+BENCHMARKS = ROOT / "benchmarks"
 
 
 def assert_one_line_error(

@@ -11,7 +11,10 @@ The runs go to ``--runs`` (default ``results/learners``), the data ``evaluate`` 
 write to ``--data`` (default ``RUNS/data``) and ``ship`` writes ``--to`` (default
 ``RUNS/ppo_general.npz``). The committed data and the shipped policy are written only when
 named: ``--data docs/learners`` (then ``python scripts/results_pages.py`` makes the page) and
-``ship --to agents/policies/trained/ppo_general.npz``. ``--quick`` on every step: test-sized.
+``ship --to agents/policies/trained/ppo_general.npz``. ``--quick`` on train, evaluate and select:
+test-sized. Each step prints its minutes, ``train`` each run's; how long the full steps take on
+these 2-core machines is in ``docs/howto/learners.md`` (hours for ``train``, about half an hour
+for ``evaluate --episodes 30`` in one process).
 """
 
 from __future__ import annotations

@@ -9,10 +9,10 @@ flight:
 * ``nominal``: its external (diurnal) variation is a vector fixed in the navigation frame, and
   the file's ``diurnal`` channel, like a scalar base station, records only its projection on the
   main field. The rest — the component across the main field — is in the flight and not in the
-  base model: a real ``external_field_variation`` (:func:`unmodelled_external`). Naming it is a
+  base model: a real ``external_field_variation`` (``unmodelled_external``). Naming it is a
   detection; any *other* named effect is a false alarm.
 
-:func:`run_plain_flight` gives one flight's row, :func:`plain_summary` the Markdown summary of
+``run_plain_flight`` gives one flight's row, ``plain_summary`` the Markdown summary of
 the rows (``docs/discovery/nominal.md``); ``experiments/discovery_nominal.py`` is the command
 line.
 """

@@ -1,9 +1,9 @@
 """The hidden-effect suite run and written down: its cases in processes, and from their rows
-(:func:`aeromag_env.discovery.suite.run_case`) and :func:`aeromag_env.discovery.power.summarise`'s
+(``aeromag_env.discovery.suite.run_case``) and ``aeromag_env.discovery.power.summarise``'s
 summary the files the documentation shows.
 
-:func:`write_suite` writes, as one output set: ``results.json`` (every case's row),
-``summary.json`` (the summary), ``summary.md`` (:func:`summary_markdown`: the claims, the power
+``write_suite`` writes, as one output set: ``results.json`` (every case's row),
+``summary.json`` (the summary), ``summary.md`` (``summary_markdown``: the claims, the power
 per effect and against flight duration), ``confusion.png``, ``power.png`` and, when the rows hold
 ``duration`` cases, ``power_duration.png``. ``experiments/hidden_effects.py`` is its command
 line; the committed set is ``docs/discovery/``.

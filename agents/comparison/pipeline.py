@@ -2,25 +2,25 @@
 choose the policy to ship on validation flights, ship it.
 
 Each step is resumable by its files and runs its pieces as tasks of a runner
-(:func:`aeromag_env.parallel.runner`: here one after another, or on Ray):
+(``aeromag_env.parallel.runner``: here one after another, or on Ray):
 
-* :func:`train` runs :func:`agents.training.learners.train_learner` once per learner × seed into
+* ``train`` runs ``agents.training.learners.train_learner`` once per learner × seed into
   ``RUNS/<learner>/seed_<k>/``; a finished run (its ``training.json`` exists) is skipped.
-* :func:`evaluate` flies every finished run's exported policy beside the anchors
+* ``evaluate`` flies every finished run's exported policy beside the anchors
   (``tuned_constant``, ``privileged``) and ``fis`` on the same test flights of every scenario of
-  the suite (``aeromag evaluate``'s path, :func:`agents.evaluation.episodes.evaluate_scenarios`),
+  the suite (``aeromag evaluate``'s path, ``agents.evaluation.episodes.evaluate_scenarios``),
   once, and writes the data :mod:`agents.comparison.statistics` reads: ``flights.csv`` (one
   record per learner, seed, scenario and flight: the RMSE), ``curves.csv`` (each validation
   point of each run: environment steps, wall-clock seconds, the validation RMSE per scenario),
   ``runs.json`` (per run its minutes, steps, validation score, hyperparameters, and the anchors'
   RMSE on the validation flights) and ``policies/<learner>_seed<k>.npz`` (every seed's exported
-  policy). The test flights are fresh (seeds from :data:`FIRST_SEED`, never flown for a choice).
-* :func:`select` chooses the policy to ship on validation flights only: every run's exported
+  policy). The test flights are fresh (seeds from ``FIRST_SEED``, never flown for a choice).
+* ``select`` chooses the policy to ship on validation flights only: every run's exported
   policy flies the same validation flights per scenario, scored as the runs were (the worst
   scenario's mean RMSE ratio to the tuned constant); the learner with the lowest mean score over
-  its seeds wins, and of it the seed with the lowest score (:func:`choose`). Nothing of the test
+  its seeds wins, and of it the seed with the lowest score (``choose``). Nothing of the test
   flights is read.
-* :func:`ship` writes the chosen policy as a general policy file, its settings named by their
+* ``ship`` writes the chosen policy as a general policy file, its settings named by their
   preset (``general``) as the shipped files name theirs.
 
 ``experiments/compare_learners.py`` is the command line over these steps.

@@ -37,14 +37,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--flights", type=int, default=48, help="flights (presets in turn)")
-    ap.add_argument("--jobs", type=int, default=2, help="processes")
+    ap.add_argument("--jobs", type=int, default=2, help="processes (1: in this one)")
     ap.add_argument("--out", type=Path, default=Path("results/discovery"), help="output folder")
     ap.add_argument("--quick", action="store_true", help=f"{QUICK_FLIGHTS} flights")
     args = ap.parse_args(argv)
     cases = plain_cases(QUICK_FLIGHTS if args.quick else args.flights)
     t0 = time.perf_counter()
-    with Pool(args.jobs) as pool:
-        rows = pool.map(run_plain_flight, cases, chunksize=1)
+    if args.jobs == 1:
+        rows = list(map(run_plain_flight, cases))
+    else:
+        with Pool(args.jobs) as pool:
+            rows = pool.map(run_plain_flight, cases, chunksize=1)
     text = plain_summary(rows)
     with output_set(args.out, ("nominal.json", "nominal.md")) as stage:
         (stage / "nominal.json").write_text(json.dumps(rows, indent=1), encoding="utf-8")

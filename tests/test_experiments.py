@@ -7,11 +7,12 @@ has its own tests (``tests/agents/test_comparison_pipeline.py``,
 
 import csv
 import json
+import subprocess
 
 import numpy as np
 import pytest
 
-from tests._helpers import SHIPPED, experiment, run_experiment
+from tests._helpers import SHIPPED, experiment, run_experiment, run_script
 
 
 def test_compare_methods_quick_writes_to_results_by_default(tmp_path, capsys, monkeypatch):
@@ -256,17 +257,23 @@ def test_hidden_effects_only_needs_the_run_it_replaces_cases_in(tmp_path, capsys
     assert f"{tmp_path}/results.json, which does not exist" in capsys.readouterr().err
 
 
+def _ok(done: subprocess.CompletedProcess[str]) -> str:
+    """What a script run by :func:`run_script` printed, once it is seen to have exited 0."""
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout
+
+
 @pytest.mark.slow
-def test_hidden_effects_quick_and_a_subset_rerun(tmp_path, capsys):
-    """Nine flights: every claim's row; then the null flight again (``--only null``): the other
-    rows kept, the summary made from all of them."""
-    assert run_experiment("hidden_effects", "--quick", "--jobs", "2", "--out", str(tmp_path)) == 0
+def test_hidden_effects_quick_and_a_subset_rerun(tmp_path):
+    """Nine flights on two processes: every claim's row; then the null flight again (``--only
+    null``, in one process): the other rows kept, the summary made from all of them."""
+    _ok(run_script("hidden_effects", "--quick", "--jobs", "2", "--out", str(tmp_path)))
     first = json.loads((tmp_path / "results.json").read_text())
     text = (tmp_path / "summary.md").read_text()
     assert "Cases: null 1, coloured_null 1, single 7." in text
     assert "| single effects at SNR ≥ 2, exact set named | ≥ 90 % |" in text
     argv = ["--quick", "--only", "null", "--jobs", "1", "--out", str(tmp_path)]
-    assert run_experiment("hidden_effects", *argv) == 0
+    assert "wrote" in _ok(run_script("hidden_effects", *argv))
     again = json.loads((tmp_path / "results.json").read_text())
     assert [(r["kind"], r["seed"]) for r in again] == [
         *((r["kind"], r["seed"]) for r in first if r["kind"] != "null"),
@@ -274,30 +281,29 @@ def test_hidden_effects_quick_and_a_subset_rerun(tmp_path, capsys):
     ]
     assert again[-1] == next(r for r in first if r["kind"] == "null")  # seeded: the same row
     assert "for the 1 cases of this run" in (tmp_path / "summary.md").read_text()
-    assert "wrote" in capsys.readouterr().out
 
 
 @pytest.mark.slow
-def test_discovery_nominal_quick(tmp_path):
-    assert run_experiment("discovery_nominal", "--quick", "--out", str(tmp_path)) == 0
-    rows = json.loads((tmp_path / "nominal.json").read_text())
+def test_discovery_nominal_quick_from_another_folder(tmp_path):
+    """Four plain flights, the script started in an empty folder: its rows and summary land in
+    that folder's ``results/discovery``."""
+    _ok(run_script("discovery_nominal", "--quick", cwd=tmp_path))
+    out = tmp_path / "results" / "discovery"
+    rows = json.loads((out / "nominal.json").read_text())
     assert [r["preset"] for r in rows] == ["nominal", "nominal", "paper", "noise_free"]
-    text = (tmp_path / "nominal.md").read_text()
+    text = (out / "nominal.md").read_text()
     assert "* flights: 4 (nominal 2, paper 1, noise_free 1); refused: 0" in text
 
 
 @pytest.mark.slow
-def test_discovery_calibration_geology_and_ground_quick(capsys):
-    assert run_experiment("discovery_calibration", "--quick") == 0
-    assert "null flights: 2; spurious slow groups" in capsys.readouterr().out
-    assert run_experiment("discovery_geology", "--quick") == 0
-    out = capsys.readouterr().out
+def test_discovery_calibration_geology_and_ground_quick():
+    out = _ok(run_script("discovery_calibration", "--quick"))
+    assert "null flights: 2; spurious slow groups" in out
+    out = _ok(run_script("discovery_geology", "--quick"))
     assert "| 0 | 91000 |" in out and "| 50 | 91000 |" in out and "`onboard_current`" in out
-    assert run_experiment("discovery_ground", "--quick") == 0
-    out = capsys.readouterr().out
+    out = _ok(run_script("discovery_ground", "--quick"))
     assert "| 0 | " in out and "| `onboard_current` | 50 | " in out
-    assert run_experiment("discovery_ground", "--low", "--quick") == 0
-    assert "| plain | 98000 | 50 |" in capsys.readouterr().out
+    assert "| plain | 98000 | 50 |" in _ok(run_script("discovery_ground", "--low", "--quick"))
 
 
 @pytest.mark.slow

@@ -24,7 +24,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-if __package__ in (None, ""):  # run as a script: the checkout's packages first
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.environment.spaces import ACT_R

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-if __package__ in (None, ""):  # run as a script: the checkout's packages first
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.atomic import write_text

@@ -13,15 +13,21 @@ process), and the rest (the Python around the step: action check, flags, info di
 ``step_wait`` time against the filter alone (``ppo_env_to_filter_ratio``); this says how much of
 the gap is the compiled step's scoring and observation and how much the Python around it.
 
-Run: ``.venv/bin/python benchmarks/ppo_env_split.py [repeats]`` (default 3)
+Run: ``python benchmarks/ppo_env_split.py [repeats] [--quick]`` (default 3)
 """
 
 from __future__ import annotations
 
+import argparse
 import statistics
 import sys
 import time
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
+
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.environment import kernels
 from aeromag_env.jobs.bench.envs import timed
@@ -29,9 +35,9 @@ from aeromag_env.jobs.bench.envs import timed
 TIMESTEPS = 49_152
 
 
-def split(repeats: int) -> dict[str, float]:
+def split(repeats: int, timesteps: int = TIMESTEPS) -> dict[str, float]:
     """µs per environment step in ``step_wait``, in the compiled step, in the resets, and the
-    rest."""
+    rest, over ``timesteps`` timed steps per repeat."""
     from agents.training import ppo
 
     hp = ppo.load_hyperparams("nonstationary")
@@ -50,10 +56,10 @@ def split(repeats: int) -> dict[str, float]:
             waits, steps, loads = [], [], []
             for _ in range(repeats):
                 wait[0] = compiled[0] = resets[0] = 0.0
-                model.learn(TIMESTEPS, reset_num_timesteps=False)
-                waits.append(1e6 * wait[0] / TIMESTEPS)
-                steps.append(1e6 * compiled[0] / TIMESTEPS)
-                loads.append(1e6 * resets[0] / TIMESTEPS)
+                model.learn(timesteps, reset_num_timesteps=False)
+                waits.append(1e6 * wait[0] / timesteps)
+                steps.append(1e6 * compiled[0] / timesteps)
+                loads.append(1e6 * resets[0] / timesteps)
             venv.close()
     finally:
         kernels.env_step_batch = original
@@ -67,6 +73,16 @@ def split(repeats: int) -> dict[str, float]:
     }
 
 
-if __name__ == "__main__":
-    for name, value in split(int(sys.argv[1]) if len(sys.argv) > 1 else 3).items():
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("repeats", type=int, nargs="?", default=3, help="repeats (medians)")
+    parser.add_argument("--quick", action="store_true", help="one repeat of 4 096 steps")
+    args = parser.parse_args(argv)
+    repeats, steps = (1, 4096) if args.quick else (args.repeats, TIMESTEPS)
+    for name, value in split(repeats, steps).items():
         print(f"{name:32s} {value:6.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

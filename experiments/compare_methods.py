@@ -16,6 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from aeromag_env.atomic import write_text
 from aeromag_env.compensation.compensate import (
     FILTER_METHODS,

@@ -23,6 +23,10 @@ N test flights instead of the validation flights.
 policy, the 20 nT mean-innovation rule and their two hybrids (the policy's T_p action with the
 rule's Q and R, and the reverse) on the evaluated scenario and on the training scenario
 ``nonstationary_dense``.
+
+Every step prints; only ``trial`` writes (its policy, ``--out``, default
+``results/ppo_trial.npz``). ``--quick`` on every step: 2 flights (and for ``trial`` a
+test-sized training, :data:`agents.training.quick.QUICK`).
 """
 
 from __future__ import annotations
@@ -31,10 +35,14 @@ import argparse
 import math
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import aeromag_env  # noqa: F401
 from aeromag_env.environment.config import env_config
@@ -43,6 +51,7 @@ from aeromag_env.simulation.interference import STATE_SLICES
 from agents.evaluation.episodes import run_episode
 from agents.evaluation.seeds import TEST_SEED_START, VALIDATION_SEEDS
 from agents.policies import DEFAULT_PPO, make_policy
+from agents.training.quick import QUICK
 
 SEEDS = range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + 20)
 
@@ -72,20 +81,21 @@ class PrivilegedSchedule:
         return np.clip(np.array(a, np.float32), -1, 1), state
 
 
-def _mean_rmse(env: Any, policy: Any) -> float:
-    return float(np.mean([run_episode(env, policy, s)["rmse_nt"] for s in SEEDS]))
+def _mean_rmse(env: Any, policy: Any, seeds: Sequence[int] = SEEDS) -> float:
+    return float(np.mean([run_episode(env, policy, s)["rmse_nt"] for s in seeds]))
 
 
-def headroom() -> None:
+def headroom(seeds: Sequence[int] = SEEDS) -> None:
     env = gym.make(
         "AeroMagCompensation-v0", scenario="nonstationary", extras=True, action_mode="absolute"
     )
     base = gym.make("AeroMagCompensation-v0", scenario="nonstationary")
-    print(f"fis {_mean_rmse(base, make_policy('fis', base)):.3f} nT")
+    print(f"fis {_mean_rmse(base, make_policy('fis', base), seeds):.3f} nT")
     for args in [(-10, 4, 30, 0), (-10, 8, 10, 0), (-10, 9, 5, 0), (-10, 8, 10, -1)]:
-        print(f"privileged {args}: {_mean_rmse(env, PrivilegedSchedule(env, *args)):.3f} nT")
+        rmse = _mean_rmse(env, PrivilegedSchedule(env, *args), seeds)
+        print(f"privileged {args}: {rmse:.3f} nT")
     episodes = []
-    for seed in SEEDS:
+    for seed in seeds:
         base.reset(seed=seed)
         episodes.append(base.unwrapped.episode)
     for kw in [{}, {"delay_s": 1.0}, {"delay_s": 3.0}, {"r_log10": 2.0}]:
@@ -238,7 +248,15 @@ def shift(policy_path: str, seeds: Sequence[int]) -> None:
             print(f"{scenario}, {name}: {_run_batched(cfg, seeds, act):.3f} nT", flush=True)
 
 
-def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: bool) -> None:
+def trial(
+    steps: int,
+    s_max: float,
+    action_mode: str,
+    paper_obs: bool,
+    split_q: bool,
+    out: Path,
+    quick: bool = False,
+) -> None:
     import torch
     from stable_baselines3 import PPO
 
@@ -246,8 +264,12 @@ def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: 
 
     from agents.policies.numpy_policy import NumpyPPOPolicy
     from agents.training.ppo import _ppo_kwargs, export_policy, load_hyperparams, make_training_env
+    from agents.training.quick import quick_hyperparams
 
     hp = load_hyperparams("nonstationary")
+    seeds = SEEDS[: QUICK.episodes] if quick else SEEDS
+    if quick:
+        hp = quick_hyperparams(hp)
     env_kwargs = {"extras": not paper_obs, "s_max": s_max, "action_mode": action_mode}
     if split_q:
         env_kwargs["split_q"] = True
@@ -255,28 +277,32 @@ def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: 
     venv = make_training_env("nonstationary", hp, seed=0)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", **_ppo_kwargs(hp))
     model.learn(steps)
-    path = export_policy(
-        model, venv, __import__("pathlib").Path("results/ppo_trial.npz"), {"env_kwargs": env_kwargs}
-    )
+    path = export_policy(model, venv, out, {"env_kwargs": env_kwargs})
     policy = NumpyPPOPolicy.load(path)
     env = gym.make("AeroMagCompensation-v0", scenario="nonstationary", **env_kwargs)
     base = gym.make("AeroMagCompensation-v0", scenario="nonstationary")
-    fis = _mean_rmse(base, make_policy("fis", base))
-    tuned = _mean_rmse(base, make_policy("tuned_constant", base))
-    print(f"ppo {_mean_rmse(env, policy):.3f} nT; fis {fis:.3f}; tuned_constant {tuned:.3f}")
+    fis = _mean_rmse(base, make_policy("fis", base), seeds)
+    tuned = _mean_rmse(base, make_policy("tuned_constant", base), seeds)
+    learned = _mean_rmse(env, policy, seeds)
+    print(f"ppo {learned:.3f} nT; fis {fis:.3f}; tuned_constant {tuned:.3f}; wrote {path}")
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sub = parser.add_subparsers(dest="cmd", required=True)
-    t = sub.add_parser("trial")
-    t.add_argument("--steps", type=int, default=1_000_000)
+    t = sub.add_parser("trial", help="train PPO with one design, fly it beside the baselines")
+    t.add_argument("--steps", type=int, default=1_000_000, help="environment steps")
     t.add_argument("--s-max", type=float, default=2.0)
     t.add_argument("--action-mode", default="relative", choices=("relative", "absolute"))
-    t.add_argument("--paper-obs", action="store_true")
+    t.add_argument("--paper-obs", action="store_true", help="the paper's two observations only")
     t.add_argument("--split-q", action="store_true", help="T_p's Q as a third action")
-    sub.add_parser("headroom")
-    d = sub.add_parser("detector")
+    t.add_argument(
+        "--out", type=Path, default=Path("results/ppo_trial.npz"), help="the exported policy"
+    )
+    sub.add_parser("headroom", help="privileged schedules: the ceiling")
+    d = sub.add_parser("detector", help="hand-written causal step detectors")
     d.add_argument(
         "--test",
         type=int,
@@ -284,18 +310,29 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="N",
         help="run on the first N test seeds instead of the 20 validation seeds",
     )
-    h = sub.add_parser("shift")
+    h = sub.add_parser("shift", help="a learned policy against the 20 nT rule, and hybrids")
     h.add_argument("--policy", default=str(DEFAULT_PPO), help="an exported policy (.npz)")
     h.add_argument("--episodes", type=int, default=40, help="validation flights")
-    args = parser.parse_args(argv)
+    for p in (t, d, h, sub.choices["headroom"]):
+        p.add_argument("--quick", action="store_true", help="2 flights (and a tiny training)")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    flights = QUICK.episodes if args.quick else None
     if args.cmd == "shift":
-        shift(args.policy, range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + args.episodes))
+        n = flights or args.episodes
+        shift(args.policy, range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + n))
     elif args.cmd == "headroom":
-        headroom()
+        headroom(SEEDS[:flights])
     elif args.cmd == "detector":
-        detector(range(TEST_SEED_START, TEST_SEED_START + args.test) if args.test else SEEDS)
+        n = flights or args.test
+        detector(range(TEST_SEED_START, TEST_SEED_START + n) if args.test else SEEDS[:flights])
     else:
-        trial(args.steps, args.s_max, args.action_mode, args.paper_obs, args.split_q)
+        steps = QUICK.train_timesteps if args.quick else args.steps
+        split = (args.s_max, args.action_mode, args.paper_obs, args.split_q)
+        trial(steps, *split, args.out, quick=args.quick)
     return 0
 
 

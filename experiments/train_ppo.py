@@ -5,7 +5,8 @@
 
 1. ``aeromag train`` on ``nonstationary`` (training seeds < 50 000; best policy by validation
    RMSE on the first ``eval_episodes`` validation seeds from 50 000), unless ``--skip-training``;
-2. ``--ship`` copies the best policy to ``agents/policies/trained/ppo_nonstationary.npz``;
+2. ``--ship`` copies the best policy to ``agents/policies/trained/ppo_nonstationary.npz`` (the
+   shipped policy: only when asked);
 3. evaluates every policy on test seeds from 100 000 on ``nonstationary`` and ``nominal``;
 4. writes ``comparison.md``, ``learning_curve.png`` and the per-scenario results.
 """
@@ -16,8 +17,12 @@ import argparse
 import json
 import shutil
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
+
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.atomic import write_text
 from aeromag_env.jobs.evaluate import evaluate, evaluation_table
@@ -41,7 +46,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--out", default="results/ppo_experiment")
     args = parser.parse_args(argv)
-    out = Path(args.out)
+    out, t0 = Path(args.out), time.perf_counter()
     train_dir = out / "train"
     if not args.skip_training:
         from agents.training.ppo import train_ppo
@@ -62,7 +67,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         tables.append(evaluation_table(res))
     write_text(out / "comparison.md", "\n".join(tables))
     _learning_curve(policy.with_name("training.json"), out / "learning_curve.png")
-    print(f"wrote {out}/comparison.md, learning_curve.png")
+    minutes = (time.perf_counter() - t0) / 60
+    print(f"wrote {out}/comparison.md, learning_curve.png ({minutes:.1f} min in all)")
     return 0
 
 

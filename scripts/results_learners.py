@@ -408,7 +408,7 @@ def _selection(docs: Path, d: Learners) -> list[str]:
     lines = [
         "## The policy chosen to ship",
         "",
-        source_line(docs, [("learners/selection.json", sel["command"])]),
+        source_line(docs, [("learners/selection.json", writing_docs(sel["command"]))]),
         "",
         f"Chosen on validation flights only ({sel['validation_flights_per_scenario']} per "
         "scenario, the same for every seed of every learner; the score is the worst scenario's "
@@ -456,13 +456,20 @@ def _selection(docs: Path, d: Learners) -> list[str]:
     ]
 
 
+def writing_docs(command: str) -> str:
+    """A recorded command of ``experiments/compare_learners.py`` as it writes into
+    ``docs/learners/``: with ``--data docs/learners`` when it names no data folder (the
+    script's default folder is under ``results/``)."""
+    return command if "--data" in command.split() else f"{command} --data docs/learners"
+
+
 def learners_page(docs: Path) -> str:
     """``learners.md``: the learners for the general tuner on the same test flights."""
     d = learners(docs)
     test = d.runs["test_flights"]
     first, n = test["first_seed"], test["per_scenario"]
     seeds = ", ".join(f"`{name}` {len(r.seeds)}" for name, r in d.result.learners.items())
-    command = d.runs["command"]
+    command = writing_docs(d.runs["command"])
     lines = [
         "# Learners for the general tuner",
         "",

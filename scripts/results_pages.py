@@ -317,9 +317,13 @@ def discovery_page(docs: Path) -> str:
                 (
                     "discovery/summary.json",
                     "python -m experiments.hidden_effects --single 10 --null 40 --coloured 20 "
-                    "--absorbed 5 --pairs 5, then --only duration --durations 4",
+                    "--absorbed 5 --pairs 5 --out docs/discovery (10.3 min on a 2-core machine), "
+                    "then --only duration --durations 4 --out docs/discovery (17.5 min)",
                 ),
-                ("discovery/nominal.json", "python -m experiments.discovery_nominal"),
+                (
+                    "discovery/nominal.json",
+                    "python -m experiments.discovery_nominal --out docs/discovery",
+                ),
             ],
         ),
         "",
@@ -428,7 +432,8 @@ def index_page(docs: Path) -> str:
         lines += [
             "",
             "The comparison of the learners for the general tuner gets its page when its data, "
-            "`docs/learners/` (`python -m experiments.compare_learners evaluate`), are committed.",
+            "`docs/learners/` (`python -m experiments.compare_learners evaluate --data "
+            "docs/learners`), are committed.",
         ]
     return "\n".join(lines) + "\n"
 

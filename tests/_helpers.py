@@ -1,11 +1,13 @@
 """Helpers the tests share: the one-line-error check, the shipped artefacts, the experiment
-scripts (run as scripts: the tests never import ``experiments``), the property tests' budget."""
+scripts (run as scripts, as their users run them: the tests never import ``experiments``), the
+property tests' budget."""
 
 from __future__ import annotations
 
 import os
 import re
 import runpy
+import subprocess
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -21,6 +23,7 @@ SHIPPED = {
     "hyperparams": ROOT / "agents" / "training" / "hyperparams" / "ppo.json",
 }
 EXPERIMENTS = ROOT / "experiments"
+BENCHMARKS = ROOT / "benchmarks"
 
 #: The environment variable naming the hypothesis profile of a run (``tests/conftest.py``
 #: registers them): :data:`DETERMINISTIC` unless it says :data:`EXPLORE`.
@@ -80,6 +83,20 @@ def run_experiment(name: str, *argv: str) -> int:
         except SystemExit as e:
             return e.code if isinstance(e.code, int) else 0 if e.code is None else 1
     return 0
+
+
+def run_script(name: str, *argv: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """``python experiments/<name>.py ARGV`` in a fresh interpreter (in ``cwd``, default the
+    checkout): for the scripts that start processes of their own, which a fork of the test
+    process could deadlock (its threads' locks are copied held)."""
+    return subprocess.run(
+        [sys.executable, str(EXPERIMENTS / f"{name}.py"), *argv],
+        cwd=cwd or ROOT,
+        capture_output=True,
+        text=True,
+        timeout=1800,
+        check=False,
+    )
 
 
 def run_cli(argv: list[str]) -> int:

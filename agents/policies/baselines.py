@@ -232,7 +232,8 @@ class TunedConstantPolicy(TargetScalePolicy):
         if scenario not in table:
             raise ConfigError(
                 f"no tuned constants for scenario {scenario!r}; tuned scenarios: "
-                f"{', '.join(sorted(table))} (python experiments/tune_constants.py)"
+                f"{', '.join(sorted(table))} (experiments/tune_constants.py in a checkout tunes "
+                "more)"
             )
         entry = table[scenario]
         super().__init__(env, math.log(10.0) * entry["log10_q"], math.log(10.0) * entry["log10_r"])

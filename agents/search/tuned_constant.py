@@ -2,7 +2,8 @@
 seeds by a grid search (log10 steps), stored in ``agents/policies/tuned_constants.json`` (read by
 :mod:`agents.policies.tuned_table`).
 
-Rebuild with ``python experiments/tune_constants.py`` (the file records the grid and seeds).
+Rebuild with ``python experiments/tune_constants.py --out agents/policies/tuned_constants.json``
+(the file records the grid and seeds; without ``--out`` the table goes to ``results/``).
 """
 
 from __future__ import annotations

@@ -261,18 +261,13 @@ def _changed(base: dict[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]
 
 
 def _unknown(key: str) -> str:
-    """The error for ``key``, no field of EnvConfig (a flat key of the environment's first
-    version named as such)."""
-    from aeromag_env.environment.legacy import LEGACY_KEYS, LEGACY_SWITCHES
-
+    """The error for ``key``, no field of EnvConfig; it says where the flat keys of the
+    environment's first version (``extras``, ``split_q``…) are read: from old files only."""
     valid = ", ".join((*_FIELDS, "preset"))
-    if key in LEGACY_KEYS or key in LEGACY_SWITCHES:
-        return (
-            f"EnvConfig: {key!r} is a key of the environment's first version; name a preset or "
-            f"give observations, action and reward (an old file's settings are read by "
-            f"aeromag_env.environment.legacy.upgrade); valid: {valid}"
-        )
-    return f"EnvConfig: unknown field {key!r}; valid: {valid}"
+    return (
+        f"EnvConfig: unknown field {key!r}; valid: {valid} (the first version's flat keys are "
+        "read from old files only, by aeromag_env.environment.legacy.upgrade)"
+    )
 
 
 def _spec_dict(value: Any) -> Any:

@@ -22,7 +22,7 @@ the algorithm's own default; an explicit ``null`` is refused. ``env_kwargs`` are
 
 The JSON Schemas ``ppo.schema.json`` and ``learners.schema.json`` (for editors, and the
 reference of the fields) are made from these models: ``python -m
-agents.training.hyperparameters`` rewrites them, and a test checks the committed files.
+agents.training.schemas`` rewrites them, and a test checks the committed files.
 
 Why pydantic (v2): it validates a model from a file's JSON in one pass, strictly (8.0 is no
 integer, 1 is no boolean) and with every error's location (``scenarios.suite.gamma``), and it
@@ -35,11 +35,8 @@ Schema: the generator would have stayed ours.
 from __future__ import annotations
 
 import copy
-import json
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator
@@ -52,11 +49,7 @@ from aeromag_env.environment.env import EnvConfig
 from aeromag_env.environment.legacy import upgrade
 from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS
 from aeromag_env.errors import ConfigError
-
-HYPERPARAMS = Path(__file__).with_name("hyperparams")
-#: The JSON Schemas made from the models.
-PPO_SCHEMA = HYPERPARAMS / "ppo.schema.json"
-LEARNERS_SCHEMA = HYPERPARAMS / "learners.schema.json"
+from agents.training.model_errors import problem
 
 #: Every scenario a policy may be trained on.
 _TRAINABLE = (*SCENARIOS, *TRAINING_SCENARIOS)
@@ -431,8 +424,6 @@ def _given(values: dict[str, Any]) -> dict[str, Any]:
 def checked(cls: type[Any], values: Mapping[str, Any]) -> Any:
     """``cls`` (a model of this module) made from ``values``; a one-line ConfigError naming the
     field (:func:`agents.training.hyperparams_file.problem`)."""
-    from agents.training.hyperparams_file import problem  # it reads the files of these models
-
     try:
         return cls.model_validate(dict(values))
     except ValidationError as e:
@@ -465,30 +456,3 @@ def model_schema(cls: type[BaseModel]) -> dict[str, Any]:
 def ppo_schema() -> dict[str, Any]:
     """The JSON Schema of ``ppo.json``, made from :class:`PPOFile`."""
     return {"$schema": "https://json-schema.org/draft/2020-12/schema", **model_schema(PPOFile)}
-
-
-def schema_text(schema: dict[str, Any]) -> str:
-    """``schema`` as the text of its file."""
-    return json.dumps(schema, indent=2, ensure_ascii=False) + "\n"
-
-
-def schemas() -> dict[Path, dict[str, Any]]:
-    """Each JSON Schema file and its schema, made from the models."""
-    from agents.training.learner_hyperparameters import learners_schema
-
-    return {PPO_SCHEMA: ppo_schema(), LEARNERS_SCHEMA: learners_schema()}
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Rewrite the JSON Schema files (``ppo.schema.json``, ``learners.schema.json``) from the
-    models, into the folder ``argv[0]`` if given."""
-    folder = Path(argv[0]) if argv else HYPERPARAMS
-    for path, schema in schemas().items():
-        target = folder / path.name
-        target.write_text(schema_text(schema), encoding="utf-8")
-        print(f"wrote {target}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))

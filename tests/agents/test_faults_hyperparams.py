@@ -436,9 +436,9 @@ def test_any_value_for_any_key_loads_or_names_the_key(tmp_path, key, value):
 
 def test_the_committed_schemas_are_the_ones_made_from_the_models():
     """``ppo.schema.json`` and ``learners.schema.json`` are made from the models (``python -m
-    agents.training.hyperparameters`` rewrites them): a field changed in a model alone fails
+    agents.training.schemas`` rewrites them): a field changed in a model alone fails
     here; and each is valid JSON Schema that the shipped file passes."""
-    from agents.training.hyperparameters import schema_text, schemas
+    from agents.training.schemas import schema_text, schemas
 
     made = schemas()
     assert [p.name for p in made] == ["ppo.schema.json", "learners.schema.json"]

@@ -91,8 +91,8 @@ def read_learner_space(learner: str, path: str | Path = LEARNER_SPACES) -> dict[
     Returns
     -------
     dict
-        ``{key: distribution}`` as :func:`read_space`'s, each key a constructor parameter of
-        the learner's algorithm.
+        ``{key: distribution}`` as :func:`read_space`'s, each key a field of the learner's
+        ``algo`` (a constructor keyword of its algorithm).
 
     Raises
     ------

@@ -1,16 +1,17 @@
-"""Every learner's hyperparameters as typed models, checked when built; their JSON Schemas.
+"""Every learner's hyperparameters as typed models, checked when built: the common scheme, and
+PPO's.
 
-One model per learner, the fields they share written once:
+One model per learner, the fields they share written once (here):
 
 * :class:`LearnerSettings`, what every learner has: its environments (``n_envs``,
   ``prefetch``, ``env_kwargs``), the reward normalisation and the validation (``eval_every``,
   ``eval_episodes``, ``select_by``);
 * :class:`PPOHyperparams` (one scenario's entry of ``agents/training/hyperparams/ppo.json``,
   with its :class:`Pretrain`);
-* :class:`RecurrentPPOHyperparams`, :class:`SACHyperparams`, :class:`TQCHyperparams` and
-  :class:`CMAESHyperparams` (an entry of ``learners.json`` under the file's ``common``
-  settings), each with its algorithm's ``algo`` and, for the networks, ``policy_kwargs``; the
-  PPO family's fields (``n_steps``, ``gamma``…) are the same types in PPO and RecurrentPPO.
+* the four other learners (:mod:`agents.training.learner_hyperparameters`: an entry of
+  ``learners.json`` under the file's ``common`` settings), each with its algorithm's ``algo``
+  and, for the networks, ``policy_kwargs``; the PPO family's fields (``n_steps``, ``gamma``…)
+  are the types declared here, in PPO and RecurrentPPO alike.
 
 Each field carries its title, what it allows (its ``description``: an error says "must be
 …") and its constraints; its default, where it has one, is the one training uses. A field
@@ -97,6 +98,7 @@ def described(title: str, allowed: str, **constraints: Any) -> Any:
 
 
 def integer(lo: int, hi: int, title: str, allowed: str = "", **more: Any) -> Any:
+    """An integer field in [lo, hi]: its title and what it allows (with ``allowed`` added)."""
     text = f"an integer ≥ {lo} and ≤ {hi}" + (f" ({allowed})" if allowed else "")
     return described(title, text, ge=lo, le=hi, **more)
 
@@ -422,8 +424,8 @@ def _given(values: dict[str, Any]) -> dict[str, Any]:
 
 
 def checked(cls: type[Any], values: Mapping[str, Any]) -> Any:
-    """``cls`` (a model of this module) made from ``values``; a one-line ConfigError naming the
-    field (:func:`agents.training.hyperparams_file.problem`)."""
+    """``cls`` (a hyperparameter model) made from ``values``; a one-line ConfigError naming the
+    field (:func:`agents.training.model_errors.problem`)."""
     try:
         return cls.model_validate(dict(values))
     except ValidationError as e:

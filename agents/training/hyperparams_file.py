@@ -25,8 +25,12 @@ from typing import Any
 from pydantic import ConfigDict, TypeAdapter, ValidationError
 
 from aeromag_env.errors import HyperparameterError
-from agents.training.hyperparameters import PPOFile, model_schema
-from agents.training.learner_hyperparameters import LEARNER_MODELS, LearnersFile
+from agents.training.hyperparameters import PPOFile, PPOHyperparams, checked, model_schema
+from agents.training.learner_hyperparameters import (
+    LEARNER_MODELS,
+    LearnerHyperparams,
+    LearnersFile,
+)
 from agents.training.model_errors import problem, shown
 
 #: Largest hyperparameter file [bytes]; the shipped ones are 3 to 5 kB.
@@ -44,7 +48,7 @@ class _NotFinite:
         self.text = text
 
 
-def read_ppo(path: str | Path) -> Any:
+def read_ppo(path: str | Path) -> PPOFile:
     """The PPO hyperparameter file ``path`` as a
     :class:`~agents.training.hyperparameters.PPOFile`, every entry checked.
 
@@ -55,7 +59,7 @@ def read_ppo(path: str | Path) -> Any:
     """
     path = Path(path)
     doc = read_json(path)
-    model = _validated(PPOFile, doc, path, ())
+    model: PPOFile = _validated(PPOFile, doc, path, ())
     for entry in model.scenarios.values():
         entry._version = model.version
     return model
@@ -64,11 +68,13 @@ def read_ppo(path: str | Path) -> Any:
 def read_hyperparams(path: str | Path) -> dict[str, Any]:
     """The document of the PPO hyperparameter file ``path`` as it is written (a dict),
     checked as :func:`read_ppo` checks it."""
-    read_ppo(path)
-    return dict(read_json(Path(path)))
+    path = Path(path)
+    doc = read_json(path)
+    _validated(PPOFile, doc, path, ())
+    return dict(doc)
 
 
-def read_learners(path: str | Path) -> dict[str, Any]:
+def read_learners(path: str | Path) -> dict[str, LearnerHyperparams]:
     """The learners of ``learners.json`` at ``path``: learner → its hyperparameters (the
     entry under the file's ``common``, a model of
     :data:`~agents.training.learner_hyperparameters.LEARNER_MODELS`), every learner checked.
@@ -82,7 +88,7 @@ def read_learners(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     doc = read_json(path)
     table = _validated(LearnersFile, doc, path, ())
-    learners = {}
+    learners: dict[str, LearnerHyperparams] = {}
     for name, entry in table.learners.items():
         merged = {**table.common, **entry}
         where: tuple[str, ...] = ("learners", name)
@@ -261,7 +267,7 @@ def _check_schema(doc: Any, validator: Any) -> None:
     raise _Problem(f"{where}: must be {allowed}, got {shown(error.instance)}")
 
 
-def stored_hyperparams(summary: Mapping[str, Any]) -> Any:
+def stored_hyperparams(summary: Mapping[str, Any]) -> PPOHyperparams | LearnerHyperparams:
     """The hyperparameters a training run stored (the ``hyperparams`` of its ``training.json``,
     or of a run of ``runs.json``), as the model of its learner (``summary["learner"]``, PPO when
     absent): files of every version read, their environment settings in today's terms.
@@ -271,8 +277,6 @@ def stored_hyperparams(summary: Mapping[str, Any]) -> Any:
     ConfigError
         One line naming the field.
     """
-    from agents.training.hyperparameters import PPOHyperparams, checked
-
     values = dict(summary["hyperparams"])
     version = values.pop("version", None)
     learner = summary.get("learner", "ppo")

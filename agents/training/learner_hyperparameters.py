@@ -237,9 +237,12 @@ class CMAESHyperparams(_LearnerEntry):
     algo: CMAESAlgo
 
 
+#: The hyperparameters of a stable-baselines3 learner, and of any learner of ``learners.json``.
+SB3Hyperparams = RecurrentPPOHyperparams | SACHyperparams | TQCHyperparams
+LearnerHyperparams = SB3Hyperparams | CMAESHyperparams
 #: The model of each learner of ``learners.json`` (PPO's is
 #: :class:`~agents.training.hyperparameters.PPOHyperparams`).
-LEARNER_MODELS: dict[str, type[_LearnerEntry]] = {
+LEARNER_MODELS: dict[str, type[LearnerHyperparams]] = {
     m.learner: m
     for m in (RecurrentPPOHyperparams, SACHyperparams, TQCHyperparams, CMAESHyperparams)
 }
@@ -249,11 +252,6 @@ def algo_model(learner: str) -> type[Model]:
     """The model of the ``algo`` of ``learner`` (a learner of :data:`LEARNER_MODELS`)."""
     algo: type[Model] = LEARNER_MODELS[learner].model_fields["algo"].annotation  # type: ignore[assignment]
     return algo
-
-
-#: The hyperparameters of a stable-baselines3 learner, and of any learner of ``learners.json``.
-SB3Hyperparams = RecurrentPPOHyperparams | SACHyperparams | TQCHyperparams
-LearnerHyperparams = SB3Hyperparams | CMAESHyperparams
 
 
 _LearnerName = Annotated[str, OneOf(tuple(LEARNER_MODELS), "a learner")]

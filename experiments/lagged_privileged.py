@@ -27,11 +27,19 @@ import numpy as np
 if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from aeromag_env.environment.observations import PAPER_OBSERVATIONS
 from aeromag_env.environment.spaces import ACT_R
 from agents.evaluation.episodes import run_episode
 from agents.policies.baselines import PrivilegedPolicy
 from agents.training.quick import QUICK
 from agents.training.validation import validation_rmse, validation_seeds
+
+#: The observation the policies fly with (they read the truth, not the observation): the
+#: paper's two, the current Q and R scales, whiteness, progress, the recent ROR, T_p's Q scale.
+OBSERVATIONS = [
+    *PAPER_OBSERVATIONS,
+    *("log_q_scale", "log_r_scale", "whiteness", "progress", "log_recent_ror", "log_qp_scale"),
+]
 
 
 class LatePrivileged(PrivilegedPolicy):
@@ -60,7 +68,11 @@ def _fly(
 ) -> float:
     """Mean RMSE [nT] of ``policy_class`` (a privileged kind) over the validation flights, with
     R held at or above ``10^floor R(0)`` when ``floor`` is given."""
-    kwargs = dict(PrivilegedPolicy.ENV_KWARGS, extras=True, decision_window=window)
+    kwargs = {
+        **PrivilegedPolicy.ENV_KWARGS,
+        "observations": OBSERVATIONS,
+        "decision_window": window,
+    }
     env = gym.make("AeroMagCompensation-v0", scenario=scenario, **kwargs)
     r_floor = None if floor is None else {scenario: floor}
     policy = policy_class(env, cautious_start=True, r_floor=r_floor)

@@ -108,3 +108,13 @@ def run_cli(argv: list[str]) -> int:
         return main(argv)
     except SystemExit as e:
         return int(e.code or 0)
+
+
+#: The five observations the shipped policies read after the paper's two: the current Q and R
+#: scales, the innovation whiteness, the flight's progress, the recent ROR.
+SCALE_OBSERVATIONS = ("log_q_scale", "log_r_scale", "whiteness", "progress", "log_recent_ror")
+
+
+def observations(*more: str) -> tuple[str, ...]:
+    """An observation layout: the paper's two, :data:`SCALE_OBSERVATIONS`, then ``more``."""
+    return ("log_ror", "log_qoq", *SCALE_OBSERVATIONS, *more)

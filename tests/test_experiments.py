@@ -40,10 +40,8 @@ def test_design_study_rule_sets_the_scales_it_states():
 
     study = experiment("ppo_design_study")
     cfg = {
-        **study["DETECTOR_ENV"],
+        **study["_detector_env"](*study["POWERS"], scale_limit=1e10),
         "scenario": "nonstationary",
-        "innovation_power": True,
-        "scale_limit": 1e10,
     }
     env = gym.make("AeroMagCompensation-v0", config=cfg)
     obs, _ = env.reset(seed=100_000)

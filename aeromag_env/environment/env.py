@@ -133,8 +133,9 @@ class AeroMagCompensationEnv(gym.Env):
     ``gym.make("AeroMagCompensation-v0", config=EnvConfig(...) or dict, preset=name,
     render_mode=None | "rgb_array")``; a complete ``EnvConfig`` replaces the preset (``paper``
     unless named), a dict or keywords (``scenario=``, ``decision_window=``, ``observations=``,
-    ``action={...}``, and the flat keys of the first version such as ``extras=True``) change it
-    (:func:`~aeromag_env.environment.config.env_config`). ``info``
+    ``action={...}``) change it (:func:`~aeromag_env.environment.config.env_config`; the flat
+    keys of the first version, ``extras=True``…, are read from old files only:
+    :mod:`aeromag_env.environment.legacy`). ``info``
     (:data:`aeromag_env.environment.info.INFO`) holds ``rmse_window_nt``, ``ror``, ``qoq``,
     ``q_scale``, ``r_scale``, ``q_permanent_scale`` (1 without a T_p action), ``sample``,
     ``flight_seed``, and the episode's totals so far — at every step, so that the step on which

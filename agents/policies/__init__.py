@@ -13,6 +13,7 @@ name to a policy.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -57,7 +58,7 @@ def policy_env_kwargs(name: str) -> dict[str, Any]:
     if name == "privileged":
         from agents.policies.baselines import PrivilegedPolicy
 
-        return dict(PrivilegedPolicy.ENV_KWARGS)
+        return copy.deepcopy(PrivilegedPolicy.ENV_KWARGS)
     return {}
 
 
@@ -77,7 +78,7 @@ def make_policy(name: str, env: Any) -> TuningPolicy:
         return _load_ppo(name)
     if name not in POLICIES:
         raise ConfigError(f"unknown policy {name!r}; valid policies: {', '.join(POLICIES)}")
-    s_max = env.unwrapped.config.s_max
+    s_max = env.unwrapped.config.action.s_max
     # the FIS adapts once per statistics window M, as the fakf filter does
     interval = max(1, FilterConfig().window // env.unwrapped.config.decision_window)
     makers: dict[str, Callable[[], TuningPolicy]] = {

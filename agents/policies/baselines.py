@@ -212,7 +212,7 @@ class TargetScalePolicy(_Bound):
         self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
     ) -> tuple[np.ndarray, State]:
         truth = self.truth()
-        log_s_max = math.log(self.config.s_max)
+        log_s_max = math.log(self.config.action.s_max)
         tq, tr = self.targets(truth)
         log_q, log_r = truth.log_scales
         action = np.zeros((1, len(BASE_ACTIONS)))
@@ -254,9 +254,10 @@ class InnovationDetectorPolicy(BasePolicy):
     10^10 × Q(0) for the next window when the mean innovation over the last decision window
     exceeds ``threshold_nt``, else at Q(0); the other 18 states' Q at Q(0) and R at 100 × R(0).
 
-    Needs the environment layout it reads and acts in: ``extras``, ``innovation_power``,
-    ``split_q`` and absolute actions (``config`` an
-    :class:`aeromag_env.environment.env.EnvConfig`); with ``qp_gate`` its T_p action is ±1.
+    Needs the environment layout it reads and acts in (``config`` an
+    :class:`aeromag_env.environment.env.EnvConfig`, e.g. the ``nonstationary`` preset): the
+    observation ``log_mean_innovation_power``, absolute actions and a T_p action
+    (``action.permanent`` ``graded``, or ``gate``: its T_p action is then ±1).
     ``r0_nt2`` is the filter's initial R per axis [nT²] (the package default, which the
     ``nonstationary`` scenarios use). Not a tuner to table: the demonstrator of PPO's optional
     pretraining (:func:`agents.training.imitation.behaviour_clone`).
@@ -275,22 +276,26 @@ class InnovationDetectorPolicy(BasePolicy):
     ) -> None:
         from aeromag_env.compensation.model import FilterConfig
 
-        c = config
-        if not (c.extras and c.innovation_power and c.split_q and c.action_mode == "absolute"):
+        act = config.action
+        if not (
+            "log_mean_innovation_power" in config.observations
+            and act.permanent != "joint"
+            and act.mode == "absolute"
+        ):
             raise ConfigError(
-                "innovation_detector needs extras, innovation_power, split_q and "
-                "action_mode='absolute'"
+                "innovation_detector needs the observation log_mean_innovation_power, "
+                "action.mode='absolute' and a T_p action (action.permanent graded or gate)"
             )
         r0 = FilterConfig().r_std_nt ** 2 if r0_nt2 is None else r0_nt2
         # |mean r|² over the last decision window / tr R(0)
         self.column = observation_index(config, "log_mean_innovation_power")
         self.log_threshold = math.log10(threshold_nt**2 / (3.0 * r0))
-        quiet_qp = -1.0 if c.qp_gate else _to_action(0.0, c.absolute_qp_log10)
+        gate = act.permanent == "gate"
         self.quiet = np.zeros(len(ACTIONS))
-        self.quiet[ACT_Q] = _to_action(log_q, c.absolute_q_log10)
-        self.quiet[ACT_R] = _to_action(log_r, c.absolute_r_log10)
-        self.quiet[ACT_QP] = quiet_qp
-        self.raise_qp = 1.0 if c.qp_gate else _to_action(log_qp, c.absolute_qp_log10)
+        self.quiet[ACT_Q] = _to_action(log_q, act.q_log10)
+        self.quiet[ACT_R] = _to_action(log_r, act.r_log10)
+        self.quiet[ACT_QP] = -1.0 if gate else _to_action(0.0, act.qp_log10)
+        self.raise_qp = 1.0 if gate else _to_action(log_qp, act.qp_log10)
 
     def act(
         self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
@@ -321,19 +326,22 @@ class PrivilegedPolicy(_Bound):
     ``noise_bursts`` against the tuned constant's 2.57; with R ≥ 10² R(0) 1.96 —
     ``python -m experiments.lagged_privileged --floors``).
 
-    Acts in the layout of ``ENV_KWARGS`` (absolute actions, ``split_q``, a graded T_p action),
-    which :func:`agents.policies.policy_env_kwargs` gives the environment it is evaluated in.
+    Acts in the layout of ``ENV_KWARGS`` (absolute actions, a graded T_p action; the paper's
+    observations), which :func:`agents.policies.policy_env_kwargs` gives the environment it is
+    evaluated in.
     """
 
     name = "privileged"
     #: The environment layout it acts in.
     ENV_KWARGS: dict[str, Any] = {  # noqa: RUF012 (read-only)
-        "action_mode": "absolute",
-        "split_q": True,
-        "absolute_q_log10": (-10.0, 6.0),
-        "absolute_r_log10": (-2.0, 7.0),
-        "absolute_qp_log10": (-6.0, 10.0),
-        "scale_limit": 1e10,
+        "action": {
+            "mode": "absolute",
+            "permanent": "graded",
+            "q_log10": (-10.0, 6.0),
+            "r_log10": (-2.0, 7.0),
+            "qp_log10": (-6.0, 10.0),
+            "scale_limit": 1e10,
+        }
     }
 
     def __init__(
@@ -344,26 +352,29 @@ class PrivilegedPolicy(_Bound):
         r_floor: Mapping[str, float] | None = None,
     ) -> None:
         super().__init__(env)
-        c = self.config
-        if not (c.split_q and c.action_mode == "absolute"):
-            raise ConfigError("privileged needs split_q and action_mode='absolute'")
+        act = self.config.action
+        if not (act.permanent != "joint" and act.mode == "absolute"):
+            raise ConfigError(
+                "privileged needs action.mode='absolute' and a T_p action (action.permanent "
+                "graded or gate)"
+            )
         self.after, self.cautious_start = after, cautious_start
         self.r_floor = dict(r_floor or {})
 
     def act(
         self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
     ) -> tuple[np.ndarray, State]:
-        truth, c = self.truth(), self.config
-        k, width = truth.sample, c.decision_window
+        truth, act = self.truth(), self.config.action
+        k, width = truth.sample, self.config.decision_window
         q_blocks, q_tp = truth.q_log10_true
         action = np.zeros((1, len(ACTIONS)))
-        action[0, ACT_Q] = _to_action(q_blocks, c.absolute_q_log10)
+        action[0, ACT_Q] = _to_action(q_blocks, act.q_log10)
         action[0, ACT_R] = self.r_action(truth.noise_var[min(k, truth.n - 1) : k + width], truth)
         if self.cautious_start and k == 0:
             action[0, ACT_R] = 1.0
         steps = truth.step_samples
         near = (steps < k + width) & (steps >= k - self.after * width)
-        quiet = -1.0 if c.qp_gate else _to_action(q_tp, c.absolute_qp_log10)
+        quiet = -1.0 if act.permanent == "gate" else _to_action(q_tp, act.qp_log10)
         action[0, ACT_QP] = 1.0 if near.any() else quiet
         return action, state
 
@@ -373,7 +384,7 @@ class PrivilegedPolicy(_Bound):
         is higher."""
         log_r = math.log10(noise_var.max() / truth.r0_nt2)
         floor = self.r_floor.get(truth.scenario, -math.inf)
-        return _to_action(max(log_r, floor), self.config.absolute_r_log10)
+        return _to_action(max(log_r, floor), self.config.action.r_log10)
 
 
 def _to_action(log10_scale: float, lo_hi: tuple[float, ...]) -> float:

@@ -10,8 +10,10 @@ optionally an LSTM layer (a recurrent policy: ``lstm_w_ih`` (4H, n_obs), ``lstm_
 (:data:`HEADS`: ``clip`` the action layer's output to [-1, 1], PPO's deterministic action, or
 ``tanh`` it, SAC's; default ``clip``) say how to run it, and whose ``env_kwargs`` (the
 settings of an :class:`~aeromag_env.environment.config.EnvConfig`: the shipped files name a
-preset, ``{"preset": "general"}``; files written from a hyperparameter file carry its flat
-keys) must give n_obs observations and n_act actions. Nothing is unpickled
+preset, ``{"preset": "general"}``; files written by the environment's first version carry
+its flat keys, which are read as today's settings by
+:func:`aeromag_env.environment.legacy.upgrade`: the loaded ``meta`` holds them in today's
+terms) must give n_obs observations and n_act actions. Nothing is unpickled
 (``allow_pickle=False``), member sizes are checked before a member is read, and every problem
 is a one-line :class:`~aeromag_env.errors.PolicyFileError` naming the file and the problem.
 """
@@ -30,6 +32,7 @@ import numpy as np
 from aeromag_env.atomic import atomic_path
 from aeromag_env.configs import from_dict
 from aeromag_env.environment.env import EnvConfig
+from aeromag_env.environment.legacy import upgrade
 from aeromag_env.environment.spaces import action_size, observation_names
 from aeromag_env.errors import ConfigError, PolicyFileError
 
@@ -195,7 +198,8 @@ def _meta(value: np.ndarray) -> dict[str, Any]:
     if not isinstance(kwargs, dict):
         raise _Problem(f"meta env_kwargs must be a JSON object, got {type(kwargs).__name__}")
     try:
-        from_dict(EnvConfig, kwargs)
+        meta["env_kwargs"] = upgrade(kwargs)  # a file of the first version: its flat keys
+        from_dict(EnvConfig, meta["env_kwargs"])
     except ConfigError as e:
         raise _Problem(f"meta env_kwargs: {e}") from None
     for key, valid in (("activation", ACTIVATIONS), ("head", HEADS)):

@@ -44,6 +44,7 @@ from agents.search.ppo import (
     write_outputs,
 )
 from agents.search.space import LEARNER_SPACES, plain, read_learner_space, recorded_path
+from agents.training.learner_hyperparameters import LearnerHyperparams
 from agents.training.learners import (
     HYPERPARAMS,
     learner_hyperparams,
@@ -71,7 +72,7 @@ class LearnerTuneJob:
     the training seed."""
 
     learner: str
-    hp: dict[str, Any]
+    hp: LearnerHyperparams
     seed: int
 
 
@@ -102,11 +103,11 @@ def tune_learner(
         ``QUICK``'s).
     timesteps : int or None
         Environment steps per trial (ASHA stops bad trials earlier); None: the learner's
-        ``timesteps`` in ``hyperparams`` (``quick``: :data:`agents.training.learners.QUICK`'s).
+        ``timesteps`` in ``hyperparams`` (``quick``: :data:`agents.training.quick.QUICK`'s).
     seed : int
         Seed of the sampling and of every trial's training.
     quick : bool
-        The sizes of :data:`agents.training.learners.QUICK` (a test's: two environments, a few
+        The sizes of :data:`agents.training.quick.QUICK` (a test's: two environments, a few
         thousand steps, one validation flight per scenario) and ``QUICK.tune_samples`` trials.
     ray_address : str or None
         A Ray cluster to join (``host:port`` or ``ray://…``); None: the Ray session of this
@@ -126,7 +127,7 @@ def tune_learner(
     samples = sized(samples, SAMPLES, quick, QUICK.tune_samples)
     space = read_learner_space(learner, space_path)
     hp = learner_settings(learner, hyperparams, quick=quick, timesteps=timesteps)
-    hp["prefetch"] = False  # a CPU a trial
+    hp = hp.with_values(prefetch=False)  # a CPU a trial
     job = LearnerTuneJob(learner=learner, hp=hp, seed=seed)
     t0 = time.perf_counter()
     with ray_session(ray_address) as ray:
@@ -139,20 +140,20 @@ def tune_learner(
             metric=METRIC,
             max_t=max_reports(hp),
             grace=GRACE,
-            record=lambda result: _record(result, list(space), hp["timesteps"]),
+            record=lambda result: _record(result, list(space), hp.timesteps),
         )
         cpus = int(ray.cluster_resources().get("CPU", 1))
     best = best_trial(trials, "best_validation_score")
     summary = {
         "learner": learner,
         "samples": samples,
-        "timesteps": hp["timesteps"],
+        "timesteps": hp.timesteps,
         "seed": seed,
         "quick": quick,
         "metric": METRIC,
-        "select_by": hp["select_by"],
-        "eval_every": hp["eval_every"],
-        "validation_episodes": hp["eval_episodes"],
+        "select_by": hp.select_by,
+        "eval_every": hp.eval_every,
+        "validation_episodes": hp.eval_episodes,
         "reduction_factor": REDUCTION,
         "space_file": recorded_path(space_path),
         "space": space,
@@ -188,11 +189,11 @@ def _refusal(learner: str) -> str:
     return f"unknown learner {learner!r}; aeromag tune --learner searches {', '.join(SEARCHED)}"
 
 
-def max_reports(hp: dict[str, Any]) -> int:
+def max_reports(hp: LearnerHyperparams) -> int:
     """The most validations a run of ``hp`` reports, ASHA's ``max_t``: one at step 0, one every
     ``eval_every`` steps, one at the end (an on-policy learner's last rollout may overshoot
     ``timesteps``, past one more ``eval_every``)."""
-    return 2 + math.ceil(hp["timesteps"] / hp["eval_every"])
+    return 2 + math.ceil(hp.timesteps / hp.eval_every)
 
 
 def run_learner_trial(config: dict[str, Any], job: LearnerTuneJob) -> None:
@@ -200,7 +201,7 @@ def run_learner_trial(config: dict[str, Any], job: LearnerTuneJob) -> None:
     replacing keys of its ``algo``, reporting each validation point's selection score."""
     from ray import tune
 
-    hp = {**job.hp, "algo": {**job.hp["algo"], **plain(config)}}
+    hp = job.hp.with_values(algo=plain(config))
     best = math.inf
 
     def report(point: dict[str, Any]) -> None:
@@ -243,7 +244,8 @@ def _tuned_table(hyperparams: Path, learner: str, summary: dict[str, Any]) -> di
     best = summary["best"]
     table = json.loads(hyperparams.read_text(encoding="utf-8"))
     entry = table["learners"][learner]
-    entry["algo"] = {**learner_hyperparams(learner, hyperparams)["algo"], **best["config"]}
+    algo = learner_hyperparams(learner, hyperparams).algo.model_dump(exclude_unset=True)
+    entry["algo"] = {**algo, **best["config"]}
     quick = ", quick sizes" if summary["quick"] else ""
     note = (
         f"Tuned by aeromag tune --learner {learner}: {', '.join(best['config'])} of trial "

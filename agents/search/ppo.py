@@ -38,9 +38,9 @@ from aeromag_env.errors import AeromagError
 from aeromag_env.parallel.tasks import one_line
 from aeromag_env.threads import cores
 from agents.search.space import plain, read_space, recorded_path, tune_domains
+from agents.training.hyperparameters import PPOHyperparams
 from agents.training.hyperparams_file import read_hyperparams
 from agents.training.ppo import HYPERPARAMS, load_hyperparams, training_torch
-from agents.training.ppo_hyperparams import PPOHyperparams
 from agents.training.quick import QUICK, quick_hyperparams, sized
 from agents.training.validation import validation_seeds
 

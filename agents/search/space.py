@@ -1,9 +1,8 @@
 """Read the search space of ``aeromag tune`` (``agents/search/spaces/tune_space.json`` or
 ``--space``) and turn it into Ray Tune's.
 
-The file maps hyperparameters of the PPO hyperparameter file
-(:mod:`agents.training.hyperparams_file`)
-to distributions::
+The file maps hyperparameters of the PPO hyperparameter file (the fields of
+:class:`agents.training.hyperparameters.PPOHyperparams`) to distributions::
 
     {"version": 1,
      "space": {"learning_rate": {"distribution": "loguniform", "low": 3e-5, "high": 1e-3},
@@ -14,30 +13,28 @@ to distributions::
 hyperparameter, e.g. ``net_arch`` or ``normalize_reward``). The JSON Schema
 (``tune_space.schema.json``) checks the keys and the layout; this module checks what it
 cannot say: which fields each distribution needs, ``low < high``, ``loguniform`` above 0, and
-that every bound and value is one the hyperparameter file accepts for that key (its range in
-``ppo.schema.json``), so no trial is sampled that training would refuse. Every problem is a
-one-line :class:`~aeromag_env.errors.HyperparameterError` naming the file and the field.
+that every bound and value is one the hyperparameter file accepts for that key (the field's
+type and range in the model), so no trial is sampled that training would refuse. Every
+problem is a one-line :class:`~aeromag_env.errors.HyperparameterError` naming the file and the
+field.
 
 The learners' file (``agents/search/spaces/tune_space_learners.json``, :func:`read_learner_space`)
 holds one such space per learner of ``aeromag tune --learner`` under ``learners``, its keys
-constructor parameters of the learner's algorithm (a learner's ``algo`` in
-``agents/training/hyperparams/learners.json``). The same distribution checks apply, with the kind
-and the valid values of a key taken from the constructor's annotation (``int``, ``float``, ``str``,
-``bool``, ``None``); there is no range to check them against. Ray is imported by
-:func:`tune_domains` only.
+fields of the learner's ``algo`` (constructor parameters of its algorithm:
+:class:`~agents.training.hyperparameters.SACAlgo`… in
+``agents/training/hyperparams/learners.json``), checked the same way against those fields.
+Ray is imported by :func:`tune_domains` only.
 """
 
 from __future__ import annotations
 
 import json
-import types
-import typing
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from aeromag_env.errors import HyperparameterError
-from agents.training.hyperparams_file import SCHEMA, read_checked, value_problem
+from agents.training.hyperparams_file import field_problem, read_checked
 
 SPACE = Path(__file__).with_name("spaces") / "tune_space.json"
 SPACE_SCHEMA = SPACE.with_name("tune_space.schema.json")
@@ -66,23 +63,25 @@ def read_space(path: str | Path = SPACE) -> dict[str, dict[str, Any]]:
     HyperparameterError
         One line: ``bad search space in PATH: space.KEY: problem``.
     """
+    from agents.training.hyperparameters import PPOHyperparams
+
     space = read_checked(path, SPACE_SCHEMA, "search space")["space"]
-    kinds = _kinds()
     for key, dim in space.items():
-        problem = dimension_problem(key, dim, kinds[key], value_problem)
+        problem = dimension_problem(key, dim, *_field(PPOHyperparams, key))
         if problem is not None:
             raise HyperparameterError(f"bad search space in {path}: space.{key}: {problem}")
     return space
 
 
-def _kinds() -> dict[str, str]:
-    """Each hyperparameter's kind in the hyperparameter schema: integer, number or other."""
-    props = json.loads(SCHEMA.read_text(encoding="utf-8"))["$defs"]["scenario"]["properties"]
-    kinds = {}
-    for key, prop in props.items():
-        types = [prop.get("type")] + [branch.get("type") for branch in prop.get("anyOf", [])]
-        kinds[key] = "integer" if "integer" in types else "number" if "number" in types else ""
-    return kinds
+def _field(model: type[Any], key: str) -> tuple[str, Callable[[str, Any], str | None]]:
+    """The kind of the field ``key`` of ``model`` (integer, number or other: what its JSON
+    Schema says) and the check of a value of it."""
+    from agents.training.hyperparameters import model_schema
+
+    prop = model_schema(model)["properties"][key]
+    types = [prop.get("type")] + [branch.get("type") for branch in prop.get("anyOf", [])]
+    kind = "integer" if "integer" in types else "number" if "number" in types else ""
+    return kind, lambda name, value: field_problem(model, name, value)
 
 
 def read_learner_space(learner: str, path: str | Path = LEARNER_SPACES) -> dict[str, Any]:
@@ -92,28 +91,27 @@ def read_learner_space(learner: str, path: str | Path = LEARNER_SPACES) -> dict[
     Returns
     -------
     dict
-        ``{key: distribution}`` as :func:`read_space`'s, each key a constructor parameter of
-        the learner's algorithm.
+        ``{key: distribution}`` as :func:`read_space`'s, each key a field of the learner's
+        ``algo`` (a constructor keyword of its algorithm).
 
     Raises
     ------
     HyperparameterError
         One line: ``bad search space in PATH: learners.LEARNER.KEY: problem``.
     """
-    from agents.training.learners import algorithm_name, constructor_parameters
+    from agents.training.learner_hyperparameters import algo_model
 
     spaces = read_checked(path, LEARNER_SPACES_SCHEMA, "search space")["learners"]
     for name, space in spaces.items():
-        params = constructor_parameters(name)
+        algo = algo_model(name)
         for key, dim in space.items():
             where = f"bad search space in {path}: learners.{name}.{key}"
-            if key not in params:
+            if key not in algo.model_fields:
                 raise HyperparameterError(
-                    f"{where}: not a constructor parameter of {algorithm_name(name)}; valid: "
-                    f"{', '.join(params)}"
+                    f"{where}: not a hyperparameter of {name}'s algo; valid: "
+                    f"{', '.join(algo.model_fields)}"
                 )
-            members = _json_types(params[key].annotation)
-            problem = dimension_problem(key, dim, _kind(members), _annotation_check(members))
+            problem = dimension_problem(key, dim, *_field(algo, key))
             if problem is not None:
                 raise HyperparameterError(f"{where}: {problem}")
     if learner not in spaces:
@@ -122,33 +120,6 @@ def read_learner_space(learner: str, path: str | Path = LEARNER_SPACES) -> dict[
             f"{', '.join(spaces)}"
         )
     return dict(spaces[learner])
-
-
-def _json_types(annotation: Any) -> tuple[type, ...]:
-    """The members of a constructor annotation that a JSON value can be (``int``, ``float``,
-    ``str``, ``bool``, ``None``): ``float | Callable`` gives ``(float,)``."""
-    union = typing.get_origin(annotation) in (typing.Union, types.UnionType)
-    members = typing.get_args(annotation) if union else (annotation,)
-    return tuple(m for m in members if m in (int, float, str, bool, type(None)))
-
-
-def _kind(members: tuple[type, ...]) -> str:
-    """The kind of a constructor parameter of annotation ``members``: integer, number or other."""
-    return "integer" if int in members else "number" if float in members else ""
-
-
-def _annotation_check(members: tuple[type, ...]) -> Callable[[str, Any], str | None]:
-    """What is wrong with a value of a constructor parameter of annotation ``members``."""
-
-    def problem(key: str, value: Any) -> str | None:
-        if not members:  # a dict, a class, a callable: nothing a JSON value is checked against
-            return None
-        if type(value) in members or (float in members and type(value) is int):
-            return None
-        names = " or ".join("None" if m is type(None) else m.__name__ for m in members)
-        return f"the constructor takes {names}"
-
-    return problem
 
 
 def dimension_problem(

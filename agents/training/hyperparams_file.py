@@ -1,30 +1,39 @@
-"""Read a PPO hyperparameter file (``agents/training/hyperparams/ppo.json`` or ``--hyperparams``)
-and validate it against its JSON Schema (``agents/training/hyperparams/ppo.schema.json``) before
-training.
+"""Read the hyperparameter files into their models (:mod:`agents.training.hyperparameters`), with
+one-line errors naming the file and the field.
 
-The schema holds every key, its type and its allowed range (``description``); ``jsonschema``
-checks the document against it. Two things JSON Schema cannot say are checked here: numbers
-must be finite (``NaN``, ``Infinity`` and overflowing literals such as ``1e400`` are not JSON
-numbers, though Python's parser reads them) and a key may appear once per object; the
-``env_kwargs`` go through :class:`~aeromag_env.environment.env.EnvConfig`'s own validation.
-Every problem is a one-line :class:`~aeromag_env.errors.HyperparameterError` naming the file,
-the field (a dotted path such as ``scenarios.nonstationary.gamma``) and what it allows.
+``ppo.json`` (or ``aeromag train --hyperparams``) is read by :func:`read_ppo`, ``learners.json``
+by :func:`read_learners`: first the text (a regular file of at most :data:`MAX_BYTES`, UTF-8,
+JSON whose numbers are finite, ``NaN``, ``Infinity`` and overflowing literals such as ``1e400``
+being no JSON numbers though Python's parser reads them, and whose keys appear once per
+object), then the models check everything else in one pass. Every problem is a one-line
+:class:`~aeromag_env.errors.HyperparameterError`: the file, the field as a dotted path, and
+what it allows, e.g. ``…/learners.json: learners.sac.algo.gamma must be a number in (0, 1], got
+2``.
+
+The search spaces (:mod:`agents.search.space`) are read by :func:`read_checked` against their
+hand-written JSON Schemas.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from aeromag_env.configs import from_dict
-from aeromag_env.environment.env import EnvConfig
-from aeromag_env.errors import ConfigError, HyperparameterError
+from pydantic import ConfigDict, TypeAdapter, ValidationError
 
-SCHEMA = Path(__file__).with_name("hyperparams") / "ppo.schema.json"
-#: Largest hyperparameter file [bytes]; the shipped one is 3 kB.
+from aeromag_env.errors import HyperparameterError
+from agents.training.hyperparameters import PPOFile, PPOHyperparams, checked, model_schema
+from agents.training.learner_hyperparameters import (
+    LEARNER_MODELS,
+    LearnerHyperparams,
+    LearnersFile,
+)
+from agents.training.model_errors import problem, shown
+
+#: Largest hyperparameter file [bytes]; the shipped ones are 3 to 5 kB.
 MAX_BYTES = 2**20
 
 
@@ -39,24 +48,104 @@ class _NotFinite:
         self.text = text
 
 
-def read_hyperparams(path: str | Path) -> dict[str, Any]:
-    """The document of the hyperparameter file ``path``, validated.
+def read_ppo(path: str | Path) -> PPOFile:
+    """The PPO hyperparameter file ``path`` as a
+    :class:`~agents.training.hyperparameters.PPOFile`, every entry checked.
 
     Raises
     ------
     HyperparameterError
-        One line: ``bad hyperparameters in PATH: field: problem``.
+        One line: ``PATH: field problem``.
     """
     path = Path(path)
-    doc = read_checked(path, SCHEMA, "hyperparameters")
-    for name, hp in doc["scenarios"].items():
+    doc = read_json(path)
+    model: PPOFile = _validated(PPOFile, doc, path, ())
+    for entry in model.scenarios.values():
+        entry._version = model.version
+    return model
+
+
+def read_hyperparams(path: str | Path) -> dict[str, Any]:
+    """The document of the PPO hyperparameter file ``path`` as it is written (a dict),
+    checked as :func:`read_ppo` checks it."""
+    path = Path(path)
+    doc = read_json(path)
+    _validated(PPOFile, doc, path, ())
+    return dict(doc)
+
+
+def read_learners(path: str | Path) -> dict[str, LearnerHyperparams]:
+    """The learners of ``learners.json`` at ``path``: learner → its hyperparameters (the
+    entry under the file's ``common``, a model of
+    :data:`~agents.training.learner_hyperparameters.LEARNER_MODELS`), every learner checked.
+
+    Raises
+    ------
+    HyperparameterError
+        One line: ``PATH: learners.sac.algo.gamma must be …, got …`` (or ``common.…`` when
+        the value came from ``common``).
+    """
+    path = Path(path)
+    doc = read_json(path)
+    table = _validated(LearnersFile, doc, path, ())
+    learners: dict[str, LearnerHyperparams] = {}
+    for name, entry in table.learners.items():
+        merged = {**table.common, **entry}
+        where: tuple[str, ...] = ("learners", name)
         try:
-            from_dict(EnvConfig, hp["env_kwargs"])
-        except ConfigError as e:
-            raise HyperparameterError(
-                f"bad hyperparameters in {path}: scenarios.{name}.env_kwargs: {e}"
-            ) from None
-    return doc
+            learners[name] = LEARNER_MODELS[name].model_validate(merged)
+        except ValidationError as e:
+            key = e.errors()[0]["loc"][:1]
+            if key and key[0] not in entry and key[0] in table.common:
+                where = ("common",)
+            schema = model_schema(LEARNER_MODELS[name])
+            raise HyperparameterError(f"{path}: {problem(e, merged, schema, where)}") from None
+        learners[name]._version = table.version
+    return learners
+
+
+def read_json(path: Path, head: str | None = None) -> Any:
+    """The JSON document of ``path``: a regular file of at most :data:`MAX_BYTES`, UTF-8, its
+    numbers finite, its keys once per object.
+
+    Raises
+    ------
+    HyperparameterError
+        One line: ``HEAD: problem`` (``HEAD``: the path, unless given).
+    """
+    head = head or str(path)
+    try:
+        return _parse(_text(path))
+    except RecursionError:  # from the parser or the finiteness walk
+        raise HyperparameterError(f"{head}: nested too deeply") from None
+    except _Problem as e:
+        raise HyperparameterError(f"{head}: {e}") from None
+
+
+def _validated(model: type[Any], doc: Any, path: Path, prefix: tuple[str, ...]) -> Any:
+    try:
+        return model.model_validate(doc)
+    except RecursionError:
+        raise HyperparameterError(f"{path}: nested too deeply") from None
+    except ValidationError as e:
+        raise HyperparameterError(
+            f"{path}: {problem(e, doc, model_schema(model), prefix)}"
+        ) from None
+
+
+def field_problem(model: type[Any], key: str, value: Any) -> str | None:
+    """What is wrong with ``value`` as the field ``key`` of ``model`` (a model of
+    :mod:`agents.training.hyperparameters`), e.g. ``must be a number in (0, 1], got 1.5``,
+    or None. The field is checked alone, as the model checks it."""
+    if value is None:
+        return "must be a value, got null"
+    config = ConfigDict(strict=True, allow_inf_nan=False, regex_engine="python-re")
+    adapter = TypeAdapter(model.model_fields[key].rebuild_annotation(), config=config)
+    try:
+        adapter.validate_python(value)
+    except ValidationError as e:
+        return problem(e, {key: value}, model_schema(model), at=(key,)).removeprefix(key).strip()
+    return None
 
 
 def read_checked(path: str | Path, schema: Path, what: str) -> Any:
@@ -69,35 +158,15 @@ def read_checked(path: str | Path, schema: Path, what: str) -> Any:
         One line: ``bad WHAT in PATH: field: problem``.
     """
     path = Path(path)
+    head = f"bad {what} in {path}"
+    doc = read_json(path, head)
     try:
-        doc = _parse(_text(path))
         _check_schema(doc, _validator(json.loads(schema.read_text(encoding="utf-8"))))
-    except RecursionError:  # from the parser, the finiteness walk or the schema's
-        raise HyperparameterError(f"bad {what} in {path}: nested too deeply") from None
+    except RecursionError:
+        raise HyperparameterError(f"{head}: nested too deeply") from None
     except _Problem as e:
-        raise HyperparameterError(f"bad {what} in {path}: {e}") from None
+        raise HyperparameterError(f"{head}: {e}") from None
     return doc
-
-
-def schema_problem(value: Any, schema: dict[str, Any]) -> str | None:
-    """What is wrong with the JSON value ``value`` under the JSON Schema ``schema`` (its
-    ``description`` says what is allowed: ``must be a number in (0, 1], got 1.5``), or None."""
-    try:
-        _check_schema(value, _validator(schema))
-    except _Problem as e:
-        return str(e).removeprefix("the document: ")
-    return None
-
-
-def value_problem(key: str, value: Any) -> str | None:
-    """What is wrong with ``value`` as the hyperparameter ``key`` of a scenario entry (its
-    range in :data:`SCHEMA`, e.g. ``must be a number in (0, 1], got 1.5``), or None."""
-    scenario = json.loads(SCHEMA.read_text(encoding="utf-8"))["$defs"]["scenario"]
-    try:
-        _check_schema(value, _validator(scenario["properties"][key]))
-    except _Problem as e:
-        return str(e).removeprefix("the document: ")
-    return None
 
 
 def _text(path: Path) -> str:
@@ -127,9 +196,9 @@ def _parse(text: str) -> Any:
         )
     except ValueError as e:  # JSONDecodeError, or an integer of more than 4300 digits
         raise _Problem(f"not valid JSON: {e}") from None
-    for where, value in _walk(doc, ()):
+    for where, value in _leaves(doc, ()):
         if isinstance(value, _NotFinite):
-            raise _Problem(f"{_dotted(where)}: must be a finite number, got {value.text}")
+            raise _Problem(f"{_dotted(where)} must be a finite number, got {value.text}")
     return doc
 
 
@@ -147,7 +216,7 @@ def _object(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def _walk(value: Any, where: tuple) -> Iterator[tuple[tuple, Any]]:
+def _leaves(value: Any, where: tuple) -> Iterator[tuple[tuple, Any]]:
     yield where, value
     items = (
         value.items()
@@ -157,7 +226,7 @@ def _walk(value: Any, where: tuple) -> Iterator[tuple[tuple, Any]]:
         else ()
     )
     for key, item in items:
-        yield from _walk(item, (*where, key))
+        yield from _leaves(item, (*where, key))
 
 
 def _dotted(where: Any) -> str:
@@ -195,13 +264,24 @@ def _check_schema(doc: Any, validator: Any) -> None:
     while "description" not in described.schema and described.parent is not None:
         described = described.parent
     allowed = described.schema.get("description", error.message)
-    raise _Problem(f"{where}: must be {allowed}, got {_shown(error.instance)}")
+    raise _Problem(f"{where}: must be {allowed}, got {shown(error.instance)}")
 
 
-def _shown(value: Any) -> str:
-    if isinstance(value, dict):
-        return "an object"
-    if isinstance(value, list):
-        return "a list"
-    text = json.dumps(value, ensure_ascii=False)
-    return text if len(text) <= 40 else text[:37] + "..."
+def stored_hyperparams(summary: Mapping[str, Any]) -> PPOHyperparams | LearnerHyperparams:
+    """The hyperparameters a training run stored (the ``hyperparams`` of its ``training.json``,
+    or of a run of ``runs.json``), as the model of its learner (``summary["learner"]``, PPO when
+    absent): files of every version read, their environment settings in today's terms.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the field.
+    """
+    values = dict(summary["hyperparams"])
+    version = values.pop("version", None)
+    learner = summary.get("learner", "ppo")
+    if learner == "ppo":
+        return PPOHyperparams.from_entry(values, version or 0)
+    hp = checked(LEARNER_MODELS[learner], values)
+    hp._version = version
+    return hp

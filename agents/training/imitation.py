@@ -17,7 +17,7 @@ from aeromag_env.atomic import atomic_path
 from aeromag_env.environment.config import env_config
 from aeromag_env.errors import AeromagError
 from agents.evaluation.seeds import TRAIN_SEEDS
-from agents.training.ppo_hyperparams import PPOHyperparams, Pretrain
+from agents.training.hyperparameters import PPOHyperparams, Pretrain
 
 
 def seed_stream(rank: int, n_envs: int, offset: int) -> Iterator[int]:

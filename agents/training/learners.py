@@ -1,8 +1,8 @@
 """The general tuner's learners, side by side: PPO and four more, trained on the same suite.
 
 * ``ppo``: the shipped general policy's recipe (:func:`agents.training.ppo.train_ppo` with the
-``suite``
-  entry of ``agents/training/hyperparams/ppo.json``: imitation of the privileged policy, then PPO).
+  ``suite`` entry of ``agents/training/hyperparams/ppo.json``: imitation of the privileged
+  policy, then PPO).
 * ``recurrent_ppo``: sb3-contrib's RecurrentPPO (an LSTM before the actor's layers), from scratch.
 * ``sac`` (stable-baselines3) and ``tqc`` (sb3-contrib): off-policy, from scratch.
 * ``cmaes``: a non-gradient baseline, CMA-ES (the ``cma`` package) over a linear rule
@@ -10,10 +10,11 @@
   flies the same training flights (simulated once), scored by its mean reward per step.
 
 Hyperparameters live in ``agents/training/hyperparams/learners.json`` (the ``ppo`` learner reads
-``ppo.json``); every learner trains on ``suite`` flights from the training seeds, validates every
-``eval_every`` environment steps on the same validation flights (split over the suite's
-scenarios) and keeps the checkpoint with the best validation score (``select_by``: the worst
-scenario's mean RMSE ratio to the tuned constant), exported for numpy
+``ppo.json``), one model per learner (:mod:`agents.training.hyperparameters`); every learner
+trains on ``suite`` flights from the training seeds, validates every ``eval_every``
+environment steps on the same validation flights (split over the suite's scenarios) and keeps
+the checkpoint with the best validation score (``select_by``: the worst scenario's mean RMSE
+ratio to the tuned constant), exported for numpy
 (:func:`agents.policies.policy_file.export_actor`; a recurrent export carries its LSTM). The
 validation points, with environment steps and wall-clock seconds, are the learning curve
 (``training.json``). torch, stable-baselines3, sb3-contrib and cma are imported here only
@@ -33,12 +34,19 @@ import numpy as np
 
 from aeromag_env.atomic import check_output_set, write_text
 from aeromag_env.environment.ids import SUITE
-from aeromag_env.errors import HyperparameterError
+from aeromag_env.errors import ConfigError, HyperparameterError
 from agents.evaluation.seeds import TRAIN_SEEDS
 from agents.policies.numpy_policy import NumpyPolicy
 from agents.policies.policy_file import export_actor, write_policy
 from agents.training import LEARNERS, SUITE_SCENARIO
+from agents.training.hyperparams_file import read_learners
 from agents.training.imitation import seed_stream
+from agents.training.learner_hyperparameters import (
+    CMAESHyperparams,
+    LearnerHyperparams,
+    SB3Hyperparams,
+)
+from agents.training.quick import quick_learner
 from agents.training.validation import Validator
 
 #: The learners' hyperparameter file (every learner but PPO, whose file is ``ppo.json``).
@@ -47,52 +55,20 @@ HYPERPARAMS = Path(__file__).with_name("hyperparams") / "learners.json"
 SCENARIO = SUITE_SCENARIO
 #: What every learner's ``training.json`` holds beside its curve.
 OUTPUTS = ("policy.npz", "candidate.npz", "training.json")
-#: The keys of a learner's entry besides its algorithm's own (``algo``, ``policy_kwargs``).
-COMMON_KEYS = (
-    "timesteps",
-    "n_envs",
-    "env_kwargs",
-    "normalize_reward",
-    "eval_every",
-    "eval_episodes",
-    "select_by",
-    "prefetch",
-)
-#: The keys of the ``cmaes`` entry's ``algo``.
-CMAES_KEYS = ("popsize", "sigma0", "flights", "normalisation_flights")
-#: Sizes of a ``quick`` run (a test's): a few thousand steps, one validation flight per scenario.
-QUICK = {"timesteps": 2048, "n_envs": 2, "eval_every": 1024, "eval_episodes": 7, "prefetch": False}
-QUICK_CMAES = {"popsize": 3, "flights": 7, "normalisation_flights": 1}
 
 
-def learner_hyperparams(learner: str, path: Path = HYPERPARAMS) -> dict[str, Any]:
-    """The entry of ``learner`` in ``path`` with the file's ``common`` settings under it,
-    checked: known keys only (the algorithm's from its constructor's signature); one-line
-    :class:`~aeromag_env.errors.HyperparameterError` otherwise."""
-    try:
-        table = json.loads(Path(path).read_text())
-    except (OSError, ValueError) as e:
-        raise HyperparameterError(f"cannot read learner hyperparameters {path}: {e}") from None
-    entries = table.get("learners", {}) if isinstance(table, dict) else {}
-    if learner not in entries:
+def learner_hyperparams(learner: str, path: Path = HYPERPARAMS) -> LearnerHyperparams:
+    """The hyperparameters of ``learner`` in ``path``: its entry under the file's ``common``
+    settings, a model of :data:`~agents.training.hyperparameters.LEARNER_MODELS` (every learner
+    of the file checked); a one-line :class:`~aeromag_env.errors.HyperparameterError` naming
+    the file and the field otherwise."""
+    learners = read_learners(path)
+    if learner not in learners:
         raise HyperparameterError(
             f"no hyperparameters for learner {learner!r} in {path}; available: "
-            f"{', '.join(entries) or 'none'}"
+            f"{', '.join(learners) or 'none'}"
         )
-    hp = {**table.get("common", {}), **entries[learner]}
-    unknown = sorted(set(hp) - {*COMMON_KEYS, "algo", "policy_kwargs", "comment"})
-    if unknown:
-        raise HyperparameterError(f"{path}: learners.{learner}: unknown keys {', '.join(unknown)}")
-    missing = [k for k in COMMON_KEYS if k not in hp]
-    if missing:
-        raise HyperparameterError(f"{path}: learners.{learner}: missing {', '.join(missing)}")
-    algo = hp.setdefault("algo", {})
-    valid = CMAES_KEYS if learner == "cmaes" else list(constructor_parameters(learner))
-    bad = sorted(set(algo) - set(valid))
-    if bad:
-        raise HyperparameterError(f"{path}: learners.{learner}.algo: unknown keys {', '.join(bad)}")
-    hp["version"] = table.get("version")
-    return hp
+    return learners[learner]
 
 
 def _algorithm(learner: str) -> Any:
@@ -124,6 +100,18 @@ def algorithm_name(learner: str) -> str:
     return str(_algorithm(learner).__name__)
 
 
+def sb3_keywords(hp: SB3Hyperparams) -> dict[str, Any]:
+    """The constructor keywords of ``hp``'s algorithm: the ``algo`` keys given (the others
+    take the algorithm's defaults) and ``policy_kwargs``."""
+    return {
+        **hp.algo.model_dump(exclude_unset=True),
+        "policy_kwargs": {
+            k: list(v) if isinstance(v, tuple) else v
+            for k, v in hp.policy_kwargs.model_dump(exclude_unset=True).items()
+        },
+    }
+
+
 def train_learner(
     learner: str,
     seed: int,
@@ -136,7 +124,7 @@ def train_learner(
     """Train ``learner`` (one of :data:`LEARNERS`) with training seed ``seed`` into ``out``:
     ``policy.npz`` (the best validated checkpoint), ``training.json`` (the summary and the
     learning curve). ``timesteps`` overrides the entry's; ``quick`` shrinks everything to a
-    test's size (:data:`QUICK`). Returns the summary."""
+    test's size (:data:`agents.training.quick.QUICK`). Returns the summary."""
     out = Path(out)
     if learner == "ppo":
         from agents.training.ppo import train_ppo
@@ -145,7 +133,10 @@ def train_learner(
     if learner not in LEARNERS:
         raise HyperparameterError(f"unknown learner {learner!r}; valid: {', '.join(LEARNERS)}")
     check_output_set(out, OUTPUTS, [hyperparams])
-    hp = learner_settings(learner, hyperparams, quick=quick, timesteps=timesteps)
+    try:
+        hp = learner_settings(learner, hyperparams, quick=quick, timesteps=timesteps)
+    except ConfigError as e:  # a --timesteps the model refuses
+        raise HyperparameterError(f"{hyperparams}: learners.{learner}.{e}") from None
     return run_learner(learner, hp, seed, out)
 
 
@@ -155,23 +146,22 @@ def learner_settings(
     *,
     quick: bool = False,
     timesteps: int | None = None,
-) -> dict[str, Any]:
+) -> LearnerHyperparams:
     """What :func:`train_learner` trains ``learner`` with: its entry of ``hyperparams``
-    (:func:`learner_hyperparams`), with :data:`QUICK`'s sizes for ``quick`` and ``timesteps``
-    (when given) for the entry's."""
+    (:func:`learner_hyperparams`), with the quick sizes for ``quick``
+    (:func:`agents.training.quick.quick_learner`) and ``timesteps`` (when given) for the
+    entry's."""
     hp = learner_hyperparams(learner, hyperparams)
     if quick:
-        hp.update(QUICK)
-        if learner == "cmaes":
-            hp["algo"] = {**hp["algo"], **QUICK_CMAES}
+        hp = quick_learner(hp)
     if timesteps is not None:
-        hp["timesteps"] = int(timesteps)
+        hp = hp.with_values(timesteps=timesteps)
     return hp
 
 
 def run_learner(
     learner: str,
-    hp: dict[str, Any],
+    hp: LearnerHyperparams,
     seed: int,
     out: Path,
     on_validation: Callable[[dict[str, Any]], None] | None = None,
@@ -185,7 +175,7 @@ def run_learner(
     curve = Curve(out, learner, seed, hp, on_validation)
     t0 = time.perf_counter()
     with training_torch():
-        if learner == "cmaes":
+        if isinstance(hp, CMAESHyperparams):
             steps = _train_cmaes(hp, seed, curve)
         else:
             steps = _train_sb3(learner, hp, seed, curve)
@@ -197,7 +187,7 @@ def run_learner(
         "train_seconds_this_run": time.perf_counter() - t0,
         "best_validation_score": curve.best,
         "best_validation_rmse_nt": curve.best_rmse,
-        "hyperparams": {k: v for k, v in hp.items() if k != "comment"},
+        "hyperparams": {**hp.to_entry(), "version": hp.version},
         "curve": curve.points,
     }
     write_text(out / "training.json", json.dumps(summary, indent=1))
@@ -220,12 +210,12 @@ class Curve:
         out: Path,
         learner: str,
         seed: int,
-        hp: dict[str, Any],
+        hp: LearnerHyperparams,
         on_validation: Callable[[dict[str, Any]], None] | None = None,
     ) -> None:
         self.out, self.learner, self.seed, self.hp = out, learner, seed, hp
         self.on_validation = on_validation
-        self.validator = Validator(hp["select_by"], SCENARIO, hp["eval_episodes"])
+        self.validator = Validator(hp.select_by, SCENARIO, hp.eval_episodes)
         self.points: list[dict[str, Any]] = []
         self.best, self.best_rmse = float("inf"), float("inf")
         self.t0 = time.perf_counter()
@@ -234,10 +224,10 @@ class Curve:
     def meta(self, timesteps: int) -> dict[str, Any]:
         return {
             "scenario": SCENARIO,
-            "env_kwargs": dict(self.hp["env_kwargs"]),
+            "env_kwargs": dict(self.hp.env_kwargs),
             "seed": self.seed,
             "timesteps": int(timesteps),
-            "learner_hyperparams_version": self.hp.get("version"),
+            "learner_hyperparams_version": self.hp.version,
         }
 
     def validate(self, timesteps: int, write: Callable[[Path, dict[str, Any]], Path]) -> None:
@@ -257,7 +247,7 @@ class Curve:
             self.on_validation(point)
 
 
-def _training_env(hp: dict[str, Any], seed: int) -> Any:
+def _training_env(hp: LearnerHyperparams, seed: int) -> Any:
     """``n_envs`` batched training environments on the suite under ``VecNormalize``, each
     resetting from its own stream of training seeds (as
     :func:`agents.training.ppo.make_training_env`)."""
@@ -265,64 +255,56 @@ def _training_env(hp: dict[str, Any], seed: int) -> Any:
 
     from aeromag_env.environment.sb3 import AeroMagSB3VecEnv
 
-    n = int(hp["n_envs"])
+    n = hp.n_envs
     streams = [seed_stream(rank, n, offset=1000 * seed) for rank in range(n)]
     venv = AeroMagSB3VecEnv(
         n,
         scenario=SCENARIO,
         reset_seeds=streams,
-        prefetch=hp["prefetch"],
+        prefetch=hp.prefetch,
         step_infos="episode_end",  # SB3's learners read infos at episode ends only
-        **hp["env_kwargs"],
+        **hp.env_kwargs,
     )
-    gamma = float(hp["algo"].get("gamma", 0.99))
+    gamma = getattr(hp.algo, "gamma", None)
+    if gamma is None:  # the algorithm's default
+        gamma = constructor_parameters(hp.learner)["gamma"].default
     return VecNormalize(
-        venv, norm_obs=True, norm_reward=hp["normalize_reward"], gamma=gamma, clip_obs=10.0
+        venv, norm_obs=True, norm_reward=hp.normalize_reward, gamma=float(gamma), clip_obs=10.0
     )
 
 
-def _train_sb3(learner: str, hp: dict[str, Any], seed: int, curve: Curve) -> int:
+def _train_sb3(learner: str, hp: SB3Hyperparams, seed: int, curve: Curve) -> int:
     from stable_baselines3.common.callbacks import BaseCallback
 
     from agents.training.ppo import _quiet
 
     venv = _training_env(hp, seed)
     policy = "MlpLstmPolicy" if learner == "recurrent_ppo" else "MlpPolicy"
-    kwargs = dict(hp["algo"])
-    model = _quiet(
-        _algorithm(learner)(
-            policy,
-            venv,
-            seed=seed,
-            device="cpu",
-            verbose=0,
-            policy_kwargs=dict(hp.get("policy_kwargs", {})),
-            **kwargs,
-        )
-    )
+    kwargs = sb3_keywords(hp)
+    model = _quiet(_algorithm(learner)(policy, venv, seed=seed, device="cpu", verbose=0, **kwargs))
 
     def write(path: Path, meta: dict[str, Any]) -> Path:
         return export_actor(model, venv, path, meta)
 
     class Validate(BaseCallback):
         def _on_training_start(self) -> None:
-            self.next = hp["eval_every"]
+            self.next = hp.eval_every
             curve.validate(0, write)
 
         def _on_step(self) -> bool:
             if self.model.num_timesteps >= self.next:
-                self.next += hp["eval_every"]
+                self.next += hp.eval_every
                 curve.validate(self.model.num_timesteps, write)
             return True
 
-    model.learn(int(hp["timesteps"]), callback=Validate())
+    model.learn(hp.timesteps, callback=Validate())
     if curve.points[-1]["timesteps"] != model.num_timesteps:
         curve.validate(model.num_timesteps, write)
     venv.close()
     return int(model.num_timesteps)
 
 
-def _train_cmaes(hp: dict[str, Any], seed: int, curve: Curve) -> int:
+def _train_cmaes(hp: CMAESHyperparams, seed: int, curve: Curve) -> int:
     """CMA-ES over ``(W, b)`` of ``a = tanh(W x̂ + b)``: each generation's candidates fly the
     same ``flights`` training flights, as many of each scenario of the suite (one batched
     environment of popsize × flights, the flights simulated once); a candidate's loss is minus
@@ -333,25 +315,20 @@ def _train_cmaes(hp: dict[str, Any], seed: int, curve: Curve) -> int:
 
     from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 
-    algo = hp["algo"]
-    pop, n_flights = int(algo["popsize"]), int(algo["flights"])
-    if n_flights < 1 or n_flights % len(SUITE):
-        raise HyperparameterError(
-            f"learners.cmaes.algo.flights must be a multiple of the suite's {len(SUITE)} "
-            f"scenarios, got {n_flights}"
-        )
+    algo = hp.algo
+    pop, n_flights = algo.popsize, algo.flights  # flights: a multiple of the suite's scenarios
     scenarios = [SUITE[j % len(SUITE)] for j in range(n_flights)]
     env = AeroMagCompensationVecEnv(
         pop * n_flights,
         scenario=SCENARIO,
         autoreset_mode="Disabled",
-        flight_cache=max(n_flights, int(algo["normalisation_flights"])),
-        **hp["env_kwargs"],
+        flight_cache=max(n_flights, algo.normalisation_flights),
+        **hp.env_kwargs,
     )
     n_obs = int(np.prod(env.single_observation_space.shape or ()))
     n_act = int(np.prod(env.single_action_space.shape or ()))
     seeds = seed_stream(0, 1, offset=TRAIN_SEEDS.start + 1000 * seed + 500)
-    mean, var, steps = _statistics(env, [next(seeds) for _ in range(algo["normalisation_flights"])])
+    mean, var, steps = _statistics(env, [next(seeds) for _ in range(algo.normalisation_flights)])
     norm = {"obs_mean": mean, "obs_var": var, "obs_clip": np.array(10.0), "obs_eps": np.array(1e-8)}
 
     def arrays(theta: np.ndarray) -> dict[str, np.ndarray]:
@@ -367,20 +344,20 @@ def _train_cmaes(hp: dict[str, Any], seed: int, curve: Curve) -> int:
 
     es = cma.CMAEvolutionStrategy(
         np.zeros(n_act * (n_obs + 1)),
-        float(algo["sigma0"]),
+        algo.sigma0,
         {"popsize": pop, "seed": seed + 1, "verbose": -9},
     )
     scale = np.sqrt(var + 1e-8)
     curve.validate(steps, write_for(es.mean))
-    next_eval = steps + hp["eval_every"]
-    while steps < hp["timesteps"]:
+    next_eval = steps + hp.eval_every
+    while steps < hp.timesteps:
         thetas = np.array(es.ask())
         flights = [next(seeds) for _ in range(n_flights)]
         loss, used = _generation(env, thetas, flights, scenarios, mean, scale, n_act, n_obs)
         es.tell(list(thetas), list(loss))
         steps += used
-        if steps >= next_eval or steps >= hp["timesteps"]:
-            next_eval += hp["eval_every"]
+        if steps >= next_eval or steps >= hp.timesteps:
+            next_eval += hp.eval_every
             curve.validate(steps, write_for(es.mean))
     env.close()
     return steps

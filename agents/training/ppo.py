@@ -3,7 +3,7 @@
 Hyperparameters live in ``agents/training/hyperparams/ppo.json`` (versioned, RL Zoo style: one entry
 per scenario, with the environment keyword arguments the policy is trained with), apart from the
 environment's own configuration; in Python they are a
-:class:`~agents.training.ppo_hyperparams.PPOHyperparams`, which holds the defaults. Training resets
+:class:`~agents.training.hyperparameters.PPOHyperparams`, which holds the defaults. Training resets
 every environment with seeds from the training range only (``[0, 50 000)``); validation uses
 ``[50 000, 100 000)``; tests use ``≥ 100 000``. The training environments are stepped together
 by the batched environment (:mod:`aeromag_env.environment.sb3`), or by SB3's ``DummyVecEnv``
@@ -28,12 +28,12 @@ import numpy as np
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.environment.scenarios import check_scenario
-from aeromag_env.errors import AeromagError, ConfigError, HyperparameterError
+from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.policies.numpy_policy import NumpyPPOPolicy
 from agents.policies.policy_file import export_policy
-from agents.training.hyperparams_file import read_hyperparams
+from agents.training.hyperparameters import SB3_PPO_KEYS, PPOHyperparams
+from agents.training.hyperparams_file import read_ppo
 from agents.training.imitation import CloningTerm, Demonstrations, behaviour_clone, seed_stream
-from agents.training.ppo_hyperparams import SB3_PPO_KEYS, PPOHyperparams
 from agents.training.quick import QUICK, quick_hyperparams, sized
 from agents.training.validation import Validator, validation_rmse
 
@@ -48,21 +48,17 @@ TIMESTEPS = 3_000_000
 
 
 def load_hyperparams(scenario: str, path: Path = HYPERPARAMS) -> PPOHyperparams:
-    """The hyperparameters of ``scenario`` from the file ``path``, validated against its schema
+    """The hyperparameters of ``scenario`` from the file ``path``, checked
     (:mod:`agents.training.hyperparams_file`); a one-line HyperparameterError for a bad file or an
     absent scenario."""
-    table = read_hyperparams(path)
-    if scenario not in table["scenarios"]:
-        available = ", ".join(table["scenarios"]) or "none"
+    table = read_ppo(path)
+    if scenario not in table.scenarios:
+        available = ", ".join(table.scenarios) or "none"
         raise HyperparameterError(
             f"no PPO hyperparameters for {scenario!r} in {path}; available: {available}"
         )
-    try:
-        return PPOHyperparams.from_entry(table["scenarios"][scenario], table["version"])
-    except ConfigError as e:  # what the schema cannot say (none today)
-        raise HyperparameterError(
-            f"bad hyperparameters in {path}: scenarios.{scenario}.{e}"
-        ) from None
+    hp: PPOHyperparams = table.scenarios[scenario]
+    return hp
 
 
 class TrainingSeeds(gym.Wrapper):

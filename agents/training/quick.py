@@ -1,8 +1,8 @@
 """What ``--quick`` means, in one place: a run of about a minute on a 2-core machine.
 
-``aeromag train --quick``, ``aeromag tune --quick``, ``aeromag bench --quick`` and the
-experiments' ``--quick`` apply :data:`QUICK` after their defaults: its sizes replace the
-defaults (of the hyperparameter file too), whatever those say; a size the caller gives
+``aeromag train --quick`` (every learner), ``aeromag tune --quick``, ``aeromag bench --quick``
+and the experiments' ``--quick`` apply :data:`QUICK` after their defaults: its sizes replace
+the defaults (of the hyperparameter files too), whatever those say; a size the caller gives
 (``--timesteps 64``) is kept. For tests and a first look, not for figures: the trained
 policies and the measured speeds of a quick run mean little.
 """
@@ -15,7 +15,8 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # the table itself imports nothing heavy (the experiments read it)
-    from agents.training.ppo_hyperparams import PPOHyperparams
+    from agents.training.hyperparameters import PPOHyperparams
+    from agents.training.learner_hyperparameters import LearnerHyperparams
 
 
 def _frozen(**values: Any) -> Any:
@@ -31,6 +32,10 @@ class QuickPreset:
     ppo : PPO hyperparameters (train, tune, bench): two environments, tiny rollouts, two
         validation flights, no prefetching worker
     pretrain : the pretraining's (one round of 256 demonstration steps, one epoch)
+    learners : every other learner's (train, tune): a few thousand steps of two environments,
+        one validation flight per scenario of the suite, no prefetching worker
+    cmaes : CMA-ES's search (``algo``): three candidates per generation, one flight of each
+        scenario of the suite, one normalisation flight
     train_timesteps : environment steps of ``aeromag train`` per seed, at most
     tune_samples, tune_timesteps, tune_reports : ``aeromag tune``'s trials, environment steps
         per trial and validations per trial, at most
@@ -53,6 +58,10 @@ class QuickPreset:
         n_envs=2, n_steps=64, batch_size=64, eval_every=512, eval_episodes=2, prefetch=False
     )
     pretrain: Mapping[str, Any] = _frozen(steps=256, epochs=1, dagger_rounds=1)
+    learners: Mapping[str, Any] = _frozen(
+        timesteps=2048, n_envs=2, eval_every=1024, eval_episodes=7, prefetch=False
+    )
+    cmaes: Mapping[str, Any] = _frozen(popsize=3, flights=7, normalisation_flights=1)
     train_timesteps: int = 2048
     tune_samples: int = 2
     tune_timesteps: int = 1024
@@ -78,6 +87,15 @@ def quick_hyperparams(hp: PPOHyperparams) -> PPOHyperparams:
     changes: dict[str, Any] = dict(QUICK.ppo)
     if hp.pretrain is not None:
         changes["pretrain"] = dict(QUICK.pretrain)
+    return hp.with_values(**changes)
+
+
+def quick_learner(hp: LearnerHyperparams) -> LearnerHyperparams:
+    """``hp`` (a learner of ``learners.json``) with :data:`QUICK`'s sizes (and CMA-ES's search
+    sizes for CMA-ES)."""
+    changes: dict[str, Any] = dict(QUICK.learners)
+    if hp.learner == "cmaes":
+        changes["algo"] = dict(QUICK.cmaes)
     return hp.with_values(**changes)
 
 

@@ -39,7 +39,7 @@ AGENT_MODULES = (
     "agents.policies.numpy_policy",
     "agents.evaluation.episodes",
     "agents.training.learners",
-    "agents.training.ppo_hyperparams",
+    "agents.training.hyperparameters",
 )
 PACKAGES = (aeromag_env, agents)
 

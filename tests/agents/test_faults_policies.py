@@ -94,8 +94,8 @@ ARRAY_FAULTS: list[tuple[str, Callable[[Arrays], Arrays], str]] = [
     ),
     (
         "observations_for_another_layout",
-        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(innovation_power=False)),
-        "10 observations.*8",
+        lambda a: _with_meta(a, lambda m: m.update(env_kwargs={"preset": "paper"})),
+        "10 observations.*2",
     ),
     *[
         (f"{k}_{name}", _poke(k, v), f"{k}.*(finite|NaN|inf)")
@@ -128,8 +128,18 @@ ARRAY_FAULTS: list[tuple[str, Callable[[Arrays], Arrays], str]] = [
     ),
     (
         "env_kwargs_bad_value",
-        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(scale_limit=0.5)),
-        "scale_limit",
+        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(action={"scale_limit": 0.5})),
+        r"action\.scale_limit must be",
+    ),
+    (
+        "env_kwargs_flat_bad_value",  # a file of the first version, read by the legacy module
+        lambda a: _with_meta(a, lambda m: m.update(env_kwargs={"extras": "yes"})),
+        "meta env_kwargs: extras must be true or false",
+    ),
+    (
+        "env_kwargs_flat_and_preset",
+        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(split_q=True)),
+        "mix the first version's flat keys",
     ),
 ]
 

@@ -1,5 +1,4 @@
 import json
-from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
@@ -13,6 +12,7 @@ from aeromag_env.environment.spaces import ACT_R
 from aeromag_env.errors import AeromagError
 from agents.policies import DEFAULT_PPO, make_policy, policy_env_kwargs
 from agents.policies.numpy_policy import NumpyPPOPolicy
+from agents.training.hyperparameters import Pretrain
 from agents.training.ppo import (
     HYPERPARAMS,
     export_policy,
@@ -21,7 +21,6 @@ from agents.training.ppo import (
     make_training_env,
     train_ppo,
 )
-from agents.training.ppo_hyperparams import Pretrain
 
 
 @pytest.mark.slow
@@ -64,7 +63,7 @@ def test_train_scenario_trains_on_its_own_scenario_only(kind):
     scenarios = inner.venv.scenarios if kind == "batched" else inner.get_attr("_scenario")
     assert list(scenarios) == ["nonstationary_dense"] * 2
     venv.close()
-    with pytest.raises(AeromagError, match="train_scenario: must be a scenario name: paper"):
+    with pytest.raises(AeromagError, match="train_scenario must be a scenario name: paper"):
         make_training_env("nonstationary", hp.with_values(train_scenario="windy"), 0)
 
 
@@ -137,8 +136,7 @@ def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     from agents.training.imitation import behaviour_clone
 
     torch.manual_seed(0)
-    hp = replace(
-        load_hyperparams("nonstationary"),
+    hp = load_hyperparams("nonstationary").with_values(
         n_envs=4,
         prefetch=False,
         pretrain=Pretrain(threshold_nt=20.0, steps=4000, epochs=50),
@@ -252,7 +250,7 @@ def test_the_dagger_teacher_keeps_r_above_its_floor_on_the_named_scenarios():
 
     hp = load_hyperparams("suite").with_values(n_envs=2, prefetch=False)
     venv = make_training_env("noise_bursts", hp, seed=0)
-    lo, hi = hp.env_kwargs["absolute_r_log10"]
+    lo, hi = env_config(**hp.env_kwargs).action.r_log10
     floor = 2.0 * (2.0 - lo) / (hi - lo) - 1.0
     labels = {}
     for name, given in (("plain", None), ("floored", {"noise_bursts": 2.0})):
@@ -282,8 +280,7 @@ def test_the_cloning_term_pulls_the_actor_to_the_demonstrations():
 
     from agents.training.imitation import CloningTerm, Demonstrations
 
-    hp = replace(
-        load_hyperparams("nonstationary"),
+    hp = load_hyperparams("nonstationary").with_values(
         n_envs=2,
         prefetch=False,
         pretrain=Pretrain(steps=1, epochs=1, bc_minibatches=200, bc_learning_rate=1e-3),
@@ -375,7 +372,7 @@ def test_the_cloning_term_keeps_only_the_scenarios_named():
         flown,
     )
     spec = Pretrain(steps=1, epochs=1, bc_minibatches=1, bc_scenarios=("manoeuvre_heavy", "paper"))
-    hp = replace(hp, pretrain=spec)
+    hp = hp.with_values(pretrain=spec)
     kept = CloningTerm(model, venv, hp, demos, seed=0).demos
     np.testing.assert_array_equal(kept.obs, demos.obs[[0, 2, 3]])
     assert list(kept.scenarios) == ["manoeuvre_heavy", "paper", "manoeuvre_heavy"]

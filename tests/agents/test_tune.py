@@ -16,9 +16,9 @@ from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.evaluation.seeds import TEST_SEED_START, VALIDATION_SEEDS
 from agents.search.ppo import OUTPUTS, ray_session
 from agents.search.space import SPACE, read_space
+from agents.training.hyperparameters import PPOHyperparams
 from agents.training.hyperparams_file import read_hyperparams
 from agents.training.ppo import HYPERPARAMS, load_hyperparams
-from agents.training.ppo_hyperparams import PPOHyperparams
 from agents.training.validation import validation_seeds
 from tests._helpers import run_cli
 

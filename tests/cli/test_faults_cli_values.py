@@ -350,16 +350,16 @@ def _hp_file(tmp_path: Path, change: dict[str, object], pretrain: bool = False) 
 @pytest.mark.parametrize(
     ("change", "pretrain", "words"),
     [
-        ({"n_envs": 100_000}, False, "n_envs: must be an integer ≥ 1 and ≤ 256"),
-        ({"n_steps": 10**9}, False, "n_steps: must be an integer ≥ 1 and ≤ 16384"),
-        ({"batch_size": 10**7}, False, "batch_size: must be an integer ≥ 2 and ≤ 65536"),
-        ({"n_epochs": 10**6}, False, "n_epochs: must be an integer ≥ 1 and ≤ 100"),
-        ({"net_arch": [10**6]}, False, "net_arch.0: must be an integer ≥ 1 and ≤ 1024"),
-        ({"net_arch": [64] * 100}, False, "net_arch: must be a list of at most 8 integers"),
-        ({"eval_every": 10**12}, False, "eval_every: must be an integer ≥ 1 and ≤ 1000000000"),
-        ({"eval_episodes": 10**9}, False, "eval_episodes: must be an integer ≥ 1 and ≤ 10000"),
-        ({"steps": 10**12}, True, "pretrain.steps: must be an integer ≥ 1 and ≤ 10000000"),
-        ({"epochs": 10**6}, True, "pretrain.epochs: must be an integer ≥ 1 and ≤ 100"),
+        ({"n_envs": 100_000}, False, "n_envs must be an integer ≥ 1 and ≤ 256"),
+        ({"n_steps": 10**9}, False, "n_steps must be an integer ≥ 1 and ≤ 16384"),
+        ({"batch_size": 10**7}, False, "batch_size must be an integer ≥ 2 and ≤ 65536"),
+        ({"n_epochs": 10**6}, False, "n_epochs must be an integer ≥ 1 and ≤ 100"),
+        ({"net_arch": [10**6]}, False, "net_arch.0 must be an integer ≥ 1 and ≤ 1024"),
+        ({"net_arch": [64] * 100}, False, "net_arch must be a list of at most 8 integers"),
+        ({"eval_every": 10**12}, False, "eval_every must be an integer ≥ 1 and ≤ 1000000000"),
+        ({"eval_episodes": 10**9}, False, "eval_episodes must be an integer ≥ 1 and ≤ 10000"),
+        ({"steps": 10**12}, True, "pretrain.steps must be an integer ≥ 1 and ≤ 10000000"),
+        ({"epochs": 10**6}, True, "pretrain.epochs must be an integer ≥ 1 and ≤ 100"),
     ],
 )
 def test_hyperparameters_of_absurd_size_are_refused(tmp_path, change, pretrain, words):

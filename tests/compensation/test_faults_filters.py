@@ -34,7 +34,7 @@ from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 from aeromag_env.errors import AeromagError, ConfigError
 from aeromag_env.flight.data import Flight
 from tests._flights import simulated
-from tests._helpers import assert_one_line_error
+from tests._helpers import assert_one_line_error, observations
 
 #: A 600-s nominal flight (6000 samples at 10 Hz) and where the faults go: the spike at its
 #: middle, the burst and the step from there on.
@@ -239,10 +239,8 @@ def test_hostile_actions_on_clean_flights_are_never_rejected():
     made one lap's innovations tiny; the window's own innovations now count too."""
     config = {
         "scenario": "misspecified",
-        "extras": True,
-        "split_q": True,
-        "s_max": 1e3,
-        "scale_limit": 1e100,
+        "observations": observations("log_qp_scale"),
+        "action": {"permanent": "graded", "s_max": 1e3, "scale_limit": 1e100},
         "duration_s": 60.0,
     }
     vec = AeroMagCompensationVecEnv(16, **config)

@@ -125,14 +125,16 @@ def test_every_registered_id_and_every_shipped_policy_names_a_preset():
         assert dataclasses.replace(config, scenario="nominal") == PRESETS[preset]
 
 
-def test_the_training_files_flat_settings_are_the_shipped_presets():
-    """The hyperparameter file's env_kwargs (the first version's flat keys) load as the presets
-    the shipped policies name: old settings still load, and to the same configuration."""
+def test_the_training_file_names_the_shipped_policies_presets():
+    """The hyperparameter file's env_kwargs name the presets the shipped policies name (their
+    first version's flat keys, which the policies' training.json keep, are read as the same
+    presets: tests/environment/test_legacy.py)."""
     scenarios = json.loads(HYPERPARAMS.read_text())["scenarios"]
     for scenario, policy in (("nonstationary", "ppo"), ("suite", "general")):
-        flat = scenarios[scenario]["env_kwargs"]
         preset = NumpyPPOPolicy.load(SHIPPED[policy]).env_kwargs["preset"]
-        assert from_dict(EnvConfig, flat) == PRESETS[preset] == env_config(**flat)
+        settings = scenarios[scenario]["env_kwargs"]
+        assert settings == {"preset": preset}
+        assert from_dict(EnvConfig, settings) == PRESETS[preset] == env_config(**settings)
 
 
 @pytest.mark.parametrize("name", list(PRESETS))

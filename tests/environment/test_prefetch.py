@@ -2,6 +2,7 @@ import numpy as np
 
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
 from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
+from tests._helpers import observations
 
 
 def _same(a, b):
@@ -16,7 +17,7 @@ def _same(a, b):
 
 def test_prefetched_flights_are_the_flights_a_reset_simulates():
     """Over three autoresets, and after a reseeding reset that discards a prepared flight."""
-    kw = {"scenario": "misspecified", "duration_s": 10.0, "extras": True}
+    kw = {"scenario": "misspecified", "duration_s": 10.0, "observations": observations()}
     ahead, here = (
         AeroMagCompensationVecEnv(2, prefetch=True, **kw),
         AeroMagCompensationVecEnv(2, **kw),

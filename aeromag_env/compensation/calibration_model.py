@@ -158,6 +158,21 @@ class CalibrationModel:
         """:meth:`to_dict` as JSON text (non-finite figures as ``null``)."""
         return json.dumps(_finite_or_null(self.to_dict()), indent=1, allow_nan=False) + "\n"
 
+    def apply(self, flight: Any) -> Any:
+        """Compensate a :class:`~aeromag_env.flight.data.Flight` with this model: a
+        :class:`~aeromag_env.compensation.compensate.Compensation`
+        (:func:`aeromag_env.compensation.model_fit.apply_model`)."""
+        from aeromag_env.compensation.model_fit import apply_model
+
+        return apply_model(self, flight)
+
+    def stream(self) -> Any:
+        """A :class:`~aeromag_env.compensation.model_apply.SampleStream`: ``update(sample)``
+        with one sample as a mapping of channel name → value, answering the compensated ones."""
+        from aeromag_env.compensation.model_apply import SampleStream
+
+        return SampleStream(self)
+
     def save(self, path: str | Path) -> Path:
         """Write the model to ``path`` atomically (temporary file, then rename); returns it."""
         return write_text(Path(path), self.to_json())

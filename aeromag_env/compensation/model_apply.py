@@ -22,6 +22,7 @@ and k's central difference needs to know whether k + 1 is usable): 0.2 s at 10 H
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -259,3 +260,37 @@ def _stands_out(x: np.ndarray, prev: np.ndarray, nxt: np.ndarray) -> float:
         stat = np.where(same, np.minimum(np.abs(back), np.abs(ahead)), 0.0)
     stat = np.where(np.isfinite(stat), stat, 0.0)
     return float(stat.max())
+
+
+class SampleStream:
+    """A model's stream fed with samples as mappings of channel name → value.
+
+    Wraps :class:`TollesLawsonStream` (the only streaming form so far: a Kalman-family model
+    is refused with a one-line error). :attr:`columns` are the channels each sample needs and
+    :attr:`output_name` the compensated channel's name (as ``compensate`` writes it).
+    """
+
+    def __init__(self, model: CalibrationModel) -> None:
+        from aeromag_env.compensation.compensate import output_names
+
+        if model.method != "tl":
+            raise AeromagError(
+                f"streaming supports tl models only; this model is {model.method} (apply it to a "
+                "whole flight with compensate --model, or calibrate a tl model to stream)"
+            )
+        self.model = model
+        self.columns = model.input_channels()
+        names = model.channels
+        self.output_name = output_names("tl", names["flux"], names["scalar"])[0]
+        self._flux = self.columns[1:4]
+        self._stream = TollesLawsonStream(model)
+
+    def update(self, sample: Mapping[str, float]) -> list[StreamOutput]:
+        """Take one sample (every name of :attr:`columns`); return the answered samples."""
+        time = float(sample[self.columns[0]])
+        flux = np.array([float(sample[c]) for c in self._flux])
+        return self._stream.update(time, flux, float(sample[self.columns[4]]))
+
+    def flush(self) -> list[StreamOutput]:
+        """Answer the samples still held, at the end of the stream."""
+        return self._stream.flush()

@@ -26,6 +26,7 @@ import numpy as np
 
 from aeromag_env import reports
 from aeromag_env.atomic import check_output_set, output_set, write_text
+from aeromag_env.compensation.calibration_model import CalibrationModel
 from aeromag_env.compensation.compensate import (
     FILTER_METHODS,
     METHODS,
@@ -99,6 +100,9 @@ class CompensateRequest:
         The filter's measurement-noise std [nT] (None: the preset's).
     html : bool
         Write ``report.html`` (:mod:`aeromag_env.reports`) with the set.
+    model : Path, CalibrationModel or None
+        Apply this calibrated model (``aeromag calibrate``'s ``model.json``) instead of fitting
+        on the flight (:mod:`aeromag_env.jobs.apply_model`); ``method`` is then the model's.
     """
 
     source: Path | Flight
@@ -117,6 +121,7 @@ class CompensateRequest:
     filter_preset: str = "default"
     r_std_nt: float | None = None
     html: bool = True
+    model: Path | CalibrationModel | None = None
 
     @property
     def path(self) -> Path | None:
@@ -145,6 +150,10 @@ class CompensateRequest:
             raise AeromagError("--calibration-window needs T0 < T1 [s]")
         if self.r_std_nt is not None and not self.r_std_nt > 0:
             raise AeromagError(f"--r-std-nt must be > 0, got {self.r_std_nt}")
+        if self.model is not None:
+            from aeromag_env.jobs.apply_model import check_model_request
+
+            check_model_request(self)
 
     def outputs(self) -> tuple[str, ...]:
         """The output set: :data:`OUTPUTS`, without the page when ``html`` is off."""
@@ -282,6 +291,10 @@ def compensate(
 def run_compensate(req: CompensateRequest, warn: JobWarnings) -> CompensationResult:
     """Do the work of :func:`compensate` for a request; its warnings go to ``warn``."""
     req.check()
+    if req.model is not None:
+        from aeromag_env.jobs.apply_model import run_with_model
+
+        return run_with_model(req, warn)
     if req.out is not None:
         check_output_set(req.out, req.outputs(), req.input_files())
     flight, problems, path = load_source(req.source, req.needs())

@@ -41,8 +41,8 @@ from aeromag_env.compensation.compensate import (
     score,
 )
 from aeromag_env.compensation.model import FilterConfig
-from aeromag_env.compensation.model_fit import apply_model, fit_model
 from aeromag_env.compensation.model_drift import drift_warning
+from aeromag_env.compensation.model_fit import apply_model, fit_model
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.flight.data import vector_names
 from aeromag_env.simulation.config import AircraftConfig, preset, with_overrides

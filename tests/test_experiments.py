@@ -1,6 +1,8 @@
 """The experiment scripts, each run as a script (``--quick`` or a small case) or, for tests of
 their functions, loaded by path: ``experiments`` is not a package the tests import."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -270,3 +272,10 @@ def test_lagged_privileged_with_a_floor_on_r_keeps_a_late_burst_out(capsys):
     with pytest.raises(SystemExit):
         lagged(["--floors", "high"])
     assert "--floors 'high'" in capsys.readouterr().err
+
+
+def test_calibrate_then_apply_quick(tmp_path, capsys):
+    assert run_experiment("calibrate_then_apply", "--quick", "--out", str(tmp_path)) == 0
+    result = json.loads((tmp_path / "results.json").read_text())
+    assert result["summary"]["pairs"] == 2
+    assert result["summary"]["recalibrate_warnings"]["tl"]["other"] == 2

@@ -70,11 +70,13 @@ def bench_stream(hours: float = 10.0, seed: int = 0) -> dict[str, Any]:
     base = preset("nominal")
     plane = AircraftConfig(seed=seed)
     cal = simulate_flight(dataclasses.replace(base, aircraft=plane), 2 * seed)
-    survey_cfg = with_overrides(base, {"trajectory.pattern": "survey", "trajectory.duration_s": 600})
+    survey_cfg = with_overrides(
+        base, {"trajectory.pattern": "survey", "trajectory.duration_s": 600}
+    )
     survey = simulate_flight(dataclasses.replace(survey_cfg, aircraft=plane), 2 * seed + 1)
     model, _ = fit_model(cal, "tl", flux="flux_a", scalar="mag_1_uc")
     n_total = int(hours * 3600 * survey.sample_rate_hz)
-    sent = np.empty(n_total)
+    sent = np.full(n_total, np.nan)  # touched now: its pages do not grow the RSS later
     rss: list[float] = []
     lines = _lines(survey, n_total, sent, rss)
     out = _TimedOut(n_total + 1)

@@ -31,7 +31,9 @@ def pair(aircraft: int = 3, survey_s: float = 300.0):
     """A calibration box and a survey of one aircraft (other flight seeds)."""
     base = preset("nominal")
     plane = AircraftConfig(seed=aircraft)
-    survey = with_overrides(base, {"trajectory.pattern": "survey", "trajectory.duration_s": survey_s})
+    survey = with_overrides(
+        base, {"trajectory.pattern": "survey", "trajectory.duration_s": survey_s}
+    )
     return (
         simulate_flight(dataclasses.replace(base, aircraft=plane), 10),
         simulate_flight(dataclasses.replace(survey, aircraft=plane), 11),
@@ -92,7 +94,11 @@ def test_stream_equals_the_whole_flight_with_gaps_spikes_and_nans():
     _, survey = pair()
     keep = np.ones(survey.n, bool)
     keep[1000:1030] = False  # a 3 s time gap
-    tt, flux, scalar = survey.tt[keep], survey.vector("flux_a")[keep].copy(), survey["mag_1_uc"][keep].copy()
+    tt, flux, scalar = (
+        survey.tt[keep],
+        survey.vector("flux_a")[keep].copy(),
+        survey["mag_1_uc"][keep].copy(),
+    )
     flux[200, 1] = np.nan
     scalar[400] += 5000.0  # a spike
     flux[600, 0] += 8000.0

@@ -264,8 +264,8 @@ FILTER_END_SHAPES = {
 
 def _check_positive(data: dict[str, Any], name: str, where: str, unit: str) -> None:
     value = data.get(name)
-    ok = isinstance(value, int | float) and not isinstance(value, bool) and value > 0
-    if not (ok and math.isfinite(value)):
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    if not (ok and value > 0 and math.isfinite(value)):  # type: ignore[operator, arg-type]
         raise ModelFileError(f"{where}: {name} must be a finite number > 0 [{unit}], got {value!r}")
 
 

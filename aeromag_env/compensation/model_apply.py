@@ -236,12 +236,12 @@ class TollesLawsonStream:
         if not flux_ok or not scalar_ok:
             what = "fluxgate" if not flux_ok else "scalar"
             return StreamOutput(t, None, f"{what} non-finite or a spike at t = {t:g} s")
-        prev = self._held[i - 1] if i > 0 else None
-        nxt = self._held[i + 1] if i + 1 < len(self._held) else None
-        has_prev = prev is not None and prev[4] and not start
-        has_next = nxt is not None and nxt[4] and not nxt[3]
+        prev = self._held[i - 1] if i > 0 else [None] * 6
+        nxt = self._held[i + 1] if i + 1 < len(self._held) else [None] * 6
+        has_prev = bool(prev[4]) and not start
+        has_next = bool(nxt[4]) and not nxt[3]
         if has_prev and has_next:
-            db = (nxt[1] - prev[1]) / 2.0
+            db = (nxt[1] - prev[1]) / 2.0  # type: ignore[operator]
         elif has_next:
             db = nxt[1] - b
         elif has_prev:

@@ -100,7 +100,7 @@ def fit_model(
         comp = compensate_scalar(flight, flux, scalar, tl, calibration)
         settings = {**_tl_settings(tl), "remove_mean": tl.remove_mean_}
         coefficients = {"tolles_lawson": tl.coef_.tolist(), "offset_nt": 0.0}
-        channels = {"time": "tt", "flux": flux, "scalar": scalar}
+        channels: dict[str, str | None] = {"time": "tt", "flux": flux, "scalar": scalar}
     else:
         cfg = filter_cfg or FilterConfig(method=method)
         comp = compensate_vector(flight, method, flux, cfg, calibration, mount, check_mount=False)

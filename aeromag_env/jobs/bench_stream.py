@@ -101,7 +101,7 @@ def _lines(survey: Any, n_total: int, sent: np.ndarray, rss: list[float]) -> Ite
     recording when each is handed over (``sent``) and the RSS every hour."""
     tt, flux, scalar = survey.tt, survey.vector("flux_a"), survey["mag_1_uc"]
     n, dt = tt.size, float(np.median(np.diff(tt)))
-    per_hour = int(round(3600 / dt))
+    per_hour = round(3600 / dt)
     yield "tt,flux_a_x,flux_a_y,flux_a_z,mag_1_uc\n"
     for k in range(n_total):
         i = k % n

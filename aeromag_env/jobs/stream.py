@@ -123,9 +123,7 @@ def _reporter(warn: Callable[[str], None], summary: StreamSummary) -> Callable[[
 
 def _header(it: Iterable[str]) -> tuple[list[str], int]:
     """The header's cells and its line number (``#`` and blank lines before it skipped)."""
-    number = 0
-    for text in it:
-        number += 1
+    for number, text in enumerate(it, start=1):
         if text.strip() and not text.startswith("#"):
             return [c.strip() for c in next(csv.reader([text]))], number
     raise AeromagError("stream: no header line (the channel names) before the end of the input")

@@ -139,15 +139,13 @@ def _thresholds(flight: Flight, flux: str, scalar: str | None) -> dict[str, floa
 
 
 def _provenance(given: dict[str, Any] | None) -> dict[str, Any]:
-    from aeromag_env import __version__
-
     created = _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat()
     return {
         "input": None,
         "input_sha256": None,
         **(given or {}),
         "created": created,
-        "package_version": __version__,
+        "package_version": (given or {}).get("package_version"),
     }
 
 

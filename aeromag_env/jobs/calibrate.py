@@ -155,7 +155,9 @@ def run_calibrate(req: CompensateRequest, warn: JobWarnings) -> CalibrationResul
         warn=warn,
     )
     chosen = select(inputs.work, None, None, req.calibration_line, req.calibration_window_s)
-    given = {"input": None if path is None else str(path)}
+    from aeromag_env import __version__
+
+    given = {"input": None if path is None else str(path), "package_version": __version__}
     given["input_sha256"] = None if path is None else file_sha256(path)
     model, comp = fit_model(
         chosen.flight,

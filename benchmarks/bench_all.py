@@ -8,9 +8,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from aeromag_env.cli.bench import run_benchmarks
+from aeromag_env.jobs.bench import bench
 
 if __name__ == "__main__":
     args = sys.argv[1:]
     out = Path(args[args.index("--out") + 1]) if "--out" in args else Path("results/bench")
-    run_benchmarks(out, quick="--quick" in args)
+    print(bench(out, quick="--quick" in args).table)

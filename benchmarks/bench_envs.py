@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import sys
 
-from aeromag_env.cli.bench_envs import bench_env
+from aeromag_env.jobs.bench.envs import bench_env
 
 if __name__ == "__main__":
     print(json.dumps(bench_env(3 if "--quick" in sys.argv[1:] else 7), indent=2))

@@ -9,7 +9,9 @@ from __future__ import annotations
 import json
 import sys
 
-from aeromag_env.cli.bench import FILTER_SAMPLES, bench_filter_figures, hour_flight
+from aeromag_env.jobs.bench import FILTER_SAMPLES
+from aeromag_env.jobs.bench.filters import bench_filter_figures
+from aeromag_env.jobs.bench.workflows import hour_flight
 
 if __name__ == "__main__":
     quick = "--quick" in sys.argv[1:]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 
-from aeromag_env.cli.bench import bench_memory
+from aeromag_env.jobs.bench.workflows import bench_memory
 
 if __name__ == "__main__":
     print(json.dumps(bench_memory(), indent=2))

@@ -1,5 +1,6 @@
 """Benchmark: PPO training throughput with the batched environments (with and without flight
-prefetching) against SB3's DummyVecEnv, same hyperparameters (``agents/hyperparams/ppo.json``:
+prefetching) against SB3's DummyVecEnv, same hyperparameters
+(``agents/training/hyperparams/ppo.json``:
 8 envs, and again with 64; same code as ``aeromag bench``), and against a zero-cost environment
 (PPO alone: the ceiling of any environment's speed-up).
 
@@ -11,7 +12,7 @@ from __future__ import annotations
 import json
 import sys
 
-from aeromag_env.cli.bench_envs import bench_ppo
+from aeromag_env.jobs.bench.envs import bench_ppo
 
 if __name__ == "__main__":
     quick = "--quick" in sys.argv[1:]

@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import sys
 
-from aeromag_env.cli.bench import bench_simulate
+from aeromag_env.jobs.bench.workflows import bench_simulate
 
 if __name__ == "__main__":
     print(json.dumps(bench_simulate(3 if "--quick" in sys.argv[1:] else 7), indent=2))

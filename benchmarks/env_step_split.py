@@ -1,10 +1,11 @@
 """Benchmark: the training environments' step split into its parts, without PPO.
 
-PPO's training environments (``agents/hyperparams/ppo.json``'s ``nonstationary`` entry, batched,
+PPO's training environments (``agents/training/hyperparams/ppo.json``'s ``nonstationary`` entry,
+batched,
 flights prefetched) stepped with random actions, ``steps`` steps per repeat; per environment
 step, medians over the repeats: ``step_wait`` (everything a step costs), of it the compiled step
 (``kernels.env_step_batch``), the resets and the info dicts, and beside them the bare compiled
-filter (:class:`aeromag_env.cli.bench_envs.BareFilter`) advancing the same number of the first
+filter (:class:`aeromag_env.jobs.bench.envs.BareFilter`) advancing the same number of the first
 reset's flights by K samples, interleaved with the steps. PPO's own work is left out, so its
 caches stay warm: ``aeromag bench`` measures the same step inside PPO
 (``ppo_env_to_filter_ratio``), ``benchmarks/ppo_env_split.py`` splits that one.
@@ -20,8 +21,8 @@ import time
 
 import numpy as np
 
-from aeromag_env.cli.bench_envs import BareFilter, _timed
 from aeromag_env.environment import vec_env
+from aeromag_env.jobs.bench.envs import BareFilter, timed
 
 STEPS = 3000
 #: Environment steps of the bare filter per turn (it takes its turn every this many steps).
@@ -31,18 +32,18 @@ TURN = 256
 def split(num_envs: int, repeats: int) -> dict[str, float]:
     """µs per environment step of ``step_wait``, the compiled step, the resets, the info dicts
     and the bare filter."""
-    from agents import ppo
+    from agents.training import ppo
 
     hp = ppo.load_hyperparams("nonstationary").with_values(n_envs=num_envs)
     parts = {name: [0.0] for name in ("step_wait", "compiled", "resets", "infos")}
     original = (vec_env.kernels.env_step_batch, vec_env.info_rows)
-    vec_env.kernels.env_step_batch = _timed(original[0], parts["compiled"])
-    vec_env.info_rows = _timed(original[1], parts["infos"])
+    vec_env.kernels.env_step_batch = timed(original[0], parts["compiled"])
+    vec_env.info_rows = timed(original[1], parts["infos"])
     try:
         venv = ppo.make_training_env("nonstationary", hp, seed=0)
         inner = venv.venv
-        inner.step_wait = _timed(inner.step_wait, parts["step_wait"])
-        inner.venv.reset = _timed(inner.venv.reset, parts["resets"])
+        inner.step_wait = timed(inner.step_wait, parts["step_wait"])
+        inner.venv.reset = timed(inner.venv.reset, parts["resets"])
         venv.reset()
         bare = BareFilter(inner.venv.filters, int(inner.venv.config.decision_window))
         actions = np.random.default_rng(0).uniform(-1, 1, (STEPS, num_envs, 3))

@@ -1,7 +1,8 @@
 """Benchmark: inside PPO training, how much of the environments' time is the compiled step.
 
 ``aeromag bench`` times the environments' ``step_wait`` inside PPO's ``learn``; this splits that
-time once more. PPO as in ``aeromag train`` (``agents/hyperparams/ppo.json``'s ``nonstationary``
+time once more. PPO as in ``aeromag train`` (``agents/training/hyperparams/ppo.json``'s
+``nonstationary``
 entry: 8 batched environments, flights prefetched, torch as in training) learns for one untimed
 rollout, then for 49 152 timed steps per repeat; per environment step, medians over the repeats:
 ``step_wait`` (everything the environments cost PPO's loop), of it the compiled step of all
@@ -22,8 +23,8 @@ import sys
 import time
 from typing import Any
 
-from aeromag_env.cli.bench_envs import _timed
 from aeromag_env.environment import kernels
+from aeromag_env.jobs.bench.envs import timed
 
 TIMESTEPS = 49_152
 
@@ -31,18 +32,18 @@ TIMESTEPS = 49_152
 def split(repeats: int) -> dict[str, float]:
     """µs per environment step in ``step_wait``, in the compiled step, in the resets, and the
     rest."""
-    from agents import ppo
+    from agents.training import ppo
 
     hp = ppo.load_hyperparams("nonstationary")
     wait, compiled, resets = [0.0], [0.0], [0.0]
     original = kernels.env_step_batch
-    kernels.env_step_batch = _timed(original, compiled)
+    kernels.env_step_batch = timed(original, compiled)
     try:
         with ppo.training_torch():
             venv = ppo.make_training_env("nonstationary", hp, seed=0)
-            venv.venv.step_wait = _timed(venv.venv.step_wait, wait)
+            venv.venv.step_wait = timed(venv.venv.step_wait, wait)
             batched = venv.venv.venv  # the adapter resets the ended environments through it
-            batched.reset = _timed(batched.reset, resets)
+            batched.reset = timed(batched.reset, resets)
             model: Any = ppo.make_ppo(venv, hp, seed=0)
             time.sleep(2.0)  # the prefetching worker starts up
             model.learn(hp.n_steps * hp.n_envs)

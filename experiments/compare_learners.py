@@ -8,14 +8,16 @@ Four steps, each resumable by its files::
         [--episodes 30] [--first-seed 200000] [--data docs/learners] [--ray [ADDRESS]]
     python -m experiments.compare_learners select [--runs results/learners] \
         [--flights 8] [--data docs/learners] [--ray [ADDRESS]]
-    python -m experiments.compare_learners ship   # the chosen policy as agents/trained/…
+    python -m experiments.compare_learners ship   # the chosen policy as agents/policies/trained/…
     python scripts/results_pages.py       # the page docs/results/learners.md from the data
 
-``train`` runs :func:`agents.learners.train_learner` once per learner × seed (tasks of a runner:
+``train`` runs :func:`agents.training.learners.train_learner` once per learner × seed (tasks of a
+runner:
 here one after another, or on Ray) into ``RUNS/<learner>/seed_<k>/``; a finished run (its
 ``training.json`` exists) is skipped. ``evaluate`` flies every seed's exported policy beside the
 anchors (``tuned_constant``, ``privileged``) and ``fis`` on the same test flights of every
-scenario of the suite (``aeromag evaluate``'s path, :func:`agents.evaluate.evaluate_scenarios`),
+scenario of the suite (``aeromag evaluate``'s path,
+:func:`agents.evaluation.episodes.evaluate_scenarios`),
 once, and writes to ``DATA``: ``flights.csv`` (one record per learner, seed, scenario and
 flight: the RMSE), ``curves.csv`` (each validation point of each run: environment steps,
 wall-clock seconds, the validation RMSE per scenario), ``runs.json`` (per run its minutes,
@@ -50,7 +52,7 @@ if __package__ in (None, ""):  # run as a script: the checkout's packages first
 from aeromag_env.atomic import output_set, write_text
 from aeromag_env.environment.ids import SUITE
 from aeromag_env.parallel import Task, runner
-from agents.learners import LEARNERS, train_learner
+from agents.training.learners import LEARNERS, train_learner
 
 RUNS = Path("results/learners")
 DATA = Path(__file__).resolve().parents[1] / "docs" / "learners"
@@ -100,7 +102,7 @@ def _policies(runs: Path) -> dict[str, Path]:
 
 
 def evaluate(runs: Path, episodes: int, first_seed: int, data: Path, ray: str | None) -> int:
-    from agents.evaluate import evaluate_scenarios
+    from agents.evaluation.episodes import evaluate_scenarios
 
     policies = _policies(runs)
     if not policies:
@@ -200,8 +202,8 @@ def _validation_flights(summary: dict[str, Any]) -> int:
 def validation_anchors(per_scenario: Sequence[int]) -> dict[str, dict[str, dict[str, float]]]:
     """The anchors' mean RMSE on the first ``n`` validation flights of each scenario, for each
     ``n`` of ``per_scenario``: what a learning curve's normalized score is measured against."""
-    from agents import policy_env_kwargs
-    from agents.validation import validation_rmse
+    from agents.policies import policy_env_kwargs
+    from agents.training.validation import validation_rmse
 
     return {
         str(n): {
@@ -216,8 +218,8 @@ def validation_anchors(per_scenario: Sequence[int]) -> dict[str, dict[str, dict[
 
 
 def _validate(path: str, flights: int) -> dict[str, Any]:
-    from agents.numpy_policy import NumpyPolicy
-    from agents.validation import Validator
+    from agents.policies.numpy_policy import NumpyPolicy
+    from agents.training.validation import Validator
 
     validator = Validator("worst_ratio_to_tuned_constant", "suite", flights * len(SUITE))
     return validator(NumpyPolicy.load(path))
@@ -269,7 +271,7 @@ def ship(runs: Path, data: Path, target: Path) -> int:
     import numpy as np
 
     from aeromag_env.environment.config import PRESETS, env_config
-    from agents.policy_file import read_policy, write_policy
+    from agents.policies.policy_file import read_policy, write_policy
 
     chosen = json.loads((data / "selection.json").read_text())["chosen"]
     source = runs / chosen["learner"] / f"seed_{chosen['seed']}" / "policy.npz"
@@ -318,7 +320,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(f"unknown learners {', '.join(unknown)}; valid: {', '.join(LEARNERS)}")
         return train(learners, args.seeds, Path(args.out), args.ray)
     if args.step == "ship":
-        from agents import GENERAL_PPO
+        from agents.policies import GENERAL_PPO
 
         return ship(Path(args.runs), Path(args.data), GENERAL_PPO)
     if args.step == "select":

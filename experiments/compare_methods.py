@@ -28,7 +28,7 @@ from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
-from agents.quick import QUICK
+from agents.training.quick import QUICK
 
 METRICS = ("compensation_rmse_nt", "improvement_ratio", "fom_nt", "residual_std_nt", "divergences")
 

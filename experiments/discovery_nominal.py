@@ -32,13 +32,13 @@ import numpy as np
 
 from aeromag_env.atomic import write_text
 from aeromag_env.discovery.base_model import BaseSpan, base_columns
+from aeromag_env.discovery.power import wilson
 from aeromag_env.discovery.workflow import discover
 from aeromag_env.flight.data import Flight
 from aeromag_env.geo.earth import igrf_ned_along_track
 from aeromag_env.geo.frames import dcm_from_euler, nav_to_body, time_derivative
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
-from experiments.hidden_effects import wilson
 
 PRESETS = ("nominal", "nominal", "paper", "noise_free")  # half the flights nominal
 DURATIONS_S = (1500.0, 2100.0, 3000.0)

@@ -16,10 +16,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from aeromag_env.atomic import write_text
-from aeromag_env.cli.evaluate import evaluation_table, run_evaluate
 from aeromag_env.environment.scenarios import SCENARIOS
-from agents import available_policies
-from agents.quick import QUICK
+from aeromag_env.jobs.evaluate import evaluate, evaluation_table
+from agents.policies import available_policies
+from agents.training.quick import QUICK
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -33,9 +33,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = Path(args.out)
     tables, results = [], {}
     for scenario in scenarios:
-        res = run_evaluate(
-            scenario, available_policies(), episodes, 100_000, out / scenario, quiet=True
-        )
+        res = evaluate(
+            scenario, available_policies(), episodes=episodes, out=out / scenario
+        ).results[scenario]
         tables.append(evaluation_table(res))
         results[scenario] = res
     write_text(out / "table.md", "\n".join(tables))

@@ -15,7 +15,7 @@ import subprocess
 import sys
 from collections.abc import Sequence
 
-from agents.quick import QUICK
+from agents.training.quick import QUICK
 
 STATEMENTS = {
     "import numpy": "import numpy",

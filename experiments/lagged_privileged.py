@@ -28,9 +28,9 @@ if __package__ in (None, ""):  # run as a script: the checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.environment.spaces import ACT_R
-from agents.evaluate import run_episode
-from agents.policies import PrivilegedPolicy
-from agents.validation import validation_rmse, validation_seeds
+from agents.evaluation.episodes import run_episode
+from agents.policies.baselines import PrivilegedPolicy
+from agents.training.validation import validation_rmse, validation_seeds
 
 
 class LatePrivileged(PrivilegedPolicy):

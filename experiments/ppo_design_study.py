@@ -2,7 +2,8 @@
 much room the scenario leaves (numbers on validation seeds 50 000–50 019, one run each).
 
 ``python experiments/ppo_design_study.py trial --steps 1000000 --s-max 10 --action-mode relative``
-trains PPO (hyperparameters of ``agents/hyperparams/ppo.json``) with the given action design on
+trains PPO (hyperparameters of ``agents/training/hyperparams/ppo.json``) with the given action
+design on
 ``nonstationary`` and prints its validation RMSE next to ``fis`` and ``tuned_constant``.
 ``--paper-obs`` uses the paper's two observations only (no extras).
 
@@ -40,8 +41,9 @@ import aeromag_env  # noqa: F401
 from aeromag_env.environment.config import env_config
 from aeromag_env.environment.spaces import BASE_ACTIONS, observation_index
 from aeromag_env.simulation.interference import STATE_SLICES
-from agents import DEFAULT_PPO, make_policy
-from agents.evaluate import TEST_SEED_START, VALIDATION_SEEDS, run_episode
+from agents.evaluation.episodes import run_episode
+from agents.evaluation.seeds import TEST_SEED_START, VALIDATION_SEEDS
+from agents.policies import DEFAULT_PPO, make_policy
 
 SEEDS = range(VALIDATION_SEEDS.start, VALIDATION_SEEDS.start + 20)
 
@@ -243,8 +245,8 @@ def trial(steps: int, s_max: float, action_mode: str, paper_obs: bool, split_q: 
 
     torch.set_num_threads(1)  # tiny networks: extra threads only contend
 
-    from agents.numpy_policy import NumpyPPOPolicy
-    from agents.ppo import _ppo_kwargs, export_policy, load_hyperparams, make_training_env
+    from agents.policies.numpy_policy import NumpyPPOPolicy
+    from agents.training.ppo import _ppo_kwargs, export_policy, load_hyperparams, make_training_env
 
     hp = load_hyperparams("nonstationary")
     env_kwargs = {"extras": not paper_obs, "s_max": s_max, "action_mode": action_mode}

@@ -4,10 +4,12 @@
 [--episodes 30] [--out results/seed_table] [--ray [ADDRESS]]`` (the policies of ``aeromag train
 --seeds 0-4 --out DIR`` are ``DIR/seed_*/policy.npz``) evaluates each exported policy (one per
 training seed) beside ``tuned_constant``, ``privileged`` and ``fis`` on the same test flights of
-each scenario (``aeromag evaluate``'s path: :func:`agents.evaluate.evaluate`), and prints per seed
+each scenario (``aeromag evaluate``'s path: :func:`agents.evaluation.episodes.evaluate`), and prints
+per seed
 its mean RMSE and normalized score with their intervals, then the interquartile mean of the
 normalized scores over seeds × scenarios with a stratified-bootstrap interval
-(:func:`agents.evaluate.iqm_interval`); scenarios without headroom are left out of the IQM and
+(:func:`agents.evaluation.statistics.iqm_interval`); scenarios without headroom are left out of the
+IQM and
 named. Writes ``table.md`` and ``results.json`` to ``--out``.
 """
 
@@ -27,13 +29,9 @@ if __package__ in (None, ""):  # run as a script: the checkout's packages first
 
 from aeromag_env.atomic import write_text
 from aeromag_env.parallel import runner
-from agents.evaluate import (
-    BOOTSTRAP_RESAMPLES,
-    TEST_SEED_START,
-    ci95,
-    evaluate_scenarios,
-    iqm_interval,
-)
+from agents.evaluation.episodes import evaluate_scenarios
+from agents.evaluation.seeds import TEST_SEED_START
+from agents.evaluation.statistics import BOOTSTRAP_RESAMPLES, ci95, iqm_interval
 
 BASELINES = ("tuned_constant", "privileged", "fis")
 

@@ -2,7 +2,8 @@
 
 ``python experiments/tune_constants.py [--seeds 8] [--scenarios paper,nominal,...]`` grid-searches
 log10 scales of Q (−10…6) and R (−2…6), steps of 1, on training seeds 0…N−1, minimising the mean
-episode RMSE, and writes ``agents/tuned_constants.json`` (which ``agents`` ships and loads).
+episode RMSE, and writes ``agents/policies/tuned_constants.json`` (which ``agents`` ships and
+loads).
 """
 
 from __future__ import annotations
@@ -15,8 +16,8 @@ from collections.abc import Sequence
 
 from aeromag_env.atomic import write_text
 from aeromag_env.environment.scenarios import SCENARIOS
-from agents.tuned_table import TABLE
-from agents.tuning import tune_constant
+from agents.policies.tuned_table import TABLE
+from agents.search.tuned_constant import tune_constant
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,6 +1,6 @@
 """The learners' results page (``docs/results/learners.md``) and the files beside it (two figures
 and the learning curves' table), from ``docs/learners/`` as ``experiments/compare_learners.py
-evaluate`` writes it; the statistics are :mod:`agents.benchmark`'s. Run by
+evaluate`` writes it; the statistics are :mod:`agents.comparison.statistics`'s. Run by
 ``scripts/results_pages.py``."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from results_common import LEARNERS_DATA, num, read, source_line, table
 
-from agents import benchmark as bm
+from agents.comparison import statistics as bm
 
 #: The files written beside the page.
 CURVES_PNG = "learners_curves.png"
@@ -469,7 +469,7 @@ def learners_page(docs: Path) -> str:
         source_line(docs, [(name, command) for name in LEARNERS_DATA]),
         "",
         "One policy for every scenario of the suite, trained by each learner of "
-        "`agents/learners.py` over several training seeds; each run keeps its best checkpoint "
+        "`agents/training/learners.py` over several training seeds; each run keeps its best checkpoint "
         "on validation flights, and every seed's policy then flies the same fresh test flights "
         f"beside the reference policies. Evaluated on {d.runs['date']}: {n} test flights per "
         f"scenario (seeds {first:,}–{first + n - 1:,}, never flown for a choice); training "

@@ -208,7 +208,7 @@ def tuners_page(docs: Path) -> str:
             "ppo/training.json",
             "`ppo`: the `nonstationary` tuner",
             "Trained on `nonstationary_dense`, validated on `nonstationary` "
-            "(`agents/trained/ppo_nonstationary.npz`).",
+            "(`agents/policies/trained/ppo_nonstationary.npz`).",
         ),
         "![Learning curve of the nonstationary tuner](../ppo/learning_curve.png)",
         "",
@@ -217,7 +217,7 @@ def tuners_page(docs: Path) -> str:
             "general/training.json",
             "`general`: one policy for the suite",
             "Trained and validated on flights of every scenario of the suite "
-            "(`agents/trained/ppo_general.npz`); the ratios are each scenario's mean validation "
+            "(`agents/policies/trained/ppo_general.npz`); the ratios are each scenario's mean validation "
             "RMSE over the tuned constant's on the same flights.",
         ),
         "## Not on this page",

@@ -16,8 +16,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 #: the files the repository ships that tests read or copy
 SHIPPED = {
-    "policy": ROOT / "agents" / "trained" / "ppo_nonstationary.npz",
-    "hyperparams": ROOT / "agents" / "hyperparams" / "ppo.json",
+    "policy": ROOT / "agents" / "policies" / "trained" / "ppo_nonstationary.npz",
+    "hyperparams": ROOT / "agents" / "training" / "hyperparams" / "ppo.json",
 }
 EXPERIMENTS = ROOT / "experiments"
 

@@ -146,7 +146,7 @@ def test_seed_table_checks_a_policy_across_scenarios(tmp_path):
 def test_the_bootstrap_interval_flags_what_a_few_bad_flights_hide_from_the_t_interval():
     """Differences that are small and positive on most flights and large on two: the t interval
     spans zero, the percentile bootstrap does not; a single flight has no interval."""
-    from agents.evaluate import ci95
+    from agents.evaluation.statistics import ci95
 
     _bootstrap_low = experiment("seed_table")["_bootstrap_low"]
 
@@ -181,8 +181,10 @@ def test_hidden_effects_counts_power_against_duration_apart_from_the_snr_claims(
     with a decoy) change none of the SNR claims."""
     import json
 
-    hidden_effects = experiment("hidden_effects")
-    SINGLE, markdown, summarise = (hidden_effects[n] for n in ("SINGLE", "markdown", "summarise"))
+    from aeromag_env.discovery.power import summarise
+    from aeromag_env.discovery.suite import SINGLE
+
+    markdown = experiment("hidden_effects")["markdown"]
 
     nm = "external_field_variation"
     base = [_suite_row("single", e, 2.0, [(e, None)]) for e in SINGLE]

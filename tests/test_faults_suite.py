@@ -225,7 +225,7 @@ def test_the_checker_finds_each_kind_of_failure(tmp_path: Path) -> None:
     assert kinds(0, OK, err="") == {"partial output set"}  # the output set not written
     assert kinds(0, BAD, **done) == {"silent wrong result"}
     assert kinds(0, OK, "RMSE nan nT", **done) == {"silent wrong result"}
-    warned = {**done, "err": "aeromag: warning: flux_a: 3 spikes"}
+    warned = {**done, "err": "aeromag compensate: warning: flux_a: 3 spikes"}
     assert kinds(0, "refused", **warned) == {"accepted, should be refused"}
     assert kinds(0, BAD, **warned) == set()
     assert kinds(2, OK) == {"refused a usable input"}

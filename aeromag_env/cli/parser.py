@@ -1,5 +1,6 @@
 """The ``aeromag`` argument parser: one ``_add_*`` per subcommand (its options and ``--help``
-text), each bound to its handler in :mod:`aeromag_env.cli.commands`.
+text), each bound to its handler in :mod:`aeromag_env.cli.commands`; the choices come from
+:mod:`aeromag_env.jobs.choices`.
 """
 
 from __future__ import annotations
@@ -20,8 +21,15 @@ from aeromag_env.cli.commands import (
     cmd_train,
     cmd_tune,
 )
-from aeromag_env.discovery.ground import GROUND_MODES
-from aeromag_env.simulation.config import PATTERNS, PRESETS
+from aeromag_env.jobs.choices import (
+    BENCH_ONLY,
+    FILTER_PRESETS,
+    GROUND_MODES,
+    LEARNERS,
+    METHODS,
+    PATTERNS,
+    PRESETS,
+)
 
 #: The exit statuses of every subcommand (``--help`` epilog; :func:`aeromag_env.cli.main.main`).
 EXIT_STATUS = (
@@ -203,8 +211,6 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
 
 
 def _add_compensate(sub: argparse._SubParsersAction) -> None:
-    from aeromag_env.compensation.compensate import METHODS
-
     p = sub.add_parser(
         "compensate",
         help="compensate a flight file with one method",
@@ -249,7 +255,7 @@ def _add_compensate(sub: argparse._SubParsersAction) -> None:
     _add_selection_options(p)
     p.add_argument(
         "--filter-preset",
-        choices=("default", "paper"),
+        choices=FILTER_PRESETS,
         default="default",
         help="filter settings: package defaults or the paper's §4 Q(0), R(0), x(0)",
     )
@@ -302,18 +308,13 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_evaluate)
 
 
-#: The learners of ``aeromag train --learner`` (:data:`agents.learners.LEARNERS`; named here so
-#: that ``aeromag --help`` imports nothing of ``agents``; a test checks the two agree).
-LEARNERS = ("ppo", "recurrent_ppo", "sac", "tqc", "cmaes")
-
-
 def _add_train(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "train",
         help="train a tuner: PPO, or another learner (needs the rl extra)",
         description="Train stable-baselines3 PPO on a scenario (hyperparameters in "
-        "agents/hyperparams/ppo.json; resumes from --out's checkpoint), or with --learner "
-        "another learner on the suite (agents/hyperparams/learners.json; a rerun starts "
+        "agents/training/hyperparams/ppo.json; resumes from --out's checkpoint), or with --learner "
+        "another learner on the suite (agents/training/hyperparams/learners.json; a rerun starts "
         "afresh); keeps the best validated policy as --out/policy.npz.",
     )
     p.add_argument(
@@ -338,10 +339,10 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "--out/seeds.json",
     )
     p.add_argument("--out", default="results/ppo", help="output folder (default results/ppo)")
-    p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
+    p.add_argument("--quick", action="store_true", help="about a minute (agents/training/quick.py)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument(
-        "--hyperparams", help="hyperparameter file (default agents/hyperparams/ppo.json)"
+        "--hyperparams", help="hyperparameter file (default agents/training/hyperparams/ppo.json)"
     )
     _add_html_option(p)
     _add_ray_option(p)
@@ -373,7 +374,7 @@ def _add_tune(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--space",
-        help="search space file (default agents/hyperparams/tune_space.json; other learners: "
+        help="search space file (default agents/search/spaces/tune_space.json; other learners: "
         "tune_space_learners.json)",
     )
     p.add_argument("--samples", type=int, help="trials (configurations; 16, --quick: 2)")
@@ -385,10 +386,11 @@ def _add_tune(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="sampling and training seed (default 0)")
     p.add_argument("--out", default="results/tune", help="output folder (default results/tune)")
-    p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
+    p.add_argument("--quick", action="store_true", help="about a minute (agents/training/quick.py)")
     p.add_argument(
         "--hyperparams",
-        help="base hyperparameter file (default agents/hyperparams/ppo.json; other learners: "
+        help="base hyperparameter file (default agents/training/hyperparams/ppo.json; other "
+        "learners: "
         "learners.json)",
     )
     _add_ray_option(p)
@@ -405,10 +407,10 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
         "a few minutes.",
     )
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
-    p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
+    p.add_argument("--quick", action="store_true", help="about a minute (agents/training/quick.py)")
     p.add_argument(
         "--only",
-        choices=("ray", "discover", "ppo"),
+        choices=BENCH_ONLY,
         help="ray: only the Ray figures (needs --ray [ADDRESS]); discover: only the discrepancy "
         "workflow's seconds per flight-hour; ppo: only PPO's figures at 8 and 64 environments "
         "(the speed targets; 5 repeats of a third of a full run's steps each)",

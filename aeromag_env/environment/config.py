@@ -139,7 +139,7 @@ class EnvConfig:
         return _changed(_preset_dict(data.pop("preset", None)), data)
 
     # Read-only views under the flat names of the first version, derived from the specs, for
-    # callers that still read them (agents.policies).
+    # callers that still read them (agents.policies.baselines).
     @property
     def s_max(self) -> float:
         return self.action.s_max
@@ -206,7 +206,7 @@ _FIELDS = tuple(f.name for f in dataclasses.fields(EnvConfig))
 # The presets: ``paper`` is the paper's setting (its two observations, relative actions
 # ``s = 2 ** a``, the log reward), the default of every registered id
 # (:mod:`aeromag_env.environment.ids`); ``nonstationary`` and ``general`` are the settings the
-# shipped PPO policies were trained with (``agents/trained/ppo_nonstationary.npz``,
+# shipped PPO policies were trained with (``agents/policies/trained/ppo_nonstationary.npz``,
 # ``ppo_general.npz``, whose metadata names them). A preset's scenario is ``nominal``; the id or a
 # keyword chooses the scenario.
 #: The observations both shipped policies read: the paper's two, the five of the first

@@ -66,7 +66,7 @@ class AeroMagCompensationEnv(gym.Env):
     ``reset``; each ``step`` rescales the filter's process noise Q and measurement noise R (the
     paper's eq. 21, ``Q ← s_a Q``, ``R ← s_r R``) and advances the filter over one decision window
     of K samples. The paper's fuzzy rules are one policy for this task
-    (:class:`agents.policies.FisPolicy`); others are learned. The step is compiled
+    (:class:`agents.policies.baselines.FisPolicy`); others are learned. The step is compiled
     (:func:`aeromag_env.environment.kernels.env_step`) and is the same code that
     ``gym.make_vec("AeroMagCompensation-v0", num_envs=N)`` runs for N environments at once
     (:class:`aeromag_env.environment.vec_env.AeroMagCompensationVecEnv`).

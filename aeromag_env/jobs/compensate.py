@@ -39,11 +39,23 @@ from aeromag_env.compensation.compensate import (
 from aeromag_env.compensation.model import FilterConfig, paper_filter_config
 from aeromag_env.compensation.real_metrics import headline, span_figures, vendor_comparison
 from aeromag_env.compensation.tolles_lawson import TollesLawson
-from aeromag_env.errors import AeromagError
+from aeromag_env.errors import AeromagError, ArgumentError
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.files import write_flight
 from aeromag_env.flight.selection import select
 from aeromag_env.flight.validation import PathLike
+from aeromag_env.jobs.choices import FILTER_PRESETS
+from aeromag_env.jobs.limits import (
+    MAX_TL_TRIM,
+    R_STD_RANGE_NT,
+    check_bandpass,
+    check_calibration_line,
+    check_count,
+    check_lines,
+    check_nonnegative,
+    check_number,
+    check_window,
+)
 from aeromag_env.jobs.provenance import (
     IN_MEMORY,
     Inputs,
@@ -59,8 +71,6 @@ from aeromag_env.jobs.reports import jsonable, report_json
 REPORT_VERSION = 2
 #: The output set of a compensation, in the folder ``out``.
 OUTPUTS = ("compensated.h5", "report.json", "compensation.png", reports.PAGE)
-#: The filter settings ``filter_preset`` names: the package defaults or the paper's §4 setting.
-FILTER_PRESETS = ("default", "paper")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -129,27 +139,31 @@ class CompensateRequest:
         return None if isinstance(self.source, Flight) else self.source
 
     def check(self) -> None:
-        """One-line errors for unusable options (before any file is read)."""
+        """One-line errors for unusable options (before any file is read), each naming the
+        argument (:class:`~aeromag_env.errors.ArgumentError`)."""
         if self.method not in METHODS:
-            raise AeromagError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+            raise ArgumentError("method", f"must be one of {', '.join(METHODS)}", self.method)
         if self.filter_preset not in FILTER_PRESETS:
-            raise AeromagError(
-                f"filter_preset must be default or paper, got {self.filter_preset!r}"
+            raise ArgumentError(
+                "filter_preset", f"must be one of {', '.join(FILTER_PRESETS)}", self.filter_preset
             )
-        if self.tl_bandpass_hz is not None:
-            lo, hi = self.tl_bandpass_hz
-            if not (0 <= lo < hi):
-                raise AeromagError(f"--tl-bandpass needs 0 ≤ LOW < HIGH [Hz], got {lo} {hi}")
-        if self.tl_trim < 0:
-            raise AeromagError(f"--tl-trim must be ≥ 0, got {self.tl_trim}")
-        if self.tl_ridge < 0:
-            raise AeromagError(f"--tl-ridge must be ≥ 0, got {self.tl_ridge}")
-        if self.calibration_window_s is not None and not (
-            self.calibration_window_s[0] < self.calibration_window_s[1]
-        ):
-            raise AeromagError("--calibration-window needs T0 < T1 [s]")
-        if self.r_std_nt is not None and not self.r_std_nt > 0:
-            raise AeromagError(f"--r-std-nt must be > 0, got {self.r_std_nt}")
+        check_bandpass("tl_bandpass_hz", self.tl_bandpass_hz)
+        check_count("tl_trim", self.tl_trim, 0, MAX_TL_TRIM, "samples", "trimmed at each end")
+        check_nonnegative("tl_ridge", self.tl_ridge, "(λ, unitless)")
+        check_window("calibration_window_s", self.calibration_window_s)
+        check_lines("lines", self.lines)
+        check_window("segment_s", self.segment_s)
+        check_calibration_line("calibration_line", self.calibration_line)
+        if self.r_std_nt is not None:
+            lo, hi = R_STD_RANGE_NT
+            check_number(
+                "r_std_nt",
+                self.r_std_nt,
+                lo,
+                hi,
+                "nT",
+                "a magnetometer's noise floor to above the Earth's field",
+            )
         if self.model is not None:
             from aeromag_env.jobs.apply_model import check_model_request
 
@@ -183,9 +197,13 @@ class CompensateRequest:
         return cfg
 
 
-#: The options :func:`compensate` takes by keyword (the fields of :class:`CompensateRequest`
-#: beyond the source, the method and the output folder).
-OPTIONS = tuple(f.name for f in dataclasses.fields(CompensateRequest))[3:]
+#: The options :func:`compensate` takes by keyword: the fields of :class:`CompensateRequest`
+#: but the source, the method and the output folder (its positional arguments).
+OPTIONS = tuple(
+    f.name
+    for f in dataclasses.fields(CompensateRequest)
+    if f.name not in ("source", "method", "out")
+)
 
 
 @dataclass(frozen=True)

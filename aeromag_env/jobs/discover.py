@@ -24,13 +24,15 @@ import numpy as np
 from aeromag_env import reports
 from aeromag_env.atomic import atomic_path, check_output_set, output_set, write_text
 from aeromag_env.configs import to_json
+from aeromag_env.discovery.ground import GROUND_MODES
 from aeromag_env.discovery.workflow import ALPHA, Discovery
 from aeromag_env.discovery.workflow import discover as discover_flight
-from aeromag_env.errors import AeromagError
+from aeromag_env.errors import AeromagError, ArgumentError
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.mount_choice import in_body_axes
 from aeromag_env.flight.selection import select
 from aeromag_env.flight.validation import PathLike
+from aeromag_env.jobs.limits import check_calibration_line, check_lines, check_number, check_window
 from aeromag_env.jobs.provenance import (
     IN_MEMORY,
     JobWarnings,
@@ -66,7 +68,7 @@ class DiscoverRequest:
         The folder of the output set (None: nothing written).
     flux : str
         The fluxgate id, or ``auto`` (the first clean one).
-    calibration_window : (float, float) or None
+    calibration_window_s : (float, float) or None
         Fit on T0 ≤ tt ≤ T1 [s], score the rest (None: every third 60-s block held out).
     mount : str
         ``auto``, ``identity`` or a JSON mount file, as for a compensation; an applied mount
@@ -85,7 +87,7 @@ class DiscoverRequest:
     source: Path | Flight
     out: Path | None
     flux: str = "auto"
-    calibration_window: tuple[float, float] | None = None
+    calibration_window_s: tuple[float, float] | None = None
     mount: str = "auto"
     lines: tuple[float, ...] | None = None
     segment_s: tuple[float, float] | None = None
@@ -99,6 +101,23 @@ class DiscoverRequest:
         """The flight file (None for a flight given in memory)."""
         return None if isinstance(self.source, Flight) else self.source
 
+    def check(self) -> None:
+        """One-line errors for unusable options (before any file is read), each naming the
+        argument (:class:`~aeromag_env.errors.ArgumentError`)."""
+        check_window("calibration_window_s", self.calibration_window_s)
+        check_lines("lines", self.lines)
+        check_window("segment_s", self.segment_s)
+        check_calibration_line("calibration_line", self.calibration_line)
+        if self.ground not in GROUND_MODES:
+            raise ArgumentError("ground", f"must be one of {', '.join(GROUND_MODES)}", self.ground)
+        check_number(
+            "alpha",
+            self.alpha,
+            1e-9,
+            0.5,
+            "(the family-wise false-alarm level of the effect tests)",
+        )
+
     def input_files(self) -> list[Path]:
         """The files the run reads: the flight and a mount file."""
         mount = [] if self.mount in ("auto", "identity") else [Path(self.mount)]
@@ -109,9 +128,11 @@ class DiscoverRequest:
         return OUTPUTS if self.html else tuple(n for n in OUTPUTS if n != reports.PAGE)
 
 
-#: The options :func:`discover` takes by keyword (the fields of :class:`DiscoverRequest` beyond
-#: the source and the output folder).
-OPTIONS = tuple(f.name for f in dataclasses.fields(DiscoverRequest))[2:]
+#: The options :func:`discover` takes by keyword: the fields of :class:`DiscoverRequest` but the
+#: source and the output folder (its positional arguments).
+OPTIONS = tuple(
+    f.name for f in dataclasses.fields(DiscoverRequest) if f.name not in ("source", "out")
+)
 
 
 @dataclass(frozen=True)
@@ -178,7 +199,7 @@ def discover(
         Called with a short message at each stage.
     **options
         Any field of :class:`DiscoverRequest` past ``out`` (:data:`OPTIONS`): ``flux``,
-        ``calibration_window``, ``mount``, ``lines``, ``segment_s``, ``calibration_line``,
+        ``calibration_window_s``, ``mount``, ``lines``, ``segment_s``, ``calibration_line``,
         ``ground``, ``alpha``, with the command line's defaults.
 
     Returns
@@ -214,6 +235,7 @@ def run_discover(
     req: DiscoverRequest, warn: JobWarnings, progress: Callable[[str], None] | None = None
 ) -> DiscoverResult:
     """Do the work of :func:`discover` for a request; its warnings go to ``warn``."""
+    req.check()
     if req.out is not None:
         check_output_set(req.out, req.outputs(), req.input_files())
     flight, problems, path = load_source(req.source, ("tt", "position", "attitude", "date"))
@@ -234,9 +256,9 @@ def run_discover(
         req.lines,
         req.segment_s,
         req.calibration_line,
-        req.calibration_window,
+        req.calibration_window_s,
     )
-    calibration_window = req.calibration_window
+    calibration_window = req.calibration_window_s
     if chosen.calibration is not None and "calibration_line" in chosen.report:
         tt = chosen.flight.tt[chosen.calibration]
         calibration_window = (float(tt[0]), float(tt[-1]))

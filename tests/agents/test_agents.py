@@ -11,10 +11,10 @@ from aeromag_env.compensation.kalman import run_filter
 from aeromag_env.compensation.model import MODE
 from aeromag_env.environment.spaces import ACT_Q, ACT_R
 from aeromag_env.errors import AeromagError, ConfigError
-from agents import POLICIES, make_policy
-from agents.evaluate import evaluate, run_episode
-from agents.policies import TunedConstantPolicy
-from agents.protocol import TuningPolicy
+from agents.evaluation.episodes import evaluate, run_episode
+from agents.policies import POLICIES, make_policy
+from agents.policies.baselines import TunedConstantPolicy
+from agents.policies.protocol import TuningPolicy
 
 
 def _env(scenario="paper"):
@@ -114,7 +114,7 @@ def test_evaluate_cli(tmp_path, capsys):
     assert res["seeds"] == [100_000, 100_001]
     assert (tmp_path / "evaluation.png").stat().st_size > 10_000
     assert main([*args[:3], "--policies", "fis,bogus", "--out", str(tmp_path / "x")]) == 2
-    assert "valid policies" in capsys.readouterr().err
+    assert "--policies takes names of constant, fis" in capsys.readouterr().err
     assert main(["evaluate", "--scenario", "windy", "--out", str(tmp_path / "y")]) == 2
     assert main(["evaluate", "--seed-start", "5", "--out", str(tmp_path / "z"), "--quiet"]) == 2
 
@@ -122,7 +122,7 @@ def test_evaluate_cli(tmp_path, capsys):
 def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation():
     from aeromag_env.environment.config import env_config
     from aeromag_env.environment.spaces import ACT_QP, observation_index
-    from agents.policies import InnovationDetectorPolicy
+    from agents.policies.baselines import InnovationDetectorPolicy
 
     kw = {
         "extras": True,
@@ -151,8 +151,8 @@ def test_the_privileged_policy_acts_on_the_true_noise_and_the_steps():
     """In its own layout (policy_env_kwargs): T_p's Q raised exactly in the decision window
     that holds a step and the one after, R at the true noise variance of the coming window;
     refused elsewhere."""
-    from agents import policy_env_kwargs
-    from agents.policies import PrivilegedPolicy
+    from agents.policies import policy_env_kwargs
+    from agents.policies.baselines import PrivilegedPolicy
 
     with pytest.raises(ConfigError, match="privileged needs split_q"):
         PrivilegedPolicy(_env())
@@ -183,8 +183,8 @@ def test_the_privileged_policy_acts_on_the_true_noise_and_the_steps():
 def test_the_privileged_floor_on_r_holds_on_its_scenarios_only():
     """With ``r_floor`` the teacher's R is the unfloored one where that is above the floor and
     the floor elsewhere, on the scenarios named; on the others it is unchanged."""
-    from agents import policy_env_kwargs
-    from agents.policies import PrivilegedPolicy
+    from agents.policies import policy_env_kwargs
+    from agents.policies.baselines import PrivilegedPolicy
 
     for scenario, floor in (("noise_bursts", 2.0), ("degradation", None)):
         env = gym.make(
@@ -223,7 +223,7 @@ def _env_state(env):
 def test_the_privileged_policies_leave_the_environment_untouched(name):
     """Predicting reads the environment (its truth, its filter's progress) and changes none of
     it: the state is equal before and after predictions without a step."""
-    from agents import policy_env_kwargs
+    from agents.policies import policy_env_kwargs
 
     env = gym.make("AeroMagCompensation-v0", scenario="nominal", **policy_env_kwargs(name))
     policy = make_policy(name, env)

@@ -1,10 +1,10 @@
 """Fault injection: hostile ``--hyperparams`` files get one line naming the field and its range.
 
-Every case is generated here from the shipped ``agents/hyperparams/ppo.json`` by class:
+Every case is generated here from the shipped ``agents/training/hyperparams/ppo.json`` by class:
 unreadable text, a document of the wrong kind, missing and unknown keys, wrong types, values
 out of range and environment settings :class:`~aeromag_env.environment.env.EnvConfig` refuses.
 Each must raise :class:`~aeromag_env.errors.HyperparameterError` from
-:func:`agents.ppo.load_hyperparams` (before any training starts) with a one-line message
+:func:`agents.training.ppo.load_hyperparams` (before any training starts) with a one-line message
 naming the file, the field and, for a value out of range, the allowed range.
 """
 
@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from aeromag_env.cli.main import main
 from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS
 from aeromag_env.errors import HyperparameterError
-from agents.ppo import HYPERPARAMS, VEC_ENVS, _ppo_kwargs, load_hyperparams
+from agents.training.ppo import HYPERPARAMS, VEC_ENVS, _ppo_kwargs, load_hyperparams
 from tests._helpers import assert_one_line_error
 
 SHIPPED = json.loads(HYPERPARAMS.read_text(encoding="utf-8"))
@@ -407,9 +407,10 @@ def test_any_value_for_any_key_loads_or_names_the_key(tmp_path, key, value):
 
 
 def test_the_committed_schema_is_the_one_made_from_the_dataclass():
-    """``ppo.schema.json`` is :func:`agents.ppo_hyperparams.schema_text` (``python -m
-    agents.ppo_hyperparams`` rewrites it): a field changed in the dataclass alone fails here."""
-    from agents.ppo_hyperparams import ppo_schema, schema_text
+    """``ppo.schema.json`` is :func:`agents.training.ppo_hyperparams.schema_text` (``python -m
+    agents.training.ppo_hyperparams`` rewrites it): a field changed in the dataclass alone fails
+    here."""
+    from agents.training.ppo_hyperparams import ppo_schema, schema_text
 
     committed = HYPERPARAMS.with_name("ppo.schema.json").read_text(encoding="utf-8")
     assert committed == schema_text()
@@ -419,7 +420,7 @@ def test_the_committed_schema_is_the_one_made_from_the_dataclass():
 def test_the_dataclass_holds_the_file_and_the_defaults():
     """The shipped entries load to the same values; what a file leaves out takes the
     dataclass's default, the one training uses."""
-    from agents.ppo_hyperparams import PPOHyperparams, Pretrain
+    from agents.training.ppo_hyperparams import PPOHyperparams, Pretrain
 
     for scenario, entry in SHIPPED["scenarios"].items():
         hp = load_hyperparams(scenario)
@@ -469,7 +470,7 @@ def test_a_bad_value_is_a_one_line_config_error_naming_the_field(change, message
 
 
 def test_the_dataclass_is_keyword_only():
-    from agents.ppo_hyperparams import PPOHyperparams
+    from agents.training.ppo_hyperparams import PPOHyperparams
 
     with pytest.raises(TypeError):
         PPOHyperparams(2, 64)  # type: ignore[misc]

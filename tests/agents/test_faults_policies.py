@@ -1,6 +1,7 @@
 """Fault injection: hostile policy files (``ppo:PATH``) get one clear line, at load time.
 
-Every case is generated here from the shipped policy (``agents/trained/ppo_nonstationary.npz``)
+Every case is generated here from the shipped policy
+(``agents/policies/trained/ppo_nonstationary.npz``)
 by class: bytes that are no archive, broken archives, archives without the arrays, wrong
 shapes, non-finite or out-of-range values, wrong dtypes and bad metadata. Each must raise
 :class:`~aeromag_env.errors.PolicyFileError` whose message is one line naming the file and the
@@ -23,8 +24,8 @@ from hypothesis import strategies as st
 
 from aeromag_env.cli.main import main
 from aeromag_env.errors import AeromagError, PolicyFileError
-from agents import DEFAULT_PPO, make_policy, policy_env_kwargs
-from agents.numpy_policy import NumpyPPOPolicy
+from agents.policies import DEFAULT_PPO, make_policy, policy_env_kwargs
+from agents.policies.numpy_policy import NumpyPPOPolicy
 from tests._helpers import assert_one_line_error
 
 Arrays = dict[str, np.ndarray]
@@ -243,7 +244,7 @@ def test_nothing_in_a_policy_file_is_executed(tmp_path):
 
 
 def test_oversized_member_is_refused_before_reading(tmp_path, monkeypatch):
-    import agents.policy_file as policy_file
+    import agents.policies.policy_file as policy_file
 
     monkeypatch.setattr(policy_file, "MAX_ARRAY_BYTES", 20_000)
     path = tmp_path / "big.npz"

@@ -1,6 +1,7 @@
 """RL Baselines3 Zoo (rl_zoo3) trains on a registered id with our hyperparameters.
 
-``agents/hyperparams/ppo_zoo.yml`` is made from ``ppo.json`` (:mod:`agents.zoo`): the file in
+``agents/training/hyperparams/ppo_zoo.yml`` is made from ``ppo.json`` (:mod:`agents.training.zoo`):
+the file in
 the repo must be what the converter makes now, and ``python -m rl_zoo3.train --gym-packages
 aeromag_env`` must train with it, its Monitor recording each episode's RMSE.
 """
@@ -16,8 +17,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from agents.hyperparams_file import read_hyperparams
-from agents.zoo import HYPERPARAMS, write_zoo_file, zoo_hyperparams
+from agents.training.hyperparams_file import read_hyperparams
+from agents.training.zoo import HYPERPARAMS, write_zoo_file, zoo_hyperparams
 
 # not imported here: importing rl_zoo3 replaces Gymnasium's TimeLimit process-wide (its
 # gym_patches), which would change every later test's environments
@@ -27,7 +28,7 @@ pytestmark = pytest.mark.skipif(find_spec("rl_zoo3") is None, reason="rl_zoo3 no
 def test_the_zoo_file_is_made_from_ppo_json(tmp_path: Path) -> None:
     shipped = yaml.safe_load((HYPERPARAMS / "ppo_zoo.yml").read_text(encoding="utf-8"))
     fresh = yaml.safe_load(write_zoo_file(HYPERPARAMS / "ppo.json", tmp_path / "z.yml").read_text())
-    assert shipped == fresh, "run `python -m agents.zoo` after changing ppo.json"
+    assert shipped == fresh, "run `python -m agents.training.zoo` after changing ppo.json"
     hp = read_hyperparams(HYPERPARAMS / "ppo.json")["scenarios"]["nonstationary"]
     entry = shipped["AeroMag/NonstationaryDense-v0"]  # trained on the training scenario
     assert entry["env_kwargs"] == hp["env_kwargs"] and entry["gamma"] == hp["gamma"]
@@ -87,14 +88,14 @@ def test_rl_zoo3_trains_on_a_registered_id(tmp_path: Path) -> None:
 
 
 def test_the_learners_zoo_files_are_made_from_learners_json(tmp_path: Path) -> None:
-    from agents.learners import learner_hyperparams
-    from agents.zoo import ZOO_ALGOS, write_learner_zoo_files
+    from agents.training.learners import learner_hyperparams
+    from agents.training.zoo import ZOO_ALGOS, write_learner_zoo_files
 
     fresh = write_learner_zoo_files(HYPERPARAMS / "learners.json", tmp_path)
     assert [p.name for p in fresh] == [f"{a}.yml" for a in ZOO_ALGOS.values()]
     for learner, path in zip(ZOO_ALGOS, fresh, strict=True):
         shipped = yaml.safe_load((HYPERPARAMS / path.name).read_text(encoding="utf-8"))
-        assert shipped == yaml.safe_load(path.read_text()), "run `python -m agents.zoo`"
+        assert shipped == yaml.safe_load(path.read_text()), "run `python -m agents.training.zoo`"
         (entry,) = shipped.values()
         hp = learner_hyperparams(learner)
         assert entry["gamma"] == hp["algo"]["gamma"] and entry["n_envs"] == hp["n_envs"]

@@ -1,5 +1,5 @@
-"""``aeromag tune --learner`` (:mod:`agents.tune_learners`, the learners' spaces of
-:mod:`agents.tune_space`): bad spaces, ``cmaes`` and refused output sets get one line before any
+"""``aeromag tune --learner`` (:mod:`agents.search.learners`, the learners' spaces of
+:mod:`agents.search.space`): bad spaces, ``cmaes`` and refused output sets get one line before any
 Ray starts (default suite); a quick search on the session's Ray writes a learners file that
 training reads, holding the best trial's sample (``-m ray``)."""
 
@@ -11,14 +11,14 @@ from pathlib import Path
 import pytest
 
 from aeromag_env.errors import HyperparameterError
-from agents.learners import HYPERPARAMS, learner_hyperparams
-from agents.tune_learners import OUTPUTS, SEARCHED
-from agents.tune_space import (
+from agents.search.learners import OUTPUTS, SEARCHED
+from agents.search.space import (
     LEARNER_SPACES,
     LEARNER_SPACES_SCHEMA,
     SPACE_SCHEMA,
     read_learner_space,
 )
+from agents.training.learners import HYPERPARAMS, learner_hyperparams
 from tests._helpers import run_cli
 
 GAMMA = {"distribution": "uniform", "low": 0.6, "high": 0.9}
@@ -91,7 +91,7 @@ def test_a_space_of_mixed_annotations_takes_each_of_its_types(tmp_path) -> None:
     ("argv", "message"),
     [
         (["--learner", "cmaes"], "aeromag tune does not search cmaes: "),
-        (["--learner", "sac", "--scenario", "paper"], "--scenario paper is for --learner ppo"),
+        (["--learner", "sac", "--scenario", "paper"], "--scenario must be suite for learner sac"),
     ],
 )
 def test_refused_learner_or_scenario_exits_2_before_ray(tmp_path, capsys, argv, message) -> None:
@@ -166,11 +166,14 @@ def test_quick_learner_search_writes_the_best_trial_into_a_learners_file(
 def test_a_search_record_names_the_checkouts_files_by_their_repository_path(
     tmp_path, monkeypatch
 ) -> None:
-    from agents.tune_space import LEARNER_SPACES, recorded_path
+    from agents.search.space import LEARNER_SPACES, recorded_path
 
-    repo = LEARNER_SPACES.parents[2]
+    repo = LEARNER_SPACES.parents[3]
     monkeypatch.chdir(repo)
-    assert recorded_path(LEARNER_SPACES) == "agents/hyperparams/tune_space_learners.json"
-    assert recorded_path("agents/hyperparams/learners.json") == "agents/hyperparams/learners.json"
+    assert recorded_path(LEARNER_SPACES) == "agents/search/spaces/tune_space_learners.json"
+    assert (
+        recorded_path("agents/training/hyperparams/learners.json")
+        == "agents/training/hyperparams/learners.json"
+    )
     outside = tmp_path / "mine.json"  # not under the working directory: as given
     assert recorded_path(outside) == str(outside)

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import aeromag_env  # noqa: F401  (registers the environment)
-from aeromag_env.cli.compensate import summary_line
+from aeromag_env.cli.summaries import compensate_line
 from aeromag_env.compensation.compensate import compensate_vector, earth_model, score
 from aeromag_env.compensation.kalman import FilterState, run_filter
 from aeromag_env.compensation.kalman_batch import BatchFilterState
@@ -199,7 +199,7 @@ def test_compensate_reports_the_rejected_samples(flight):
     assert metrics["outliers_rejected"] == BURST_SAMPLES and metrics["divergences"] == 0
     assert metrics["compensation_rmse_nt"] < 2.0  # clean 1.65 nT; 237 nT before
     report = {"method": "fakf", "metrics": metrics, "input_problems": []}
-    line = summary_line(report, Path("out"))
+    line = compensate_line(report, Path("out"))
     assert f"{BURST_SAMPLES} samples rejected by the filter's outlier gate" in line
     assert score(flight, compensate_vector(flight, "fakf"))["outliers_rejected"] == 0
 

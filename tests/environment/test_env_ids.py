@@ -129,7 +129,7 @@ def test_the_shipped_policy_makes_its_own_environment():
     """The kwargs travel with the policy: ``make_env`` builds the id of its training scenario
     with its env_kwargs, and a whole (short) episode runs; the bare id is refused with the way
     out in the message, not a broadcast error."""
-    from agents.numpy_policy import NumpyPPOPolicy
+    from agents.policies.numpy_policy import NumpyPPOPolicy
     from tests._helpers import SHIPPED
 
     policy = NumpyPPOPolicy.load(SHIPPED["policy"])

@@ -31,7 +31,7 @@ from aeromag_env.environment.scenarios import make_episode
 from aeromag_env.environment.spaces import check_actions
 from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 from aeromag_env.errors import AeromagError, ConfigError
-from agents.evaluate import evaluate
+from agents.evaluation.episodes import evaluate
 from tests._helpers import assert_one_line_error
 
 NAN, INF = math.nan, math.inf

@@ -27,11 +27,11 @@ from aeromag_env.environment.layout import OUT, RUN, STEP_PAR
 from aeromag_env.environment.observations import NAMES, REGISTRY, entry, observation_id
 from aeromag_env.environment.spaces import observation_names
 from aeromag_env.errors import ConfigError
-from agents import SHIPPED
-from agents.numpy_policy import NumpyPPOPolicy
+from agents.policies import SHIPPED
+from agents.policies.numpy_policy import NumpyPPOPolicy
 
 ENVIRONMENT = Path(observe.__file__).parent
-HYPERPARAMS = Path(__file__).parents[2] / "agents" / "hyperparams" / "ppo.json"
+HYPERPARAMS = Path(__file__).parents[2] / "agents" / "training" / "hyperparams" / "ppo.json"
 
 
 def _subscript_writes(tree: ast.AST, name: str) -> list[int]:

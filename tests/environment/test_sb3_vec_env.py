@@ -8,7 +8,7 @@ import torch
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.environment.sb3 import AeroMagSB3VecEnv
 from aeromag_env.errors import AeromagError
-from agents.ppo import load_hyperparams, make_training_env
+from agents.training.ppo import load_hyperparams, make_training_env
 
 ENV_KWARGS = {"extras": True, "action_mode": "absolute", "duration_s": 25.0}  # 25-step flights
 

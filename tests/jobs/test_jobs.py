@@ -18,9 +18,8 @@ import numpy as np
 import pytest
 
 import aeromag_env as am
-from aeromag_env.cli.compensate import summary_line
-from aeromag_env.cli.discover import summary_line as discover_line
 from aeromag_env.cli.main import main
+from aeromag_env.cli.summaries import compensate_line, discover_line
 from aeromag_env.errors import AeromagError, AeromagWarning
 from aeromag_env.flight.data import Flight, vector_names
 from aeromag_env.jobs.reports import report_json
@@ -28,7 +27,7 @@ from tests._flights import simulated
 
 #: The fluxgate's turn about the body z axis [deg].
 YAW_DEG = 45.0
-WARNING_PREFIX = "aeromag: warning: "
+WARNING_PREFIX = "aeromag compensate: warning: "
 
 
 def _rotated(flight: Flight, yaw_deg: float) -> Flight:
@@ -86,7 +85,7 @@ def test_compensate_cli_and_library_agree(
     cli_report = (cli_out / "report.json").read_text(encoding="utf-8")
     assert (lib_out / "report.json").read_text(encoding="utf-8") == cli_report
     assert report_json(result.report) == cli_report
-    assert printed == summary_line(result.report, cli_out) + "\n"
+    assert printed == compensate_line(result.report, cli_out) + "\n"
     assert cli_said == list(result.warnings) == issued
     assert result.paths == tuple(
         lib_out / n for n in ("compensated.h5", "report.json", "compensation.png", "report.html")

@@ -26,8 +26,10 @@ version, or with a field missing or of the wrong shape is a one-line
 
 from __future__ import annotations
 
+import datetime as _dt
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,9 +37,16 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.atomic import write_text
+from aeromag_env.compensation.compensate import Compensation
 from aeromag_env.compensation.model import FilterConfig
+from aeromag_env.compensation.model_apply import CalibratedTL, tl_compensation
+from aeromag_env.compensation.model_checks import SampleChecks
+from aeromag_env.compensation.model_filter import CalibratedFilter, filter_compensation
+from aeromag_env.compensation.model_stream import SampleStream, filter_stream, tl_stream
 from aeromag_env.configs import from_dict, to_dict
 from aeromag_env.errors import AeromagError
+from aeromag_env.flight.data import ATTITUDE_NAMES, POSITION_NAMES, Flight, vector_names
+from aeromag_env.flight.earth_model import model_date
 from aeromag_env.flight.mounting import Mount
 from aeromag_env.simulation.interference import N_STATES
 from aeromag_env.simulation.tolles_lawson_terms import N_TERMS
@@ -109,9 +118,28 @@ class CalibrationModel:
         """Whether the method is a recursive (Kalman family) filter, not Tolles–Lawson."""
         return self.method != "tl"
 
+    def checks(self) -> SampleChecks:
+        """The sample checks fixed at calibration (gap and spike thresholds)."""
+        return SampleChecks(
+            gap_s=self.gap_factor / self.sample_rate_hz,
+            spike_threshold_nt=dict(self.spike_threshold_nt),
+        )
+
     def tl_coefficients(self) -> np.ndarray:
         """The 18 Tolles–Lawson coefficients [nT] (``tl`` only)."""
         return np.asarray(self.coefficients["tolles_lawson"], dtype=float)
+
+    def calibrated_tl(self) -> CalibratedTL:
+        """What applying a ``tl`` model takes (:mod:`aeromag_env.compensation.model_apply`)."""
+        return CalibratedTL(
+            coef=self.tl_coefficients(),
+            offset_nt=float(self.coefficients["offset_nt"]),
+            bt_scale_nt=float(self.settings["bt_scale_nt"]),
+            flux=self.channels["flux"],
+            scalar=self.channels["scalar"],
+            checks=self.checks(),
+            sample_rate_hz=self.sample_rate_hz,
+        )
 
     def filter_config(self) -> FilterConfig:
         """The filter's settings (the Kalman family only)."""
@@ -119,8 +147,23 @@ class CalibrationModel:
 
     def filter_end(self) -> dict[str, np.ndarray]:
         """The filter at the end of calibration: ``state`` (21,), ``covariance`` (21, 21),
-        ``process_noise`` (21,), ``measurement_noise`` (3, 3), physical units."""
+        ``process_noise`` (21,), ``measurement_noise`` (3, 3), physical units, and ``samples``
+        (the samples it had processed)."""
         return {k: np.asarray(v, dtype=float) for k, v in self.coefficients.items()}
+
+    def calibrated_filter(self) -> CalibratedFilter:
+        """What continuing a Kalman-family model takes (:mod:`aeromag_env.compensation.
+        model_filter`)."""
+        end = self.filter_end()
+        mount = self.mount_object()
+        return CalibratedFilter(
+            cfg=self.filter_config(),
+            end={k: v for k, v in end.items() if k != "samples"},
+            samples=int(end["samples"]),
+            rotation=None if mount is None else mount.rotation,
+            flux=self.channels["flux"],
+            checks=self.checks(),
+        )
 
     def mount_object(self) -> Mount | None:
         """The fluxgate's mount as a :class:`Mount` (None: sensor axes are body axes)."""
@@ -129,13 +172,74 @@ class CalibrationModel:
         return Mount(rotation=np.asarray(self.mount["rotation"], float), source="file")
 
     def input_channels(self) -> tuple[str, ...]:
-        """The channel names a flight needs for this model, in the stream's column order."""
-        from aeromag_env.flight.data import ATTITUDE_NAMES, POSITION_NAMES, vector_names
-
+        """The channel names a flight needs for this model (a filter's: with ``alt``, the first
+        altitude channel a file may have)."""
         flux = vector_names(self.channels["flux"])
         if self.method == "tl":
             return (self.channels["time"], *flux, self.channels["scalar"])
         return (self.channels["time"], *POSITION_NAMES, "alt", *ATTITUDE_NAMES, *flux)
+
+    def missing_channels(self, flight: Flight) -> list[str]:
+        """The channels of :meth:`input_channels` that ``flight`` lacks (a filter's altitude may
+        be any of a file's altitude channels)."""
+        missing = [nm for nm in self.input_channels() if nm != "alt" and nm not in flight]
+        if self.is_filter and flight.altitude_name() is None:
+            missing.append("alt")
+        return missing
+
+    def apply(self, flight: Flight, residual_mask: np.ndarray | None = None) -> Compensation:
+        """Compensate ``flight`` with this model: Tolles–Lawson with the calibrated
+        coefficients, or the filter continued from its calibrated state (it keeps adapting).
+
+        ``residual_mask`` (n,) bool: the samples the recalibrate residual (``settings["drift"]``)
+        is measured on (None: all). A flight lacking one of the model's channels, or a filter's
+        flight without a date, is a one-line error.
+        """
+        missing = self.missing_channels(flight)
+        if missing:
+            raise AeromagError(
+                f"the flight lacks channel(s) {', '.join(missing)} that the {self.method} model "
+                f"needs ({', '.join(self.input_channels())}); recalibrate with this flight's "
+                "channels"
+            )
+        if self.method == "tl":
+            return tl_compensation(self.calibrated_tl(), flight, self._settings(), residual_mask)
+        try:
+            date = model_date(flight)
+        except KeyError as e:
+            raise AeromagError(f"the {self.method} model needs the flight's date: {e}") from None
+        cal = self.calibrated_filter()
+        return filter_compensation(cal, flight, date, self._settings(), residual_mask)
+
+    def stream(
+        self, header: Sequence[str] | None = None, date: _dt.datetime | str | None = None
+    ) -> SampleStream:
+        """A :class:`~aeromag_env.compensation.model_stream.SampleStream`: ``update(sample)``
+        with one sample as a mapping of channel name → value, answering the compensated ones
+        (the same numbers as :meth:`apply` on the whole flight).
+
+        ``header`` (the channels the samples will have) picks a filter's altitude channel and
+        its ``diurnal``; ``date`` is a filter's flight date (None: the first sample's ``year``
+        and ``doy``). A ``tl`` model needs neither.
+        """
+        if self.method == "tl":
+            return tl_stream(self.calibrated_tl())
+        return filter_stream(self.calibrated_filter(), header, date)
+
+    def _settings(self) -> dict[str, Any]:
+        """The settings block of an applied model: the method's, the model's provenance, and
+        the same ``flux`` / ``remove_mean`` keys a fit's settings have."""
+        extra = {"scalar": self.channels["scalar"]} if self.method == "tl" else {}
+        return {
+            **self.settings,
+            **extra,
+            "flux": self.channels["flux"],
+            "remove_mean": bool(self.settings.get("remove_mean", False)),
+            "model": {
+                "provenance": self.provenance,
+                "calibration_samples": self.calibration.get("samples"),
+            },
+        }
 
     def to_dict(self) -> dict[str, Any]:
         """The model as the JSON object :meth:`save` writes."""
@@ -157,21 +261,6 @@ class CalibrationModel:
     def to_json(self) -> str:
         """:meth:`to_dict` as JSON text (non-finite figures as ``null``)."""
         return json.dumps(_finite_or_null(self.to_dict()), indent=1, allow_nan=False) + "\n"
-
-    def apply(self, flight: Any) -> Any:
-        """Compensate a :class:`~aeromag_env.flight.data.Flight` with this model: a
-        :class:`~aeromag_env.compensation.compensate.Compensation`
-        (:func:`aeromag_env.compensation.model_fit.apply_model`)."""
-        from aeromag_env.compensation.model_fit import apply_model
-
-        return apply_model(self, flight)
-
-    def stream(self) -> Any:
-        """A :class:`~aeromag_env.compensation.model_apply.SampleStream`: ``update(sample)``
-        with one sample as a mapping of channel name → value, answering the compensated ones."""
-        from aeromag_env.compensation.model_apply import SampleStream
-
-        return SampleStream(self)
 
     def save(self, path: str | Path) -> Path:
         """Write the model to ``path`` atomically (temporary file, then rename); returns it."""
@@ -259,6 +348,7 @@ FILTER_END_SHAPES = {
     "covariance": (N_STATES, N_STATES),
     "process_noise": (N_STATES,),
     "measurement_noise": (3, 3),
+    "samples": (),
 }
 
 

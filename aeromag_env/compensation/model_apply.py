@@ -1,8 +1,10 @@
-"""Apply a calibrated Tolles–Lawson model to a flight, whole or one sample at a time.
+"""Apply calibrated Tolles–Lawson coefficients to a flight, whole or one sample at a time.
 
 :func:`apply_tl` compensates a whole flight and :class:`TollesLawsonStream` the same flight fed
-sample by sample; both give the same numbers (to rounding, far below 1e-9 nT), because they
-share the sample checks (:mod:`aeromag_env.compensation.model_checks`) and the arithmetic:
+sample by sample with a :class:`CalibratedTL` (what a
+:class:`~aeromag_env.compensation.calibration_model.CalibrationModel` of method ``tl`` holds);
+both give the same numbers (to rounding, far below 1e-9 nT), because they share the sample
+checks (:mod:`aeromag_env.compensation.model_checks`) and the arithmetic:
 
 * the design row of sample k (:func:`~aeromag_env.simulation.tolles_lawson_terms.design_matrix`'s
   18 terms) uses the per-sample central difference of the fluxgate inside a run of usable
@@ -21,19 +23,51 @@ and k's central difference needs to know whether k + 1 is usable): 0.2 s at 10 H
 
 from __future__ import annotations
 
+import itertools
 from collections import deque
-from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
-from aeromag_env.compensation.calibration_model import CalibrationModel
-from aeromag_env.compensation.model_checks import segment_starts, spike_flags
+from aeromag_env.compensation.compensate import Compensation, output_names
+from aeromag_env.compensation.model_checks import SampleChecks
+from aeromag_env.compensation.model_drift import tl_residual
+from aeromag_env.compensation.samples import flight_samples
 from aeromag_env.errors import AeromagError
+from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.tolles_lawson_terms import INDUCED_PAIRS
 
 #: Samples a Tolles–Lawson stream holds back before it answers one [samples].
 TL_LOOKAHEAD = 2
+
+
+@dataclass(frozen=True)
+class CalibratedTL:
+    """Tolles–Lawson coefficients fixed at calibration, and what applying them needs.
+
+    Attributes
+    ----------
+    coef : (18,) the Tolles–Lawson coefficients [nT]
+    offset_nt : the constant the correction is shifted by [nT]
+    bt_scale_nt : the design matrix's field scale [nT]
+    flux, scalar : the fluxgate prefix and the scalar magnetometer's name
+    checks : the sample checks fixed at calibration
+    sample_rate_hz : the calibration's sample rate [Hz] (the recalibrate residual's band-pass)
+    """
+
+    coef: np.ndarray
+    offset_nt: float
+    bt_scale_nt: float
+    flux: str
+    scalar: str
+    checks: SampleChecks
+    sample_rate_hz: float
+
+    @property
+    def output_name(self) -> str:
+        """The compensated channel's name, as ``compensate`` writes it (``aeromag_mag_1_c``)."""
+        return output_names("tl", self.flux, self.scalar)[0]
 
 
 @dataclass(frozen=True)
@@ -52,16 +86,12 @@ class Flags:
     valid: np.ndarray
 
 
-def tl_flags(
-    model: CalibrationModel, tt: np.ndarray, flux: np.ndarray, scalar: np.ndarray
-) -> Flags:
-    """The sample checks of ``model`` on a flight: time ``tt`` (n,) [s], fluxgate (n, 3) and
-    scalar (n,) [nT]."""
-    starts = segment_starts(tt, model.gap_factor / model.sample_rate_hz)
-    names = model.channels
-    thr = model.spike_threshold_nt
-    flux_ok = np.all(np.isfinite(flux), axis=1) & ~spike_flags(flux, starts, thr[names["flux"]])
-    scalar_ok = np.isfinite(scalar) & ~spike_flags(scalar, starts, thr[names["scalar"]])
+def tl_flags(tl: CalibratedTL, tt: np.ndarray, flux: np.ndarray, scalar: np.ndarray) -> Flags:
+    """The sample checks on a flight: time ``tt`` (n,) [s], fluxgate (n, 3) and scalar (n,)
+    [nT]."""
+    starts = tl.checks.starts(tt)
+    flux_ok = tl.checks.usable(tl.flux, flux, starts)
+    scalar_ok = tl.checks.usable(tl.scalar, scalar, starts)
     return Flags(starts=starts, flux_ok=flux_ok, valid=flux_ok & scalar_ok)
 
 
@@ -96,26 +126,24 @@ def design_rows(b: np.ndarray, db: np.ndarray, bt_scale_nt: float) -> np.ndarray
     return np.hstack([cos, induced, eddy])
 
 
-def tl_correction(model: CalibrationModel, b: np.ndarray, db: np.ndarray) -> np.ndarray:
-    """The scalar interference the model predicts (n,) [nT]: ``design @ coef − offset``."""
-    coef = model.tl_coefficients()
-    rows = design_rows(b, db, float(model.settings["bt_scale_nt"]))
-    return np.sum(rows * coef, axis=1) - float(model.coefficients["offset_nt"])
+def tl_correction(tl: CalibratedTL, b: np.ndarray, db: np.ndarray) -> np.ndarray:
+    """The scalar interference the coefficients predict (n,) [nT]: ``design @ coef − offset``."""
+    rows = design_rows(b, db, tl.bt_scale_nt)
+    return np.sum(rows * tl.coef, axis=1) - tl.offset_nt
 
 
 def apply_tl(
-    model: CalibrationModel, tt: np.ndarray, flux: np.ndarray, scalar: np.ndarray
+    tl: CalibratedTL, tt: np.ndarray, flux: np.ndarray, scalar: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, Flags]:
-    """Compensate a whole flight with a Tolles–Lawson model.
+    """Compensate a whole flight with calibrated Tolles–Lawson coefficients.
 
     Parameters
     ----------
-    model : CalibrationModel
-        A ``tl`` model.
+    tl : CalibratedTL
     tt : ndarray, shape (n,)
         Time [s], strictly increasing.
     flux : ndarray, shape (n, 3)
-        The fluxgate the model was fitted with, in its own axes [nT].
+        The fluxgate the coefficients were fitted with, in its own axes [nT].
     scalar : ndarray, shape (n,)
         The uncompensated scalar magnetometer [nT].
 
@@ -127,13 +155,42 @@ def apply_tl(
         The predicted interference [nT], NaN where the fluxgate is flagged.
     flags : Flags
     """
-    if model.method != "tl":
-        raise AeromagError(f"apply_tl needs a tl model, got {model.method!r}")
-    flags = tl_flags(model, tt, flux, scalar)
+    flags = tl_flags(tl, tt, flux, scalar)
     db = run_differences(flux, flags.flux_ok, flags.starts)
-    correction = tl_correction(model, flux, db)
+    correction = tl_correction(tl, flux, db)
     compensated = np.where(flags.valid, scalar - correction, np.nan)
     return compensated, correction, flags
+
+
+def tl_compensation(
+    tl: CalibratedTL, flight: Flight, settings: dict[str, Any], mask: np.ndarray | None = None
+) -> Compensation:
+    """:func:`apply_tl` on a flight as a :class:`~aeromag_env.compensation.compensate.
+    Compensation` (the jobs score and write it as a fit's), with ``settings`` and the residual
+    the recalibrate check compares in ``settings["drift"]`` (measured on ``mask``, (n,) bool;
+    None: every sample)."""
+    flux, scalar = flight.vector(tl.flux), flight[tl.scalar]
+    after, _correction, flags = apply_tl(tl, flight.tt, flux, scalar)
+    parts = segment_slices(flags.starts)
+    shown = after if mask is None else np.where(mask, after, np.nan)
+    samples = flight_samples(flight, [tl.flux, tl.scalar], [])
+    return Compensation(
+        method="tl",
+        settings={**settings, "drift": tl_residual(shown, flux, tl.sample_rate_hz, parts)},
+        coefficients={"tolles_lawson": tl.coef.tolist(), "offset_nt": tl.offset_nt},
+        fields={tl.output_name: after},
+        total_before=np.asarray(scalar, float),
+        total_after=after,
+        model_total=None,
+        nonfinite=int(np.sum(~flags.valid)),
+        samples=replace(samples, valid=flags.valid, segments=parts),
+    )
+
+
+def segment_slices(starts: np.ndarray) -> list[slice]:
+    """The continuous segments as slices, from their starts (n,) bool."""
+    edges = [*np.flatnonzero(starts), starts.size]
+    return [slice(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
 
 @dataclass(frozen=True)
@@ -144,40 +201,43 @@ class StreamOutput:
     ----------
     time_s : float
         The sample's time [s].
-    value_nt : float or None
-        The compensated field [nT]; None for a flagged sample.
+    values_nt : tuple of float, or None
+        The compensated field [nT] (one value for ``tl``, the three axes for a filter); None
+        for a flagged sample.
     problem : str or None
         Why a flagged sample has no value (one line), else None.
     """
 
     time_s: float
-    value_nt: float | None
+    values_nt: tuple[float, ...] | None
     problem: str | None = None
 
 
+@dataclass
+class _Held:
+    """A sample a Tolles–Lawson stream holds: its time [s], fluxgate (3,) and scalar [nT],
+    whether it starts a segment, and its checks' verdicts (None until its next sample came)."""
+
+    t: float
+    b: np.ndarray
+    s: float
+    start: bool
+    flux_ok: bool | None = None
+    scalar_ok: bool | None = None
+
+
 class TollesLawsonStream:
-    """A Tolles–Lawson model applied to samples as they arrive (bounded memory).
+    """Calibrated Tolles–Lawson coefficients applied to samples as they arrive (bounded memory).
 
     :meth:`update` takes one sample and returns the samples it can now answer (the one
     :data:`TL_LOOKAHEAD` samples back, or none yet); :meth:`flush` answers the rest at the end.
     The answers equal :func:`apply_tl` on the whole flight. The stream holds the last four
     samples and nothing that grows.
-
-    Parameters
-    ----------
-    model : CalibrationModel
-        A ``tl`` model.
     """
 
-    def __init__(self, model: CalibrationModel) -> None:
-        if model.method != "tl":
-            raise AeromagError(f"TollesLawsonStream needs a tl model, got {model.method!r}")
-        self.model = model
-        self._gap_s = model.gap_factor / model.sample_rate_hz
-        self._thr_flux = model.spike_threshold_nt[model.channels["flux"]]
-        self._thr_scalar = model.spike_threshold_nt[model.channels["scalar"]]
-        # each entry: [t, flux (3,), scalar, starts, flux_ok, scalar_ok]; ok None until known
-        self._held: deque[list] = deque(maxlen=TL_LOOKAHEAD + 2)
+    def __init__(self, tl: CalibratedTL) -> None:
+        self.tl = tl
+        self._held: deque[_Held] = deque(maxlen=TL_LOOKAHEAD + 2)
         self._last_t = -np.inf
 
     def update(self, time_s: float, flux: np.ndarray, scalar: float) -> list[StreamOutput]:
@@ -189,15 +249,9 @@ class TollesLawsonStream:
         AeromagError
             A time not after the previous sample's (the caller reports and skips it).
         """
-        if not time_s > self._last_t:
-            raise AeromagError(
-                f"time {time_s!r} s is not after the previous sample's {self._last_t:g} s"
-            )
-        start = not (time_s - self._last_t <= self._gap_s)
+        start = check_time(time_s, self._last_t, self.tl.checks.gap_s)
         self._last_t = time_s
-        self._held.append(
-            [float(time_s), np.asarray(flux, float), float(scalar), start, None, None]
-        )
+        self._held.append(_Held(float(time_s), np.asarray(flux, float), float(scalar), start))
         out: list[StreamOutput] = []
         if len(self._held) >= 2:
             self._check(len(self._held) - 2, has_next=True)
@@ -211,86 +265,52 @@ class TollesLawsonStream:
             return []
         self._check(len(self._held) - 1, has_next=False)
         first = max(0, len(self._held) - TL_LOOKAHEAD)
-        out = [self._answer(i, at_end=True) for i in range(first, len(self._held))]
+        out = [self._answer(i) for i in range(first, len(self._held))]
         self._held.clear()
         self._last_t = -np.inf
         return out
 
     def _check(self, i: int, has_next: bool) -> None:
-        """Decide held sample ``i``'s flags (it needs its neighbours)."""
-        _t, b, s, start, _, _ = self._held[i]
-        prev = self._held[i - 1] if i > 0 and not start else None
-        nxt = self._held[i + 1] if has_next and not self._held[i + 1][3] else None
-        spike_b = spike_s = False
-        if prev is not None and nxt is not None:
-            spike_b = _stands_out(b, prev[1], nxt[1]) > self._thr_flux
-            spike_s = _stands_out(np.array([s]), np.array([prev[2]]), np.array([nxt[2]])) > (
-                self._thr_scalar
-            )
-        self._held[i][4] = bool(np.all(np.isfinite(b))) and not spike_b
-        self._held[i][5] = bool(np.isfinite(s)) and not spike_s
+        """Decide held sample ``i``'s flags (it needs its neighbours in its segment)."""
+        h, checks = self._held[i], self.tl.checks
+        prev = self._held[i - 1] if i > 0 and not h.start else None
+        nxt = self._held[i + 1] if has_next and not self._held[i + 1].start else None
+        h.flux_ok = checks.usable_one(
+            self.tl.flux, h.b, None if prev is None else prev.b, None if nxt is None else nxt.b
+        )
+        h.scalar_ok = checks.usable_one(
+            self.tl.scalar,
+            np.array([h.s]),
+            None if prev is None else np.array([prev.s]),
+            None if nxt is None else np.array([nxt.s]),
+        )
 
-    def _answer(self, i: int, at_end: bool = False) -> StreamOutput:
+    def _answer(self, i: int) -> StreamOutput:
         """The output of held sample ``i`` (its flags and its neighbours' are known)."""
-        t, b, s, start, flux_ok, scalar_ok = self._held[i]
-        if not flux_ok or not scalar_ok:
-            what = "fluxgate" if not flux_ok else "scalar"
-            return StreamOutput(t, None, f"{what} non-finite or a spike at t = {t:g} s")
-        prev = self._held[i - 1] if i > 0 else [None] * 6
-        nxt = self._held[i + 1] if i + 1 < len(self._held) else [None] * 6
-        has_prev = bool(prev[4]) and not start
-        has_next = bool(nxt[4]) and not nxt[3]
+        h = self._held[i]
+        if not h.flux_ok or not h.scalar_ok:
+            what = "fluxgate" if not h.flux_ok else "scalar"
+            return StreamOutput(h.t, None, f"{what} non-finite or a spike at t = {h.t:g} s")
+        prev = self._held[i - 1] if i > 0 else None
+        nxt = self._held[i + 1] if i + 1 < len(self._held) else None
+        has_prev = prev is not None and bool(prev.flux_ok) and not h.start
+        has_next = nxt is not None and bool(nxt.flux_ok) and not nxt.start
         if has_prev and has_next:
-            db = (nxt[1] - prev[1]) / 2.0  # type: ignore[operator]
+            db = (nxt.b - prev.b) / 2.0  # type: ignore[union-attr]
         elif has_next:
-            db = nxt[1] - b
+            db = nxt.b - h.b  # type: ignore[union-attr]
         elif has_prev:
-            db = b - prev[1]
+            db = h.b - prev.b  # type: ignore[union-attr]
         else:
-            return StreamOutput(t, None, f"fluxgate has no usable neighbour at t = {t:g} s")
-        correction = tl_correction(self.model, b[None, :], db[None, :])[0]
-        return StreamOutput(t, float(s - correction))
+            return StreamOutput(h.t, None, f"fluxgate has no usable neighbour at t = {h.t:g} s")
+        correction = tl_correction(self.tl, h.b[None, :], db[None, :])[0]
+        return StreamOutput(h.t, (float(h.s - correction),))
 
 
-def _stands_out(x: np.ndarray, prev: np.ndarray, nxt: np.ndarray) -> float:
-    """:func:`~aeromag_env.compensation.model_checks.spike_statistic` of one sample."""
-    back, ahead = x - prev, x - nxt
-    with np.errstate(invalid="ignore"):
-        same = (np.sign(back) == np.sign(ahead)) & (back != 0)
-        stat = np.where(same, np.minimum(np.abs(back), np.abs(ahead)), 0.0)
-    stat = np.where(np.isfinite(stat), stat, 0.0)
-    return float(stat.max())
-
-
-class SampleStream:
-    """A model's stream fed with samples as mappings of channel name → value.
-
-    Wraps :class:`TollesLawsonStream` (the only streaming form so far: a Kalman-family model
-    is refused with a one-line error). :attr:`columns` are the channels each sample needs and
-    :attr:`output_name` the compensated channel's name (as ``compensate`` writes it).
-    """
-
-    def __init__(self, model: CalibrationModel) -> None:
-        from aeromag_env.compensation.compensate import output_names
-
-        if model.method != "tl":
-            raise AeromagError(
-                f"streaming supports tl models only; this model is {model.method} (apply it to a "
-                "whole flight with compensate --model, or calibrate a tl model to stream)"
-            )
-        self.model = model
-        self.columns = model.input_channels()
-        names = model.channels
-        self.output_name = output_names("tl", names["flux"], names["scalar"])[0]
-        self._flux = self.columns[1:4]
-        self._stream = TollesLawsonStream(model)
-
-    def update(self, sample: Mapping[str, float]) -> list[StreamOutput]:
-        """Take one sample (every name of :attr:`columns`); return the answered samples."""
-        time = float(sample[self.columns[0]])
-        flux = np.array([float(sample[c]) for c in self._flux])
-        return self._stream.update(time, flux, float(sample[self.columns[4]]))
-
-    def flush(self) -> list[StreamOutput]:
-        """Answer the samples still held, at the end of the stream."""
-        return self._stream.flush()
+def check_time(time_s: float, last_s: float, gap_s: float) -> bool:
+    """Whether a stream's sample at ``time_s`` [s] starts a segment (the first, or after a step
+    above ``gap_s``); :class:`~aeromag_env.errors.AeromagError` when it is not after the
+    previous one at ``last_s`` (the caller reports and skips it)."""
+    if not time_s > last_s:
+        raise AeromagError(f"time {time_s!r} s is not after the previous sample's {last_s:g} s")
+    return not (time_s - last_s <= gap_s)

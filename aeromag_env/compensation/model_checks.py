@@ -19,6 +19,8 @@ A flagged sample's output is NaN in a file and a reported, skipped line in a str
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from aeromag_env.flight.quality import GAP_FACTOR, SPIKE_FLOOR_NT
@@ -29,7 +31,52 @@ from aeromag_env.flight.quality import GAP_FACTOR, SPIKE_FLOOR_NT
 SPIKE_MARGIN = 10.0
 #: The percentile of the calibration's spike statistic the threshold scales [%].
 SPIKE_PERCENTILE = 99.9
-__all__ = ["GAP_FACTOR", "segment_starts", "spike_flags", "spike_statistic", "spike_threshold_nt"]
+__all__ = [
+    "GAP_FACTOR",
+    "SampleChecks",
+    "segment_starts",
+    "spike_flags",
+    "spike_statistic",
+    "spike_threshold_nt",
+    "stands_out",
+]
+
+
+@dataclass(frozen=True)
+class SampleChecks:
+    """The checks a calibrated model applies to every sample, fixed at calibration.
+
+    Attributes
+    ----------
+    gap_s : float
+        A time step above this is a gap [s] (``gap_factor / sample_rate_hz`` of the calibration).
+    spike_threshold_nt : dict
+        Magnetometer name → its spike threshold [nT] (:func:`spike_threshold_nt`).
+    """
+
+    gap_s: float
+    spike_threshold_nt: dict[str, float]
+
+    def starts(self, tt: np.ndarray) -> np.ndarray:
+        """(n,) bool: the segment starts of the times ``tt`` [s] (:func:`segment_starts`)."""
+        return segment_starts(tt, self.gap_s)
+
+    def usable(self, name: str, x: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        """(n,) bool: magnetometer ``name``'s samples ``x`` ((n,) or (n, 3)) [nT] are finite
+        and no spike."""
+        finite = np.isfinite(x) if x.ndim == 1 else np.all(np.isfinite(x), axis=1)
+        return finite & ~spike_flags(x, starts, self.spike_threshold_nt[name])
+
+    def usable_one(
+        self, name: str, x: np.ndarray, prev: np.ndarray | None, nxt: np.ndarray | None
+    ) -> bool:
+        """Whether one sample ``x`` of magnetometer ``name`` is usable, given its neighbours in
+        its segment (None where there is none): the verdict :meth:`usable` gives it in a file."""
+        if not bool(np.all(np.isfinite(x))):
+            return False
+        if prev is None or nxt is None:
+            return True
+        return not stands_out(x, prev, nxt) > self.spike_threshold_nt[name]
 
 
 def segment_starts(tt: np.ndarray, gap_s: float) -> np.ndarray:
@@ -70,6 +117,17 @@ def spike_statistic(x: np.ndarray, starts: np.ndarray) -> np.ndarray:
     joined = ~starts[1:-1] & ~starts[2:]  # k−1, k and k+1 in one segment
     out[1:-1] = np.where(joined, stat, 0.0)
     return out
+
+
+def stands_out(x: np.ndarray, prev: np.ndarray, nxt: np.ndarray) -> float:
+    """:func:`spike_statistic` of one sample ``x`` (a scalar or (3,)) between its neighbours
+    ``prev`` and ``nxt`` [nT] (the same arithmetic)."""
+    back = np.atleast_1d(x - prev)
+    ahead = np.atleast_1d(x - nxt)
+    with np.errstate(invalid="ignore"):
+        same = (np.sign(back) == np.sign(ahead)) & (back != 0)
+        stat = np.where(same, np.minimum(np.abs(back), np.abs(ahead)), 0.0)
+    return float(np.where(np.isfinite(stat), stat, 0.0).max())
 
 
 def spike_flags(x: np.ndarray, starts: np.ndarray, threshold_nt: float) -> np.ndarray:

@@ -1,26 +1,20 @@
 """Fit a :class:`~aeromag_env.compensation.calibration_model.CalibrationModel` on a calibration
-flight (:func:`fit_model`) and apply it to another flight (:func:`apply_model`).
+flight (:func:`fit_model`).
 
 Fitting is the package's own compensation (:func:`~aeromag_env.compensation.compensate.
 compensate_scalar` for ``tl``, :func:`~aeromag_env.compensation.compensate.compensate_vector`
 for the Kalman family) on the calibration flight or a part of it; the model keeps its result:
-the Tolles–Lawson coefficients, or the filter's state, covariance, Q and R after the last sample.
-
-Applying gives a :class:`~aeromag_env.compensation.compensate.Compensation` like a fit's, so the
-jobs score and write it the same way:
-
-* ``tl``: :func:`~aeromag_env.compensation.model_apply.apply_tl` (the same numbers as a stream);
-* the Kalman family: the filter starts from the calibrated state and covariance (and Q, R) and
-  keeps adapting over the flight, with the calibration's mount and settings.
-
-Both also measure the residual the recalibrate check compares with the calibration's
-(:mod:`aeromag_env.compensation.model_drift`), in ``Compensation.settings["drift"]``.
+the Tolles–Lawson coefficients, or the filter's state, covariance, Q and R after the last sample
+(and the samples it processed). The model then measures itself on the calibration part
+(:meth:`CalibrationModel.apply <aeromag_env.compensation.calibration_model.CalibrationModel.
+apply>`): the figure of merit box by box (:func:`fom_boxes`) and the residual the recalibrate
+check compares other flights' with (:mod:`aeromag_env.compensation.model_drift`).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
-import itertools
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -32,19 +26,14 @@ from aeromag_env.compensation.compensate import (
     Compensation,
     compensate_scalar,
     compensate_vector,
-    output_names,
 )
-from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.compensation.model_apply import apply_tl
 from aeromag_env.compensation.model_checks import GAP_FACTOR, segment_starts, spike_threshold_nt
-from aeromag_env.compensation.model_drift import tl_residual, vector_residual
-from aeromag_env.compensation.samples import flight_samples, vector_inputs
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.configs import to_dict
 from aeromag_env.errors import AeromagError
 from aeromag_env.flight.data import Flight
-from aeromag_env.flight.earth_model import earth_model
 from aeromag_env.flight.mounting import Mount
 from aeromag_env.flight.quality import segments
 
@@ -107,6 +96,7 @@ def fit_model(
         assert comp.filter_end is not None
         settings = {k: v for k, v in to_dict(cfg).items() if k != "method"}
         coefficients = {k: np.asarray(v).tolist() for k, v in comp.filter_end.items()}
+        coefficients["samples"] = int(flight.n)
         channels = {"time": "tt", "flux": flux, "scalar": None}
     model = CalibrationModel(
         method=method,
@@ -152,21 +142,11 @@ def _provenance(given: dict[str, Any] | None) -> dict[str, Any]:
 def _with_offset(model: CalibrationModel, flight: Flight) -> CalibrationModel:
     """``model`` with ``offset_nt`` the mean correction over the calibration flight (a
     band-passed fit cannot see the constant part; MagNav removes the mean correction)."""
-    _, correction, _ = apply_tl(model, *_tl_inputs(model, flight))
+    tl = model.calibrated_tl()
+    _, correction, _ = apply_tl(tl, flight.tt, flight.vector(tl.flux), flight[tl.scalar])
     finite = np.isfinite(correction)
     offset = float(np.mean(correction[finite])) if finite.any() else 0.0
-    return _replace(model, coefficients={**model.coefficients, "offset_nt": offset})
-
-
-def _replace(model: CalibrationModel, **changes: Any) -> CalibrationModel:
-    from dataclasses import replace
-
-    return replace(model, **changes)
-
-
-def _tl_inputs(model: CalibrationModel, flight: Flight) -> tuple[np.ndarray, ...]:
-    names = model.channels
-    return flight.tt, flight.vector(names["flux"]), flight[names["scalar"]]
+    return replace(model, coefficients={**model.coefficients, "offset_nt": offset})
 
 
 def _with_calibration(
@@ -175,7 +155,7 @@ def _with_calibration(
     """``model`` with its ``calibration`` block: what the fit saw, the FOM box by box, and the
     residual of the model applied to the calibration part (the recalibrate check's reference)."""
     part = np.ones(flight.n, bool) if calibration is None else calibration
-    applied = apply_model(model, flight, residual_mask=part)
+    applied = model.apply(flight, residual_mask=part)
     k = np.flatnonzero(part)
     block = {
         "samples": int(part.sum()),
@@ -186,7 +166,7 @@ def _with_calibration(
     }
     done = [b["fom_nt"] for b in block["fom_boxes"] if b["fom_nt"] is not None]
     block["fom_nt"] = done[-1] if done else None
-    return _replace(model, calibration=block)
+    return replace(model, calibration=block)
 
 
 def fom_boxes(flight: Flight, before: np.ndarray, after: np.ndarray) -> list[dict[str, Any]]:
@@ -218,127 +198,3 @@ def _safe(fn: Any, *args: Any) -> float | None:
     except AeromagError:
         return None
     return value if np.isfinite(value) else None
-
-
-def apply_model(
-    model: CalibrationModel, flight: Flight, residual_mask: np.ndarray | None = None
-) -> Compensation:
-    """Compensate ``flight`` with a calibrated model (module docstring).
-
-    ``residual_mask`` (n,) bool: the samples the recalibrate residual is measured on (None:
-    all). A flight lacking one of the model's channels is a one-line error naming it.
-    """
-    missing = [nm for nm in model.input_channels() if nm not in flight]
-    if missing:
-        raise AeromagError(
-            f"the flight lacks channel(s) {', '.join(missing)} that the {model.method} model "
-            f"needs ({', '.join(model.input_channels())}); recalibrate with this flight's channels"
-        )
-    if model.method == "tl":
-        return _apply_tl(model, flight, residual_mask)
-    return _apply_filter(model, flight, residual_mask)
-
-
-def _apply_tl(model: CalibrationModel, flight: Flight, mask: np.ndarray | None) -> Compensation:
-    tt, flux, scalar = _tl_inputs(model, flight)
-    after, _correction, flags = apply_tl(model, tt, flux, scalar)
-    parts = _parts(flags.starts)
-    shown = after if mask is None else np.where(mask, after, np.nan)
-    drift = tl_residual(shown, flux, model.sample_rate_hz, parts)
-    names = model.channels
-    samples = flight_samples(flight, [names["flux"], names["scalar"]], [])
-    return Compensation(
-        method="tl",
-        settings={**_applied(model), "scalar": names["scalar"], "drift": drift},
-        coefficients=dict(model.coefficients),
-        fields={output_names("tl", names["flux"], names["scalar"])[0]: after},
-        total_before=np.asarray(scalar, float),
-        total_after=after,
-        model_total=None,
-        nonfinite=int(np.sum(~flags.valid)),
-        samples=_with_valid(samples, flags.valid, parts),
-    )
-
-
-def _parts(starts: np.ndarray) -> list[slice]:
-    edges = [*np.flatnonzero(starts), starts.size]
-    return [slice(int(a), int(b)) for a, b in itertools.pairwise(edges)]
-
-
-def _with_valid(samples: Any, valid: np.ndarray, parts: list[slice]) -> Any:
-    from dataclasses import replace
-
-    return replace(samples, valid=valid, segments=parts)
-
-
-def _applied(model: CalibrationModel) -> dict[str, Any]:
-    """The settings block of an applied model: the method's, the model's provenance, and the
-    same ``flux`` / ``remove_mean`` keys a fit's settings have."""
-    return {
-        **model.settings,
-        "flux": model.channels["flux"],
-        "remove_mean": bool(model.settings.get("remove_mean", False)),
-        "model": {
-            "provenance": model.provenance,
-            "calibration_samples": model.calibration.get("samples"),
-        },
-    }
-
-
-def _apply_filter(model: CalibrationModel, flight: Flight, mask: np.ndarray | None) -> Compensation:
-    """The filter continued from the calibrated state over ``flight`` (it keeps adapting)."""
-    cfg = model.filter_config()
-    flux = model.channels["flux"]
-    samples = flight_samples(flight, vector_inputs(flight, flux), [flux])
-    t_b, tdot_b = earth_model(flight, cfg.rate_scheme, samples.segments)
-    mount = model.mount_object()
-    meas = flight.vector(flux) if mount is None else mount.to_body(flight.vector(flux))
-    y = np.where(samples.valid[:, None], meas - t_b, np.nan)
-    end = model.filter_end()
-    state = continued_filter(cfg, end, y, t_b, tdot_b)
-    state.advance(state.n)
-    res = state.result()
-    known = np.all(np.isfinite(t_b) & np.isfinite(tdot_b), axis=1)
-    est = np.where(known[:, None], res.interference, np.nan)
-    after = np.where(samples.valid[:, None], meas - est, np.nan)
-    y_drift = y if mask is None else np.where(mask[:, None], y, np.nan)
-    return Compensation(
-        method=model.method,
-        settings={**_applied(model), "drift": vector_residual(end["state"], y_drift, t_b, tdot_b)},
-        coefficients={"state": res.final_state.tolist()},
-        fields=dict(zip(output_names(model.method, flux), [*after.T, *est.T], strict=True)),
-        total_before=np.linalg.norm(meas, axis=1),
-        total_after=np.linalg.norm(after, axis=1),
-        model_total=np.linalg.norm(t_b, axis=1),
-        series={"ror": res.ror, "qoq": res.qoq, "q_scale": res.q_scale, "r_scale": res.r_scale},
-        divergences=res.divergences,
-        outliers_rejected=res.outliers_rejected,
-        nonfinite=samples.n_nonfinite,
-        samples=samples,
-        filter_end={
-            "state": res.final_state,
-            "covariance": res.final_covariance,
-            "process_noise": res.final_q,
-            "measurement_noise": res.final_r,
-        },
-    )
-
-
-def continued_filter(
-    cfg: FilterConfig,
-    end: dict[str, np.ndarray],
-    y: np.ndarray,
-    t_b: np.ndarray,
-    tdot_b: np.ndarray,
-) -> FilterState:
-    """A :class:`FilterState` over ``y``, ``t_b``, ``tdot_b`` (n, 3) that starts where a
-    calibration ended: its state, covariance, Q and R (``end``, physical units) in place of the
-    configuration's initial ones. The innovation window starts empty."""
-    state = FilterState(cfg, y, t_b, tdot_b, store_states=False)
-    d = state.d
-    state.z[:] = end["state"] / d  # the arrays are updated in place, never replaced
-    state.z_good[:] = state.z
-    state.p[:] = end["covariance"] / np.outer(d, d)
-    state.qd[:] = end["process_noise"] / d**2
-    state.rm[:] = end["measurement_noise"]
-    return state

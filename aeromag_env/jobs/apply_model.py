@@ -1,10 +1,10 @@
-"""Apply a calibrated model to a flight file: ``aeromag compensate FILE --model model.json``.
-
-:func:`run_with_model` is the part of :func:`aeromag_env.jobs.compensate.run_compensate` for a
-request with a ``model``: read and check the file as ``compensate`` does, select the lines or
-segment, apply the model (:func:`aeromag_env.compensation.model_fit.apply_model`: Tolles–Lawson
-with the calibrated coefficients, or the filter continued from its calibrated state), score,
-say when the model no longer fits (:func:`model_warnings`), and write the same output set.
+"""What ``aeromag compensate FILE --model model.json`` adds to a compensation: reading and
+checking the model (:func:`model_of`, :func:`check_model_request`), the fields it needs from the
+file (:func:`model_needs`), the recalibrate warnings (:func:`model_warnings`) and the report's
+``model`` block (:func:`model_block`). The run itself is the compensate job's
+(:func:`aeromag_env.jobs.compensate.run_compensate`); the model is applied by
+:meth:`CalibrationModel.apply <aeromag_env.compensation.calibration_model.CalibrationModel.
+apply>`.
 """
 
 from __future__ import annotations
@@ -15,13 +15,9 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.compensation.calibration_model import CalibrationModel, load_model
-from aeromag_env.compensation.compensate import score
 from aeromag_env.compensation.model_drift import drift_warning
-from aeromag_env.compensation.model_fit import apply_model
-from aeromag_env.errors import AeromagError
+from aeromag_env.errors import ArgumentError
 from aeromag_env.flight.data import Flight
-from aeromag_env.flight.selection import select
-from aeromag_env.jobs.provenance import JobWarnings, file_sha256, input_format, load_source
 
 #: A flight whose sample rate differs from the calibration's by more than this share gets the
 #: recalibrate warning (``tl``'s eddy terms are per-sample differences: their coefficients
@@ -29,26 +25,38 @@ from aeromag_env.jobs.provenance import JobWarnings, file_sha256, input_format, 
 RATE_TOLERANCE = 0.01
 
 
-def model_of(req: Any) -> CalibrationModel:
-    """The request's model: loaded from its file, or the one given."""
-    model = req.model
+def model_of(model: str | Path | CalibrationModel) -> CalibrationModel:
+    """The model given, or read from its file (a one-line error when it is not one)."""
     return model if isinstance(model, CalibrationModel) else load_model(model)
 
 
-def check_model_request(req: Any) -> None:
-    """One-line errors for a request with a model: an unreadable model file, a ``method``
-    other than the model's, or options that only a fit takes (a calibration part)."""
-    model = model_of(req)
-    if req.method not in (model.method, "tl"):
-        raise AeromagError(
-            f"--method {req.method} differs from the model's method {model.method}; leave it out "
-            "with --model"
+def check_model_request(
+    model: CalibrationModel,
+    method: str | None,
+    calibration_line: str | None,
+    calibration_window_s: tuple[float, float] | None,
+) -> None:
+    """One-line errors for options that contradict a model: a ``method`` other than the
+    model's, or a calibration part (with a model nothing is fitted)."""
+    if method is not None and method != model.method:
+        raise ArgumentError(
+            "method", f"is the model's, {model.method}, with a model (or leave it out)", method
         )
-    if req.calibration_line is not None or req.calibration_window_s is not None:
-        raise AeromagError(
-            "--calibration-line and --calibration-window select what a fit sees; with --model "
-            "nothing is fitted (calibrate on them with aeromag calibrate instead)"
-        )
+    for name, value in (
+        ("calibration_line", calibration_line),
+        ("calibration_window_s", calibration_window_s),
+    ):
+        if value is not None:
+            raise ArgumentError(
+                name,
+                "selects what a fit sees; with a model nothing is fitted (calibrate on that "
+                "part with calibrate instead)",
+            )
+
+
+def model_needs(model: CalibrationModel) -> tuple[str, ...]:
+    """The fields a flight file must have for ``model`` besides its magnetometers."""
+    return ("tt",) if model.method == "tl" else ("tt", "position", "attitude", "date")
 
 
 def model_warnings(
@@ -70,74 +78,12 @@ def model_warnings(
     return lines
 
 
-def run_with_model(req: Any, warn: JobWarnings) -> Any:
-    """:func:`~aeromag_env.jobs.compensate.run_compensate` for a request with a model."""
-    from aeromag_env.atomic import check_output_set
-    from aeromag_env.jobs.compensate import (
-        REPORT_VERSION,
-        CompensationResult,
-        _check_output_names,
-        _nonfinite_policy,
-        write_compensate_outputs,
-    )
-
-    model = model_of(req)
-    if req.out is not None:
-        check_output_set(req.out, req.outputs(), _inputs(req))
-    needs = ("tt",) if model.method == "tl" else ("tt", "position", "attitude", "date")
-    flight, problems, path = load_source(req.source, needs)
-    chosen = select(flight, req.lines, req.segment_s, None, None)
-    work = chosen.flight
-    comp = apply_model(model, work)
-    _check_output_names(flight, comp)
-    what = str(path) if path is not None else "this flight"
-    drift = comp.settings["drift"]
-    for line in model_warnings(model, work, drift, what):
-        warn(line)
-    metrics_block = score(work, comp)
-    report = {
-        "report_version": REPORT_VERSION,
-        "input": None if path is None else str(path),
-        "input_sha256": None if path is None else file_sha256(path),
-        "input_format": None if path is None else input_format(path),
-        "method": comp.method,
-        "settings": comp.settings,
-        "coefficients": comp.coefficients,
-        "metrics": metrics_block,
-        "nonfinite_policy": _nonfinite_policy(comp),
-        "input_problems": problems,
-        "selection": chosen.report,
-        "model": _model_block(req, model, drift),
-        "warnings": list(warn.lines),
-        "held_out": None,
-    }
-    kept = {name: values[chosen.keep] for name, values in flight.fields.items()}
-    out_flight = Flight({**kept, **comp.fields}, {**flight.attrs, "compensation": comp.method})
-    paths: tuple[Path, ...] = ()
-    if req.out is not None:
-        paths = write_compensate_outputs(req, out_flight, report, work, comp)
-    return CompensationResult(
-        method=comp.method,
-        metrics=metrics_block,
-        coefficients=comp.coefficients,
-        report=report,
-        warnings=tuple(warn.lines),
-        paths=paths,
-        compensation=comp,
-        flight=out_flight,
-    )
-
-
-def _inputs(req: Any) -> list[Path]:
-    """The files the run reads: the flight, the mount file, the model file."""
-    model = [] if isinstance(req.model, CalibrationModel) else [Path(req.model)]
-    return [*req.input_files(), *model]
-
-
-def _model_block(req: Any, model: CalibrationModel, drift: dict[str, Any]) -> dict[str, Any]:
+def model_block(
+    given: str | Path | CalibrationModel, model: CalibrationModel, drift: dict[str, Any]
+) -> dict[str, Any]:
     """The report's ``model`` block: which model, the calibration's residual and this flight's."""
     return {
-        "file": None if isinstance(req.model, CalibrationModel) else str(req.model),
+        "file": None if isinstance(given, CalibrationModel) else str(given),
         "method": model.method,
         "provenance": model.provenance,
         "calibration_residual": model.calibration.get("residual"),

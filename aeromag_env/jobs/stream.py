@@ -1,38 +1,69 @@
 """Compensate samples as they arrive: :func:`stream`, the job of ``aeromag stream --model``.
 
-Input, a text stream of CSV lines (the layout ``aeromag convert FILE out.csv`` writes):
-``#`` lines (comments, and the ``#@ {json}`` attribute line) anywhere before the header are
-skipped; the header names the channels (the model's, :meth:`CalibrationModel.input_channels`,
-must be among them, in any order, other columns ignored); then one line per sample, an empty
-cell read as NaN as in a file.
+Input, a text stream of CSV lines (the layout ``aeromag convert FILE out.csv`` writes): ``#``
+lines before the header are skipped, except the ``#@ {json}`` attribute line, whose ``date``
+a filter's model uses (as a file's); the header names the channels (the model's,
+:attr:`SampleStream.columns <aeromag_env.compensation.model_stream.SampleStream.columns>`, must
+be among them, in any order, other columns ignored); then one line per sample, an empty cell
+read as NaN as in a file. A filter's model needs the flight's date: ``date``, else the attribute
+line's, else the first sample's ``year`` and ``doy`` columns.
 
-Output, a text stream: a header ``TIME,NAME`` (the time channel and the compensated channel as
-``aeromag compensate`` names it, ``aeromag_mag_1_c``), then one line per answered sample, each
-written and flushed as soon as the model can answer it (a Tolles–Lawson model answers a sample
-when the second after it arrives, :mod:`aeromag_env.compensation.model_apply`). Values are
-Python's shortest round-trip ``repr``, so they equal ``aeromag compensate --model`` on the same
-flight exactly.
+Output, a text stream: a header (the time channel and the compensated channels as ``aeromag
+compensate`` names them: ``tt,aeromag_mag_1_c`` for ``tl``, ``tt,aeromag_flux_a_c_x,…`` for a
+filter), then one line per answered sample, each written and flushed as soon as the model can
+answer it (:mod:`aeromag_env.compensation.model_apply`,
+:mod:`aeromag_env.compensation.model_filter`). Values are Python's shortest round-trip ``repr``,
+so they equal ``aeromag compensate --model`` on the same flight.
 
 Bad lines (a wrong number of cells, a cell that is not a number, a time not after the previous
-one) and flagged samples (a non-finite or spiking magnetometer) are reported to ``warn`` (one
-line each, naming the input line) and skipped: never silently used.
+one) and flagged samples (a non-finite or spiking magnetometer, an unknown position) are
+reported as warnings (one line each, naming the input line) and skipped: never silently used.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TextIO
 
+from aeromag_env import errors
 from aeromag_env.compensation.calibration_model import CalibrationModel
-from aeromag_env.compensation.model_apply import SampleStream, StreamOutput
+from aeromag_env.compensation.model_apply import StreamOutput
+from aeromag_env.compensation.model_stream import SampleStream
 from aeromag_env.errors import AeromagError
+from aeromag_env.flight.formats.csvfile import ATTR_LINE
+from aeromag_env.jobs.apply_model import model_of
 
 #: Bad or flagged lines reported one by one; past this they are only counted (the summary
 #: line at the end gives the total).
 MAX_REPORTED = 100
+
+
+@dataclass(frozen=True, kw_only=True)
+class StreamRequest:
+    """What a stream is asked for (validated by :meth:`check`).
+
+    Attributes
+    ----------
+    model : Path or CalibrationModel
+        The calibrated model (``aeromag calibrate``'s ``model.json``).
+    date : str or None
+        The flight's date (ISO 8601) for a filter's model; None: from the input.
+    """
+
+    model: Path | CalibrationModel
+    date: str | None = None
+
+    def check(self) -> CalibrationModel:
+        """Read and check the model (and the date when one is given); the model."""
+        model = model_of(self.model)
+        if self.date is not None and model.is_filter:
+            model.stream(date=self.date)  # a one-line error for a date IGRF-14 cannot use
+        return model
 
 
 @dataclass
@@ -44,6 +75,7 @@ class StreamSummary:
     samples_in : int, sample lines read (after the header)
     samples_out : int, compensated samples written
     skipped : int, lines and samples reported and skipped
+    reported : list of str, the first :data:`MAX_REPORTED` reports
     """
 
     samples_in: int = 0
@@ -53,23 +85,28 @@ class StreamSummary:
 
 
 def stream(
-    model: CalibrationModel,
+    model: str | Path | CalibrationModel,
     lines: Iterable[str],
     out: TextIO,
-    warn: Callable[[str], None],
+    *,
+    date: str | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> StreamSummary:
-    """Compensate CSV sample lines with a model, writing each answer as it comes.
+    """Compensate CSV sample lines with a calibrated model, writing each answer as it comes.
 
     Parameters
     ----------
-    model : CalibrationModel
-        A calibrated ``tl`` model (:func:`aeromag_env.compensation.calibration_model.load_model`).
+    model : str, Path or CalibrationModel
+        The model, or its file (:func:`aeromag_env.compensation.calibration_model.load_model`).
     lines : iterable of str
         The input lines (standard input, a file), read one at a time.
     out : text stream
         Where the header and the compensated lines go (flushed after each).
-    warn : callable
-        Takes each one-line report of a bad line or flagged sample.
+    date : str or None
+        The flight's date (ISO 8601) for a filter's model (module docstring).
+    warn : callable or None
+        Takes each one-line report of a bad line or flagged sample (None: issued as an
+        :class:`~aeromag_env.errors.AeromagWarning`).
 
     Returns
     -------
@@ -78,21 +115,22 @@ def stream(
     Raises
     ------
     AeromagError
-        No header, or a header without the model's channels (one line naming them).
+        An unreadable model, no header, or a header without the model's channels (one line
+        naming them).
     """
-    runner = SampleStream(model)
+    calibrated = StreamRequest(
+        model=model if isinstance(model, CalibrationModel) else Path(model), date=date
+    ).check()
     summary = StreamSummary()
-    report = _reporter(warn, summary)
+    report = _reporter(warn or errors.warn, summary)
     it = iter(lines)
-    header, number = _header(it)
+    header, attrs, header_line = _header(it)
+    runner = calibrated.stream(header=header, date=date or attrs.get("date"))
     index = _columns(header, runner.columns)
-    out.write(f"{runner.columns[0]},{runner.output_name}\n")
+    out.write(",".join((runner.time_name, *runner.output_names)) + "\n")
     out.flush()
     where: dict[float, int] = {}  # input line of each held sample (at most a few)
-    for text in it:
-        number += 1
-        if not text.strip() or text.startswith("#"):
-            continue
+    for number, text in _numbered(it, header_line):
         summary.samples_in += 1
         sample = _parse(text, index, len(header), number)
         if isinstance(sample, str):
@@ -103,12 +141,22 @@ def stream(
         except AeromagError as e:
             report(f"line {number}: {e}; skipped")
             continue
-        where[sample[runner.columns[0]]] = number
+        where[sample[runner.time_name]] = number
         _write(answers, out, where, report, summary)
     _write(runner.flush(), out, where, report, summary)
     if summary.skipped > MAX_REPORTED:
-        warn(f"{summary.skipped} lines or samples skipped in all ({MAX_REPORTED} reported)")
+        report_line = f"{summary.skipped} lines or samples skipped in all ({MAX_REPORTED} reported)"
+        (warn or errors.warn)(report_line)
     return summary
+
+
+def _numbered(it: Iterator[str], number: int) -> Iterator[tuple[int, str]]:
+    """The sample lines after the header with their line numbers (blank and ``#`` lines
+    skipped)."""
+    for text in it:
+        number += 1
+        if text.strip() and not text.startswith("#"):
+            yield number, text
 
 
 def _reporter(warn: Callable[[str], None], summary: StreamSummary) -> Callable[[str], None]:
@@ -121,12 +169,27 @@ def _reporter(warn: Callable[[str], None], summary: StreamSummary) -> Callable[[
     return report
 
 
-def _header(it: Iterable[str]) -> tuple[list[str], int]:
-    """The header's cells and its line number (``#`` and blank lines before it skipped)."""
+def _header(it: Iterator[str]) -> tuple[list[str], dict, int]:
+    """The header's cells, the ``#@`` attributes before it and its line number."""
+    attrs: dict = {}
     for number, text in enumerate(it, start=1):
-        if text.strip() and not text.startswith("#"):
-            return [c.strip() for c in next(csv.reader([text]))], number
+        if text.startswith(ATTR_LINE):
+            attrs = _attributes(text[len(ATTR_LINE) :], number)
+        elif text.strip() and not text.startswith("#"):
+            return [c.strip() for c in next(csv.reader([text]))], attrs, number
     raise AeromagError("stream: no header line (the channel names) before the end of the input")
+
+
+def _attributes(text: str, number: int) -> dict:
+    try:
+        attrs = json.loads(text)
+    except ValueError as e:
+        raise AeromagError(
+            f"stream: line {number}: the {ATTR_LINE} line is not JSON ({e})"
+        ) from None
+    if not isinstance(attrs, dict):
+        raise AeromagError(f"stream: line {number}: the {ATTR_LINE} line must hold a JSON object")
+    return attrs
 
 
 def _columns(header: list[str], needed: tuple[str, ...]) -> dict[str, int]:
@@ -164,9 +227,12 @@ def _write(
 ) -> None:
     for a in answers:
         number = where.pop(a.time_s, None)
-        if a.value_nt is None:
+        if a.values_nt is None:
             report(f"line {number}: {a.problem}; skipped")
             continue
-        out.write(f"{a.time_s!r},{a.value_nt!r}\n")
+        out.write(",".join(map(repr, (a.time_s, *a.values_nt))) + "\n")
         out.flush()
         summary.samples_out += 1
+
+
+__all__ = ["MAX_REPORTED", "SampleStream", "StreamRequest", "StreamSummary", "stream"]

@@ -5,14 +5,12 @@ from __future__ import annotations
 import dataclasses
 import functools
 import io
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from aeromag_env.compensation.calibration_model import load_model
-from aeromag_env.errors import AeromagError
+from aeromag_env.errors import AeromagError, AeromagWarning, ArgumentError
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.files import write_flight
 from aeromag_env.jobs.calibrate import calibrate
@@ -20,12 +18,7 @@ from aeromag_env.jobs.compensate import compensate
 from aeromag_env.jobs.stream import stream
 from aeromag_env.simulation.config import AircraftConfig, preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
-from tests._helpers import ROOT, assert_one_line_error
-
-#: MagNav.jl's Tolles–Lawson test segment (test/test_data/test_data_TL.mat of MagNav.jl, public
-#: domain, 17 U.S.C. 105), where a session has it: not shipped (data fetched from public
-#: repositories stays out of commits); AEROMAG_MAGNAV_TL names its path.
-MAGNAV_TL = Path(os.environ.get("AEROMAG_MAGNAV_TL", ROOT / "tests" / "data" / "test_data_TL.mat"))
+from tests._helpers import assert_one_line_error
 
 
 @functools.cache
@@ -82,11 +75,17 @@ def test_recalibrate_warning_names_its_evidence(calibrated, method, kind, warned
         assert result.report["warnings"] == list(result.warnings)
 
 
-def test_compensate_with_a_model_refuses_a_calibration_part(calibrated):
+def test_compensate_with_a_model_refuses_a_calibration_part_or_another_method(calibrated):
     folder, _ = calibrated
-    with pytest.raises(AeromagError) as e:
-        compensate(flights("survey"), model=folder / "tl" / "model.json", calibration_line="auto")
-    assert_one_line_error(e, "--model")
+    model = folder / "tl" / "model.json"
+    with pytest.raises(ArgumentError) as e:
+        compensate(flights("survey"), model=model, calibration_line="auto")
+    assert e.value.argument == "calibration_line"
+    assert_one_line_error(e, "nothing is fitted")
+    with pytest.raises(ArgumentError) as e:
+        compensate(flights("survey"), "kf", model=model)
+    assert e.value.argument == "method"
+    assert_one_line_error(e, "the model's, tl")
 
 
 def test_stream_of_a_converted_csv_equals_compensate_with_the_model(calibrated, tmp_path):
@@ -96,7 +95,7 @@ def test_stream_of_a_converted_csv_equals_compensate_with_the_model(calibrated, 
     ref = compensate(csv_path, model=folder / "tl" / "model.json").flight["aeromag_mag_1_c"]
     out, said = io.StringIO(), []
     with open(csv_path) as lines:
-        summary = stream(load_model(folder / "tl" / "model.json"), lines, out, said.append)
+        summary = stream(load_model(folder / "tl" / "model.json"), lines, out, warn=said.append)
     rows = out.getvalue().splitlines()
     assert rows[0] == "tt,aeromag_mag_1_c"
     values = np.array([[float(c) for c in r.split(",")] for r in rows[1:]])
@@ -118,10 +117,7 @@ def test_stream_reports_and_skips_bad_lines(calibrated):
     rows[11] = rows[10]  # time not after the previous
     out, said = io.StringIO(), []
     summary = stream(
-        load_model(folder / "tl" / "model.json"),
-        [head, *[r + "\n" for r in rows]],
-        out,
-        said.append,
+        folder / "tl" / "model.json", [head, *[r + "\n" for r in rows]], out, warn=said.append
     )
     assert summary.skipped == 3 and summary.samples_out == 17
     assert any("line 7" in s and "cells" in s for s in said)
@@ -132,26 +128,41 @@ def test_stream_reports_and_skips_bad_lines(calibrated):
 def test_stream_without_the_models_channels_is_one_line_error(calibrated):
     folder, _ = calibrated
     with pytest.raises(AeromagError) as e:
-        stream(load_model(folder / "tl" / "model.json"), ["tt,flux_a_x\n"], io.StringIO(), print)
+        stream(folder / "tl" / "model.json", ["tt,flux_a_x\n"], io.StringIO(), warn=print)
     assert_one_line_error(e, "mag_1_uc")
 
 
-@pytest.mark.skipif(not MAGNAV_TL.is_file(), reason="MagNav.jl's test_data_TL.mat is not here")
-def test_magnav_tl_segment_calibrate_then_apply_equals_compensate_tl():
-    import scipy.io
+def test_stream_of_a_filter_model_equals_compensate_with_the_model(calibrated, tmp_path):
+    """A kf model's stream of the CSV ``aeromag convert`` writes (its date read from the ``#@``
+    line) gives compensate --model's values."""
+    folder, _ = calibrated
+    model = folder / "kf" / "model.json"
+    csv_path = write_flight(flights("survey"), tmp_path / "survey.csv")
+    ref = compensate(csv_path, model=model).flight
+    names = ("aeromag_flux_a_c_x", "aeromag_flux_a_c_y", "aeromag_flux_a_c_z")
+    out, said = io.StringIO(), []
+    with open(csv_path) as lines:
+        stream(model, lines, out, warn=said.append)
+    rows = out.getvalue().splitlines()
+    assert rows[0] == "tt," + ",".join(names)
+    values = np.array([[float(c) for c in r.split(",")] for r in rows[1:]])
+    whole = np.column_stack([ref[n] for n in names])
+    kept = np.all(np.isfinite(whole), axis=1)
+    np.testing.assert_array_equal(values[:, 0], ref.tt[kept])
+    np.testing.assert_allclose(values[:, 1:], whole[kept], rtol=0, atol=1e-9)  # the claim
+    assert said == []
 
-    data = scipy.io.loadmat(MAGNAV_TL, squeeze_me=True)["TL_data"].item()
-    names = scipy.io.loadmat(MAGNAV_TL)["TL_data"].dtype.names
-    data = dict(zip(names, data, strict=True))
-    fs = float(data["fs"])
-    n = np.asarray(data["mag_1_uc"]).size
-    fields = {"tt": np.arange(n) / fs}
-    for name in ("flux_a_x", "flux_a_y", "flux_a_z", "mag_1_uc"):
-        fields[name] = np.asarray(data[name], dtype=float).ravel()
-    flight = Flight(fields, {})
-    direct = compensate(flight, "tl")
-    model = calibrate(flight, "tl").model
-    applied = compensate(flight, model=model)
-    a, b = direct.flight["aeromag_mag_1_c"], applied.flight["aeromag_mag_1_c"]
-    np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
-    np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)  # 1e-9 nT: the claim
+
+def test_a_fleet_with_a_model(calibrated, tmp_path):
+    from aeromag_env.jobs.fleet import fleet
+
+    folder, _ = calibrated
+    for kind in ("survey", "changed"):
+        write_flight(flights(kind), tmp_path / "flights" / f"{kind}.h5")
+    with pytest.warns(AeromagWarning, match="changed.h5: the calibrated kf model no longer fits"):
+        result = fleet(tmp_path / "flights", tmp_path / "out", model=folder / "kf" / "model.json")
+    rows = {r["file"].split("/")[-1]: r for r in result.rows}
+    assert [r["status"] for r in rows.values()] == ["ok", "ok"]
+    assert rows["survey.h5"]["method"] == "kf" and rows["survey.h5"]["warnings"] == 0
+    assert "no longer fits" in rows["changed.h5"]["warning_text"]
+    assert "recalibrate" in rows["changed.h5"]["warning_lines"][0]

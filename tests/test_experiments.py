@@ -279,5 +279,14 @@ def test_lagged_privileged_with_a_floor_on_r_keeps_a_late_burst_out(capsys):
 def test_calibrate_then_apply_quick(tmp_path, capsys):
     assert run_experiment("calibrate_then_apply", "--quick", "--out", str(tmp_path)) == 0
     result = json.loads((tmp_path / "results.json").read_text())
-    assert result["summary"]["pairs"] == 2
-    assert result["summary"]["recalibrate_warnings"]["tl"]["other"] == 2
+    summary = result["summary"]
+    assert summary["pairs"] == 3
+    warnings = summary["recalibrate_warnings"]
+    assert warnings["tl"] == {"survey": 0, "survey_geology": 0, "other": 3, "changed": 3}
+    assert warnings["kf"]["survey"] == 0 and warnings["kf"]["other"] == 3
+    comparison = summary["tl_rmse_nt"]["calibrated_minus_fitted_on_survey"]
+    low, high = comparison["ci95"]
+    assert low <= comparison["mean_difference"] <= high
+    # over geology the survey's own fit absorbs the anomaly: calibration is better in every pair
+    assert summary["tl_rmse_nt_geology"]["calibrated_minus_fitted_on_survey"]["ci95"][1] < 0
+    assert summary["kf_warm_minus_cold_first_60_s"]["ci95"][1] < 0

@@ -163,6 +163,7 @@ class CalibrationModel:
             rotation=None if mount is None else mount.rotation,
             flux=self.channels["flux"],
             checks=self.checks(),
+            sample_rate_hz=self.sample_rate_hz,
         )
 
     def mount_object(self) -> Mount | None:

@@ -70,6 +70,8 @@ class CalibratedFilter:
         The fluxgate prefix.
     checks : SampleChecks
         The sample checks fixed at calibration.
+    sample_rate_hz : float
+        The calibration's sample rate [Hz] (the recalibrate residual's band-pass).
     """
 
     cfg: FilterConfig
@@ -78,6 +80,7 @@ class CalibratedFilter:
     rotation: np.ndarray | None
     flux: str
     checks: SampleChecks
+    sample_rate_hz: float
 
     @property
     def output_names(self) -> tuple[str, ...]:
@@ -217,14 +220,15 @@ def filter_compensation(
     est = np.where(known[:, None], res.interference, np.nan)
     after = np.where(inputs.flux_ok[:, None], inputs.meas - est, np.nan)
     y_drift = y if mask is None else np.where(mask[:, None], y, np.nan)
+    parts = segment_slices(inputs.starts)
+    drift = vector_residual(
+        cal.end["state"], y_drift, inputs.t_b, inputs.tdot_b, inputs.meas, cal.sample_rate_hz, parts
+    )
     samples = flight_samples(flight, [cal.flux, *ATTITUDE_NAMES], [])
     valid = inputs.flux_ok & known
     return Compensation(
         method=cal.cfg.method,
-        settings={
-            **settings,
-            "drift": vector_residual(cal.end["state"], y_drift, inputs.t_b, inputs.tdot_b),
-        },
+        settings={**settings, "drift": drift},
         coefficients={"state": res.final_state.tolist()},
         fields=dict(zip(output_names(cal.cfg.method, cal.flux), [*after.T, *est.T], strict=True)),
         total_before=np.linalg.norm(inputs.meas, axis=1),
@@ -234,7 +238,7 @@ def filter_compensation(
         divergences=res.divergences,
         outliers_rejected=res.outliers_rejected,
         nonfinite=int(np.sum(~valid)),
-        samples=_with(samples, valid, segment_slices(inputs.starts)),
+        samples=_with(samples, valid, parts),
         filter_end={
             "state": res.final_state,
             "covariance": res.final_covariance,

@@ -1,8 +1,8 @@
 """Benchmark: the training environments' step split into its parts, without PPO.
 
 PPO's training environments (``agents/training/hyperparams/ppo.json``'s ``nonstationary`` entry,
-batched,
-flights prefetched) stepped with random actions, ``steps`` steps per repeat; per environment
+batched, flights prefetched) stepped with random actions, ``steps`` steps per repeat; per
+environment
 step, medians over the repeats: ``step_wait`` (everything a step costs), of it the compiled step
 (``kernels.env_step_batch``), the resets and the info dicts, and beside them the bare compiled
 filter (:class:`aeromag_env.jobs.bench.envs.BareFilter`) advancing the same number of the first

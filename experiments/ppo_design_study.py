@@ -3,8 +3,7 @@ much room the scenario leaves (numbers on validation seeds 50 000–50 019, one 
 
 ``python experiments/ppo_design_study.py trial --steps 1000000 --s-max 10 --action-mode relative``
 trains PPO (hyperparameters of ``agents/training/hyperparams/ppo.json``) with the given action
-design on
-``nonstationary`` and prints its validation RMSE next to ``fis`` and ``tuned_constant``.
+design on ``nonstationary`` and prints its validation RMSE next to ``fis`` and ``tuned_constant``.
 ``--paper-obs`` uses the paper's two observations only (no extras).
 
 ``python experiments/ppo_design_study.py headroom`` runs privileged schedules (true noise

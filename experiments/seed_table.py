@@ -5,12 +5,10 @@
 --seeds 0-4 --out DIR`` are ``DIR/seed_*/policy.npz``) evaluates each exported policy (one per
 training seed) beside ``tuned_constant``, ``privileged`` and ``fis`` on the same test flights of
 each scenario (``aeromag evaluate``'s path: :func:`agents.evaluation.episodes.evaluate`), and prints
-per seed
-its mean RMSE and normalized score with their intervals, then the interquartile mean of the
+per seed its mean RMSE and normalized score with their intervals, then the interquartile mean of the
 normalized scores over seeds × scenarios with a stratified-bootstrap interval
 (:func:`agents.evaluation.statistics.iqm_interval`); scenarios without headroom are left out of the
-IQM and
-named. Writes ``table.md`` and ``results.json`` to ``--out``.
+IQM and named. Writes ``table.md`` and ``results.json`` to ``--out``.
 """
 
 from __future__ import annotations

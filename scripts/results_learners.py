@@ -469,10 +469,10 @@ def learners_page(docs: Path) -> str:
         source_line(docs, [(name, command) for name in LEARNERS_DATA]),
         "",
         "One policy for every scenario of the suite, trained by each learner of "
-        "`agents/training/learners.py` over several training seeds; each run keeps its best checkpoint "
-        "on validation flights, and every seed's policy then flies the same fresh test flights "
-        f"beside the reference policies. Evaluated on {d.runs['date']}: {n} test flights per "
-        f"scenario (seeds {first:,}–{first + n - 1:,}, never flown for a choice); training "
+        "`agents/training/learners.py` over several training seeds; each run keeps its best "
+        "checkpoint on validation flights, and every seed's policy then flies the same fresh test "
+        f"flights beside the reference policies. Evaluated on {d.runs['date']}: {n} test flights "
+        f"per scenario (seeds {first:,}–{first + n - 1:,}, never flown for a choice); training "
         f"seeds per learner: {seeds}. How the scores are defined: "
         "[benchmark methodology](../background/benchmark-methodology.md).",
         "",

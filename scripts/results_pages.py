@@ -217,8 +217,8 @@ def tuners_page(docs: Path) -> str:
             "general/training.json",
             "`general`: one policy for the suite",
             "Trained and validated on flights of every scenario of the suite "
-            "(`agents/policies/trained/ppo_general.npz`); the ratios are each scenario's mean validation "
-            "RMSE over the tuned constant's on the same flights.",
+            "(`agents/policies/trained/ppo_general.npz`); the ratios are each scenario's mean "
+            "validation RMSE over the tuned constant's on the same flights.",
         ),
         "## Not on this page",
         "",

@@ -93,7 +93,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         for nm in SINGLE
     }
     labels = [*SINGLE, "nothing"]
-    confusion = {t: Counter() for t in [*SINGLE, "null"]}
+    confusion: dict[str, Counter[str]] = {t: Counter() for t in [*SINGLE, "null"]}
     for r in singles + nulls:
         if r["kind"] == "single" and r["snr"] < 2:
             continue

@@ -91,7 +91,7 @@ def build_report(
 #: the final noise model (std, on any axis) or the held-out gap with the named effects. Of the
 #: 716 suite flights it flagged one, a pair whose temperature drift went unnamed; over
 #: simulated crustal geology (``GeologyConfig``) of 10 nT at 400 m the held-out gap was
-#: 5.6–7.8 nT, of 50 nT 27–38 nT (``python -m experiments.discovery_geology``, 2026-11-26).
+#: 5.6–7.8 nT, of 50 nT 27–38 nT (``python -m experiments.discovery_geology``).
 SLOW_RESIDUAL_NT = 5.0
 
 

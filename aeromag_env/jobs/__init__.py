@@ -1,22 +1,19 @@
 """The jobs a user runs, one library function each, in a room named after the job; the command
 line (:mod:`aeromag_env.cli`) parses its arguments, calls one of them and prints.
 
-=====================  ===========================================  ==============================
-job                    function                                     command
-=====================  ===========================================  ==============================
-simulate a flight      :func:`~aeromag_env.jobs.simulate.simulate`   ``aeromag simulate``
-inspect a file         :func:`~aeromag_env.jobs.info.info`           ``aeromag info``
-convert a file         :func:`~aeromag_env.jobs.convert.convert`     ``aeromag convert``
-compensate a flight    :func:`~aeromag_env.jobs.compensate.compensate`  ``aeromag compensate``
-a fleet of flights     :func:`~aeromag_env.jobs.fleet.fleet`         ``aeromag compensate DIR``
-find a missing effect  :func:`~aeromag_env.jobs.discover.discover`   ``aeromag discover``
-the paper's figures    :func:`~aeromag_env.jobs.reproduce.reproduce`  ``aeromag reproduce-paper``
-evaluate tuners        :func:`~aeromag_env.jobs.evaluate.evaluate`   ``aeromag evaluate``
-train a tuner          :func:`~aeromag_env.jobs.train.train`         ``aeromag train``
-search hyperparameters :func:`~aeromag_env.jobs.tune.tune`           ``aeromag tune``
-the demo               :func:`~aeromag_env.jobs.demo.demo`           ``aeromag demo``
-the speed benchmark    :func:`~aeromag_env.jobs.bench.bench`         ``aeromag bench``
-=====================  ===========================================  ==============================
+* simulate a flight: :func:`~aeromag_env.jobs.simulate.simulate` (``aeromag simulate``)
+* inspect a file: :func:`~aeromag_env.jobs.info.info` (``aeromag info``)
+* convert a file: :func:`~aeromag_env.jobs.convert.convert` (``aeromag convert``)
+* compensate a flight: :func:`~aeromag_env.jobs.compensate.compensate` (``aeromag compensate``)
+* a fleet of flights: :func:`~aeromag_env.jobs.fleet.fleet` (``aeromag compensate DIR``)
+* find a missing effect: :func:`~aeromag_env.jobs.discover.discover` (``aeromag discover``)
+* the paper's figures: :func:`~aeromag_env.jobs.reproduce.reproduce` (``aeromag
+  reproduce-paper``)
+* evaluate tuners: :func:`~aeromag_env.jobs.evaluate.evaluate` (``aeromag evaluate``)
+* train a tuner: :func:`~aeromag_env.jobs.train.train` (``aeromag train``)
+* search hyperparameters: :func:`~aeromag_env.jobs.tune.tune` (``aeromag tune``)
+* the demo: :func:`~aeromag_env.jobs.demo.demo` (``aeromag demo``)
+* the speed benchmark: :func:`~aeromag_env.jobs.bench.bench` (``aeromag bench``)
 
 Each validates its arguments before any work (:mod:`aeromag_env.jobs.limits`: one
 :class:`~aeromag_env.errors.ArgumentError` naming the argument, which the command line re-spells

@@ -9,9 +9,8 @@ per learner, seed, scenario and test flight, the reference policies with an empt
 * per learner, seed and scenario the mean RMSE over the test flights, the normalized score
   ``(RMSE₀ − RMSE) / (RMSE₀ − RMSE₁)`` on the same flights (0 = ``tuned_constant``,
   1 = ``privileged``, as ``agents.evaluation.statistics.normalized_scores``), the tail (CVaR: the
-  mean of
-  the worst 10 % of flights) and whether the seed is worse than the tuned constant beyond the
-  paired 95 % t interval over flights;
+  mean of the worst 10 % of flights) and whether the seed is worse than the tuned constant beyond
+  the paired 95 % t interval over flights;
 * rliable's aggregates over seeds × scenarios (IQM, mean, optimality gap, probability of
   improvement, performance profiles) with stratified-bootstrap intervals (Agarwal et al. 2021);
 * the bar a shipped general policy has to clear (issue 41), checked per learner;
@@ -163,8 +162,7 @@ def normalized_score(rmse: ArrayLike, zero: ArrayLike, one: ArrayLike) -> np.nda
 def exceeds(x: ArrayLike, y: ArrayLike) -> np.ndarray:
     """Whether ``x`` is above ``y`` beyond the paired 95 % t interval over flights (last axis):
     the interval of the mean of ``x − y`` (``agents.evaluation.statistics.ci95``) lies above 0.
-    False with
-    fewer than 2 flights.
+    False with fewer than 2 flights.
 
     Parameters
     ----------

@@ -53,8 +53,7 @@ from agents.policies.tuned_table import load_tuned
 
 class BasePolicy(ABC):
     """The :class:`~agents.policies.protocol.TuningPolicy` plumbing of the hand-written policies:
-    one
-    observation or a batch in, float32 actions clipped to [-1, 1] out.
+    one observation or a batch in, float32 actions clipped to [-1, 1] out.
 
     A policy bound to one environment (``single_env``: it reads that environment's truth)
     refuses a batch with a ``ValueError``.

@@ -2,17 +2,15 @@
 samples of the learner's space in ``agents/search/spaces/tune_space_learners.json``
 (:func:`agents.search.space.read_learner_space`), each a Ray Tune trial that trains the learner as
 ``aeromag train --learner`` does (:func:`agents.training.learners.run_learner`), with ASHA stopping
-the
-trials that validate badly early.
+the trials that validate badly early.
 
 A trial trains with the learner's settings of ``learners.json`` (the suite, the ``general``
 preset, its ``n_envs``, ``eval_every`` and ``eval_episodes``), the sampled values replacing the
 keys of its ``algo``, on one training seed (the same for every trial: they differ by their
 hyperparameters only) and one CPU (no prefetching worker). After each validation of the run
 (the points of :class:`agents.training.learners.Curve`: at step 0, every ``eval_every`` steps, at
-the end)
-it reports the point's selection score (``select_by``: the worst scenario's mean ratio of the
-validation RMSE to the tuned constant's; lower is better) to Tune; ASHA counts reports, its
+the end) it reports the point's selection score (``select_by``: the worst scenario's mean ratio of
+the validation RMSE to the tuned constant's; lower is better) to Tune; ASHA counts reports, its
 first rung after the first validation of a trained policy (the report at step 0 is the
 untrained policy's, alike for every trial). The search is seeded (the same ``--seed`` draws the
 same samples).
@@ -109,8 +107,7 @@ def tune_learner(
         Seed of the sampling and of every trial's training.
     quick : bool
         The sizes of :data:`agents.training.learners.QUICK` (a test's: two environments, a few
-        thousand
-        steps, one validation flight per scenario) and ``QUICK.tune_samples`` trials.
+        thousand steps, one validation flight per scenario) and ``QUICK.tune_samples`` trials.
     ray_address : str or None
         A Ray cluster to join (``host:port`` or ``ray://…``); None: the Ray session of this
         process if there is one, else a local Ray with this machine's cores.

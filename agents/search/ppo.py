@@ -12,8 +12,7 @@ worker). The search itself is seeded (the samples are the same for the same ``--
 
 The outputs, written as a set: ``ppo.json``, a hyperparameter file (the schema of
 ``agents/training/hyperparams/ppo.json``, validated after writing) whose entry for the scenario is
-the base
-entry with the tuned keys of the best trial (lowest validation RMSE reported), ready for
+the base entry with the tuned keys of the best trial (lowest validation RMSE reported), ready for
 ``aeromag train --hyperparams``; and ``tune.json``, every trial (its configuration, last and
 best validation RMSE, reports, whether ASHA stopped it). The search machinery (:func:`ray_session`,
 :func:`run_search`, :func:`best_trial`, :func:`write_outputs`) serves the other learners' search

@@ -22,8 +22,7 @@ The learners' file (``agents/search/spaces/tune_space_learners.json``, :func:`re
 holds one such space per learner of ``aeromag tune --learner`` under ``learners``, its keys
 constructor parameters of the learner's algorithm (a learner's ``algo`` in
 ``agents/training/hyperparams/learners.json``). The same distribution checks apply, with the kind
-and the
-valid values of a key taken from the constructor's annotation (``int``, ``float``, ``str``,
+and the valid values of a key taken from the constructor's annotation (``int``, ``float``, ``str``,
 ``bool``, ``None``); there is no range to check them against. Ray is imported by
 :func:`tune_domains` only.
 """

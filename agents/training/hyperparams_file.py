@@ -1,6 +1,5 @@
 """Read a PPO hyperparameter file (``agents/training/hyperparams/ppo.json`` or ``--hyperparams``)
-and
-validate it against its JSON Schema (``agents/training/hyperparams/ppo.schema.json``) before
+and validate it against its JSON Schema (``agents/training/hyperparams/ppo.schema.json``) before
 training.
 
 The schema holds every key, its type and its allowed range (``description``); ``jsonschema``

@@ -1,7 +1,6 @@
 """Pretraining of PPO by imitation (``pretrain`` in ``agents/training/hyperparams/ppo.json``):
-behaviour
-cloning of the hand-written innovation detector, or DAgger with the privileged policy as the
-teacher. Used by :mod:`agents.training.ppo`; torch is imported here only when called.
+behaviour cloning of the hand-written innovation detector, or DAgger with the privileged policy as
+the teacher. Used by :mod:`agents.training.ppo`; torch is imported here only when called.
 """
 
 from __future__ import annotations
@@ -40,8 +39,7 @@ def behaviour_clone(
     :class:`agents.policies.baselines.InnovationDetectorPolicy` with ``threshold_nt``) or
     ``privileged``
     (:class:`agents.policies.baselines.PrivilegedPolicy`, which knows the truth: the student learns
-    what
-    the teacher does from the observations alone)).
+    what the teacher does from the observations alone)).
 
     Why: PPO from scratch settles on a constant random walk for T_p (a local optimum); the
     detector's all-or-nothing response to a rare interference step is a large, coordinated

@@ -15,8 +15,7 @@ Hyperparameters live in ``agents/training/hyperparams/learners.json`` (the ``ppo
 scenarios) and keeps the checkpoint with the best validation score (``select_by``: the worst
 scenario's mean RMSE ratio to the tuned constant), exported for numpy
 (:func:`agents.policies.policy_file.export_actor`; a recurrent export carries its LSTM). The
-validation
-points, with environment steps and wall-clock seconds, are the learning curve
+validation points, with environment steps and wall-clock seconds, are the learning curve
 (``training.json``). torch, stable-baselines3, sb3-contrib and cma are imported here only
 (extra ``rl``).
 """

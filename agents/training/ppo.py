@@ -1,8 +1,7 @@
 """Train a stable-baselines3 PPO tuner (``aeromag train``) and export it for numpy inference.
 
 Hyperparameters live in ``agents/training/hyperparams/ppo.json`` (versioned, RL Zoo style: one entry
-per
-scenario, with the environment keyword arguments the policy is trained with), apart from the
+per scenario, with the environment keyword arguments the policy is trained with), apart from the
 environment's own configuration; in Python they are a
 :class:`~agents.training.ppo_hyperparams.PPOHyperparams`, which holds the defaults. Training resets
 every environment with seeds from the training range only (``[0, 50 000)``); validation uses
@@ -154,8 +153,7 @@ def train_ppo(
 
     ``timesteps`` None: :data:`TIMESTEPS`, or with ``quick`` ``QUICK.train_timesteps``;
     ``quick``: the sizes of :data:`agents.training.quick.QUICK` (about a minute). A resumed run
-    trains
-    ``timesteps`` more steps, or with ``total`` up to ``timesteps`` in all
+    trains ``timesteps`` more steps, or with ``total`` up to ``timesteps`` in all
     (what a retried task wants: a run killed and restarted ends where an unbroken one would).
     The checkpoint (:data:`CHECKPOINT`) is written as a set, so a kill leaves the previous
     checkpoint or the new one; the run is refused before training if a file it writes is an

@@ -6,8 +6,8 @@ and of :class:`Pretrain` (its ``pretrain`` object) carries its title, what it al
 JSON Schema constraints; its default, where it has one, is the one training uses. From these
 :func:`ppo_schema` makes ``agents/training/hyperparams/ppo.schema.json`` (``python -m
 agents.training.ppo_hyperparams`` rewrites it; a test checks that the committed file is the
-generated
-one), which :mod:`agents.training.hyperparams_file` checks a file against, and ``__post_init__``
+generated one), which :mod:`agents.training.hyperparams_file` checks a file against, and
+``__post_init__``
 checks
 the same constraints on a value built in Python: a one-line
 :class:`~aeromag_env.errors.ConfigError` naming the field.
@@ -174,8 +174,7 @@ class Pretrain:
 @dataclass(frozen=True, kw_only=True)
 class PPOHyperparams:
     """One scenario's PPO hyperparameters (an entry of ``agents/training/hyperparams/ppo.json``),
-    with
-    the environment settings the policy is trained and evaluated with; ``version`` is the
+    with the environment settings the policy is trained and evaluated with; ``version`` is the
     version of the file it was read from (0: not read from a file)."""
 
     train_scenario: str | None = field(

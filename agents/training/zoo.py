@@ -2,15 +2,13 @@
 
 ``agents/training/hyperparams/ppo.json`` stays the one place the hyperparameters are written;
 ``agents/training/hyperparams/ppo_zoo.yml`` is made from it by ``python -m agents.training.zoo`` (a
-test checks
-that the two agree). Each scenario's entry goes under the registered id of its training scenario
-(``AeroMag/NonstationaryDense-v0``: :mod:`aeromag_env.environment.ids`) with its
+test checks that the two agree). Each scenario's entry goes under the registered id of its training
+scenario (``AeroMag/NonstationaryDense-v0``: :mod:`aeromag_env.environment.ids`) with its
 ``env_kwargs``, the observation and reward normalisation of ``aeromag train``
 (:func:`agents.training.ppo.normalized`), the network and initial log std, and a Monitor that
-records each
-episode's RMSE. What the zoo cannot do: the behaviour-cloning pretraining of version 5 (the zoo
-trains PPO from scratch, as version 4 did), validation on our validation seeds and the numpy
-export; ``aeromag train`` does those.
+records each episode's RMSE. What the zoo cannot do: the behaviour-cloning pretraining of version 5
+(the zoo trains PPO from scratch, as version 4 did), validation on our validation seeds and the
+numpy export; ``aeromag train`` does those.
 
 Train with it::
 

@@ -1,6 +1,5 @@
 """The learners' benchmark statistics (``agents.comparison.statistics``) on hand-made numbers whose
-answers
-are known, and rliable (Agarwal et al. 2021) as the independent reference of the aggregates:
+answers are known, and rliable (Agarwal et al. 2021) as the independent reference of the aggregates:
 our IQM (``agents.evaluation.statistics.iqm_interval``) and the vectorised probability of
 improvement and
 performance profile give rliable's numbers, bootstrap intervals included."""

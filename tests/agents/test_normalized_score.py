@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from aeromag_env.jobs.evaluate import evaluation_table
-from agents.evaluation.statistics import BOOTSTRAP_RESAMPLES, policy_summaries, normalized_scores
+from agents.evaluation.statistics import BOOTSTRAP_RESAMPLES, normalized_scores, policy_summaries
 
 
 def _per(**rmse: np.ndarray) -> dict[str, dict[str, np.ndarray]]:

@@ -1,8 +1,8 @@
 """RL Baselines3 Zoo (rl_zoo3) trains on a registered id with our hyperparameters.
 
 ``agents/training/hyperparams/ppo_zoo.yml`` is made from ``ppo.json`` (:mod:`agents.training.zoo`):
-the file in
-the repo must be what the converter makes now, and ``python -m rl_zoo3.train --gym-packages
+the file in the repo must be what the converter makes now, and ``python -m rl_zoo3.train
+--gym-packages
 aeromag_env`` must train with it, its Monitor recording each episode's RMSE.
 """
 

@@ -1,7 +1,7 @@
 """``aeromag tune`` (:mod:`agents.search.ppo`, :mod:`agents.search.space`): bad search spaces and
-refused
-output sets get one line before any Ray starts (default suite); a tiny search on the session's
-Ray writes a hyperparameter file that training accepts, holding the best trial's sample, and
+refused output sets get one line before any Ray starts (default suite); a tiny search on the
+session's Ray writes a hyperparameter file that training accepts, holding the best trial's sample,
+and
 validates on validation seeds only (``-m ray``)."""
 
 from __future__ import annotations

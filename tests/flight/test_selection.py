@@ -63,7 +63,7 @@ def test_no_box_is_an_error_not_a_guess(survey: Flight) -> None:
 
 def test_given_line_is_used_and_checked(survey: Flight) -> None:
     assert find_calibration_line(survey, 1003.0).mask.sum() == np.sum(survey["line"] == 1003)
-    with pytest.raises(AeromagError, match=r"names line 77, not in this flight \(it has 1, 0, 1001"):
+    with pytest.raises(AeromagError, match=r"line 77, not in this flight \(it has 1, 0, 1001"):
         find_calibration_line(survey, 77.0)
 
 

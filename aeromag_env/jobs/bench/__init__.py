@@ -19,8 +19,9 @@ Figures (``bench.json`` → ``figures``):
 1-hour
   flight, against its duration (null when the module is not there).
 * ``compensate_10h_peak_mb`` — peak resident memory of a fresh process running ``aeromag
-  compensate FILE --method kf`` on a 10-hour 10 Hz flight (:func:`peak_rss_mb`: interpreter,
-  libraries, reading, filtering, writing and the figure; target < 1 GB), against
+  compensate FILE --method kf``'s job on a 10-hour 10 Hz flight
+  (:func:`~aeromag_env.jobs.bench.workflows.peak_rss_mb`: interpreter, libraries, reading,
+  filtering, writing and the figure; target < 1 GB), against
   ``compensate_baseline_mb``, the same process after its imports, before the work.
 * ``stream_<method>_…`` — ``aeromag stream``'s latency per sample (median, 99th percentile) and
   its memory over a 10-hour stream (:mod:`aeromag_env.jobs.bench.stream`), for a Tolles–Lawson

@@ -25,7 +25,7 @@ def rows(f: dict[str, Any]) -> list[Row]:
         f["filter_compiled_samples_per_s"],
     )
     batched, numpy_ref = f["filter_batched_samples_per_s"], f["filter_numpy_samples_per_s"]
-    warm = f.get("simulate_warm_s_per_flight_hour")  # not in bench.json before 2026-11
+    warm = f.get("simulate_warm_s_per_flight_hour")  # older bench.json files lack it
     env1, envn = f["env_single_steps_per_s"], f["env_batched_steps_per_s"]
     peak, base = f.get("compensate_10h_peak_mb"), f.get("compensate_baseline_mb")
     return [
@@ -103,7 +103,7 @@ def rows(f: dict[str, Any]) -> list[Row]:
 
 
 def discover_row(f: dict[str, Any]) -> Row:
-    """The discrepancy workflow per flight-hour, against real time, with issue 22's target."""
+    """The discrepancy workflow per flight-hour, against real time, with its target (5 s)."""
     disc = f["discover_s_per_flight_hour"]
     return (
         "discover 1 flight-hour",
@@ -117,10 +117,10 @@ def discover_row(f: dict[str, Any]) -> Row:
 def ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
     """Batched + prefetch (with the 1.5× target and the range of its ratio over the repeats),
     batched alone, DummyVecEnv, and the zero-cost environment (PPO alone: the ceiling) when
-    measured (from 2026-11-23 on); then the environment's share of the time (with its target
-    at 64 environments, :data:`ENV_SHARE_TARGETS`) and the environments' cost per step against
-    the bare filter's (with its target at 8, :data:`ENV_TO_FILTER_TARGETS`) when measured; none
-    when the figures were not measured (``--quick`` skips the 64 environments)."""
+    measured (older bench.json files lack it); then the environment's share of the time (with
+    its target at 64 environments, :data:`ENV_SHARE_TARGETS`) and the environments' cost per
+    step against the bare filter's (with its target at 8, :data:`ENV_TO_FILTER_TARGETS`) when
+    measured; none when the figures were not measured (``--quick`` skips the 64 environments)."""
     if f"{prefix}_n_envs" not in f:
         return []
     n, dummy = f[f"{prefix}_n_envs"], f[f"{prefix}_dummyvec_steps_per_s"]
@@ -150,7 +150,7 @@ def ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
                 rate >= 1.5 * dummy if first else None,
             )
         )
-    if f"{prefix}_free_env_us_per_step" in f:  # from 2026-11-27 on
+    if f"{prefix}_free_env_us_per_step" in f:  # older bench.json files lack these figures
         rows.append(_extra_time_row(f, prefix, n))
     share, target = f.get(f"{prefix}_env_share"), ENV_SHARE_TARGETS.get(n)
     if share is not None:
@@ -166,7 +166,7 @@ def ppo_rows(f: dict[str, Any], prefix: str) -> list[Row]:
         )
     if f"{prefix}_env_to_filter_ratio" in f:  # not in older bench.json files
         rows.append(_filter_row(f, prefix, n))
-    if f"{prefix}_env_to_filter_in_ppo_ratio" in f:  # from 2026-11-28 on
+    if f"{prefix}_env_to_filter_in_ppo_ratio" in f:  # older bench.json files lack it
         rows.append(_filter_in_ppo_row(f, prefix, n))
     return rows
 

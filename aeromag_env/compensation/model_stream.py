@@ -109,7 +109,7 @@ def filter_stream(
     altitude = next((n for n in ALTITUDE_NAMES if n in names), "alt")
     diurnal = "diurnal" in names
     flux = vector_names(cal.flux)
-    columns = ("tt", *POSITION_NAMES, altitude, *ATTITUDE_NAMES, *flux)
+    columns: tuple[str, ...] = ("tt", *POSITION_NAMES, altitude, *ATTITUDE_NAMES, *flux)
     columns += ("diurnal",) * diurnal + (DATE_CHANNELS if date is None else ())
     cores: list[FilterStream] = []
     if date is not None:

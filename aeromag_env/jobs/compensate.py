@@ -220,7 +220,9 @@ class CompensateRequest:
 
     def filter_config(self) -> FilterConfig:
         """The filter settings: the package defaults or the paper's §4 setting."""
-        cfg = paper_filter_config(self.method) if self.filter_preset == "paper" else FilterConfig()
+        cfg = FilterConfig()
+        if self.filter_preset == "paper" and self.method is not None:
+            cfg = paper_filter_config(self.method)
         if self.r_std_nt is not None:
             cfg = replace(cfg, r_std_nt=self.r_std_nt)
         return cfg

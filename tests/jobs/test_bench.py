@@ -480,7 +480,7 @@ def test_bench_only_stream_measures_latency_and_memory_per_model(tmp_path, capsy
         assert figures[f"stream_{method}_answered"] == 720  # a clean flight: every sample
         lat, cpu = figures[f"stream_{method}_latency_us"], figures[f"stream_{method}_cpu_us"]
         assert 0 < lat["median"] <= lat["p99"] <= lat["max"]
-        assert 0 < cpu["median"] and figures[f"stream_{method}_lookahead_samples"] == wait
+        assert cpu["median"] > 0 and figures[f"stream_{method}_lookahead_samples"] == wait
         assert len(figures[f"stream_{method}_rss_mib"]) == 2  # the first hour and the end
     rows = stream_rows(figures)
     assert [r[0] for r in rows] == [

@@ -255,13 +255,68 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+#: The rows of the documentation's table: label, summary key, the comparison in it, digits.
+TABLE_ROWS = (
+    (
+        "Tolles–Lawson, whole survey (survey fit in sample)",
+        "tl_rmse_nt",
+        "calibrated_minus_fitted_on_survey",
+        4,
+    ),
+    (
+        "Tolles–Lawson, each half (survey fit on the other half)",
+        "tl_rmse_nt",
+        "halves_calibrated_minus_fitted_on_other_half",
+        4,
+    ),
+    (
+        "over geology: whole survey (in sample)",
+        "tl_rmse_nt_geology",
+        "calibrated_minus_fitted_on_survey",
+        3,
+    ),
+    (
+        "over geology: each half (on the other half)",
+        "tl_rmse_nt_geology",
+        "halves_calibrated_minus_fitted_on_other_half",
+        3,
+    ),
+    ("Kalman filter, first 60 s (warm / cold)", "kf_warm_minus_cold_first_60_s", None, 2),
+    ("Kalman filter, first 300 s (warm / cold)", "kf_warm_minus_cold_first_300_s", None, 2),
+)
+
+
+def markdown_table(summary: dict[str, Any]) -> str:
+    """The documentation's table of the paired comparisons (docs/howto/calibrate.md)."""
+    lines = [
+        "| RMSE against the true interference [nT], mean over the pairs | calibrated | fitted "
+        "on the survey / started cold | difference, 95 % interval | pairs calibrated ≤ |",
+        "|---|---|---|---|---|",
+    ]
+    for label, block, key, digits in TABLE_ROWS:
+        c = summary[block] if key is None else summary[block][key]
+        low, high = c["ci95"]
+        lines.append(
+            f"| {label} | {c['mean_a']:.{digits}f} | {c['mean_b']:.{digits}f} | "
+            f"{c['mean_difference']:+.{digits}f} [{low:+.{digits}f}, {high:+.{digits}f}] | "
+            f"{c['pairs_a_at_most_b']} of {c['pairs']} |"
+        )
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="3 pairs, 5-minute surveys (tests)")
     parser.add_argument("--pairs", type=int, default=12)
     parser.add_argument("--survey-s", type=float, default=1200.0, help="survey length [s]")
     parser.add_argument("--out", type=Path, default=Path("results/calibrate_then_apply"))
+    parser.add_argument(
+        "--table", type=Path, metavar="RESULTS", help="print the table of a results.json and stop"
+    )
     args = parser.parse_args(argv)
+    if args.table is not None:
+        print(markdown_table(json.loads(args.table.read_text())["summary"]))
+        return 0
     pairs, survey_s = (3, 300.0) if args.quick else (args.pairs, args.survey_s)
     rows = [one_pair(i, survey_s) for i in range(pairs)]
     result = {

@@ -329,3 +329,13 @@ def test_magnav_tl_check_on_a_file_in_magnavs_layout(tmp_path):
     assert result["equal_within_1e-9_nt"] and result["same_flagged_samples"]
     assert result["coefficients_max_relative_difference_to_magnav"] < 1e-9  # the same fit
     assert result["compensated_difference_std_to_magnav_nt"] < 1e-9  # a constant apart
+
+
+def test_the_calibrate_howto_quotes_its_results_file():
+    """docs/howto/calibrate.md's table is the one its committed results file gives."""
+    from tests._helpers import ROOT
+
+    results = json.loads((ROOT / "docs" / "howto" / "calibrate_then_apply.json").read_text())
+    table = experiment("calibrate_then_apply")["markdown_table"](results["summary"])
+    assert table in (ROOT / "docs" / "howto" / "calibrate.md").read_text()
+    assert results["summary"]["pairs"] >= 10

@@ -389,6 +389,7 @@ def _run_with_model(req: CompensateRequest, warn: JobWarnings) -> CompensationRe
         "model": model_block(req.model, model, drift),
         "warnings": list(warn.lines),
         "held_out": None,
+        **_accuracy_blocks(work, comp, model, metrics_block),
     }
     kept = {name: values[chosen.keep] for name, values in flight.fields.items()}
     out_flight = Flight({**kept, **comp.fields}, {**flight.attrs, "compensation": comp.method})
@@ -405,6 +406,25 @@ def _run_with_model(req: CompensateRequest, warn: JobWarnings) -> CompensationRe
         compensation=comp,
         flight=out_flight,
     )
+
+
+def _accuracy_blocks(
+    flight: Flight, comp: Compensation, model: CalibrationModel, metrics_block: dict[str, Any]
+) -> dict[str, Any]:
+    """The real-data accuracy blocks of a model's application (``headline``, and
+    ``vendor_comparison`` when the file has the vendor's compensated scalar), as a fit's."""
+    scalar = model.channels.get("scalar")
+    ours = scalar if comp.method == "tl" else model.channels["flux"]
+    return {
+        "headline": headline(
+            flight, comp.total_before, comp.total_after, metrics_block.get("fom_nt")
+        ),
+        "vendor_comparison": vendor_comparison(
+            flight, scalar, comp.total_before, comp.total_after, ours
+        )
+        if scalar
+        else None,
+    }
 
 
 def _compensate(

@@ -83,26 +83,16 @@ def fit_model(
     if method not in FIT_METHODS:
         raise AeromagError(f"method must be one of {', '.join(FIT_METHODS)}, got {method!r}")
     if method == "tl":
-        if scalar is None:
-            raise AeromagError("tl needs a scalar magnetometer (scalar=...)")
         tl = tl or TollesLawson()
-        comp = compensate_scalar(flight, flux, scalar, tl, calibration)
-        settings = {**_tl_settings(tl), "remove_mean": tl.remove_mean_}
-        coefficients = {"tolles_lawson": tl.coef_.tolist(), "offset_nt": 0.0}
-        channels: dict[str, str | None] = {"time": "tt", "flux": flux, "scalar": scalar}
+        comp, settings, coefficients = _fit_tl(flight, flux, scalar, tl, calibration)
     else:
-        cfg = filter_cfg or FilterConfig(method=method)
-        comp = compensate_vector(flight, method, flux, cfg, calibration, mount, check_mount=False)
-        assert comp.filter_end is not None
-        settings = {k: v for k, v in to_dict(cfg).items() if k != "method"}
-        coefficients = {k: np.asarray(v).tolist() for k, v in comp.filter_end.items()}
-        coefficients["samples"] = int(flight.n)
-        channels = {"time": "tt", "flux": flux, "scalar": None}
+        cfg = replace(filter_cfg or FilterConfig(), method=method)
+        comp, settings, coefficients = _fit_filter(flight, flux, cfg, calibration, mount)
     model = CalibrationModel(
         method=method,
         settings=settings,
         coefficients=coefficients,
-        channels=channels,
+        channels={"time": "tt", "flux": flux, "scalar": scalar if method == "tl" else None},
         sample_rate_hz=flight.sample_rate_hz,
         gap_factor=GAP_FACTOR,
         spike_threshold_nt=_thresholds(flight, flux, scalar),
@@ -112,6 +102,34 @@ def fit_model(
     if method == "tl" and tl is not None and tl.remove_mean_:
         model = _with_offset(model, flight)
     return _with_calibration(model, flight, comp, calibration), comp
+
+
+def _fit_tl(
+    flight: Flight, flux: str, scalar: str | None, tl: TollesLawson, calibration: np.ndarray | None
+) -> tuple[Compensation, dict[str, Any], dict[str, Any]]:
+    """The Tolles–Lawson fit: its compensation, settings and coefficients (the offset is set
+    by :func:`_with_offset`)."""
+    if scalar is None:
+        raise AeromagError("tl needs a scalar magnetometer (scalar=...)")
+    comp = compensate_scalar(flight, flux, scalar, tl, calibration)
+    settings = {**_tl_settings(tl), "remove_mean": tl.remove_mean_}
+    return comp, settings, {"tolles_lawson": tl.coef_.tolist(), "offset_nt": 0.0}
+
+
+def _fit_filter(
+    flight: Flight,
+    flux: str,
+    cfg: FilterConfig,
+    calibration: np.ndarray | None,
+    mount: Mount | None,
+) -> tuple[Compensation, dict[str, Any], dict[str, Any]]:
+    """A recursive filter run over the calibration flight: its compensation, settings and end
+    (state, covariance, Q, R and the samples it processed)."""
+    comp = compensate_vector(flight, cfg.method, flux, cfg, calibration, mount, check_mount=False)
+    assert comp.filter_end is not None
+    settings = {k: v for k, v in to_dict(cfg).items() if k != "method"}
+    coefficients = {k: np.asarray(v).tolist() for k, v in comp.filter_end.items()}
+    return comp, settings, {**coefficients, "samples": int(flight.n)}
 
 
 def _tl_settings(tl: TollesLawson) -> dict[str, Any]:

@@ -58,12 +58,12 @@ class StreamRequest:
     model: Path | CalibrationModel
     date: str | None = None
 
-    def check(self) -> CalibrationModel:
-        """Read and check the model (and the date when one is given); the model."""
+    def check(self) -> None:
+        """One-line errors for an unreadable or malformed model file, and a date the Earth
+        field's model cannot use (before any input is read)."""
         model = model_of(self.model)
         if self.date is not None and model.is_filter:
-            model.stream(date=self.date)  # a one-line error for a date IGRF-14 cannot use
-        return model
+            model.stream(date=self.date)
 
 
 @dataclass
@@ -118,9 +118,11 @@ def stream(
         An unreadable model, no header, or a header without the model's channels (one line
         naming them).
     """
-    calibrated = StreamRequest(
+    request = StreamRequest(
         model=model if isinstance(model, CalibrationModel) else Path(model), date=date
-    ).check()
+    )
+    request.check()
+    calibrated = model_of(request.model)
     summary = StreamSummary()
     report = _reporter(warn or errors.warn, summary)
     it = iter(lines)

@@ -164,3 +164,16 @@ def test_stream_answers_each_line_as_it_comes_and_equals_compensate(fleet: Path,
     kept = np.all(np.isfinite(whole), axis=1)
     np.testing.assert_array_equal(values[:, 0], ref.tt[kept])
     np.testing.assert_allclose(values[:, 1:], whole[kept], rtol=0, atol=1e-9)  # 1e-9 nT: the claim
+
+
+def test_stream_refuses_a_bad_model_or_date_before_reading(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    model = str(fleet / "cal" / "model.json")
+    assert main(["stream", "--model", model, "--date", "1800-01-01"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("aeromag stream: error: the stream's date")
+    (tmp_path / "bad.json").write_text("{}")
+    assert main(["stream", "--model", str(tmp_path / "bad.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not an aeromag compensation model" in err

@@ -166,3 +166,11 @@ def test_a_fleet_with_a_model(calibrated, tmp_path):
     assert rows["survey.h5"]["method"] == "kf" and rows["survey.h5"]["warnings"] == 0
     assert "no longer fits" in rows["changed.h5"]["warning_text"]
     assert "recalibrate" in rows["changed.h5"]["warning_lines"][0]
+
+
+def test_calibrate_fits_the_filter_it_names_with_the_requests_settings():
+    result = calibrate(flights("calibration"), "fakf", r_std_nt=2.0, html=False)
+    assert result.compensation.method == result.model.method == "fakf"
+    cfg = result.model.filter_config()
+    assert cfg.method == "fakf" and cfg.r_std_nt == 2.0
+    assert result.model.coefficients["samples"] == flights("calibration").n

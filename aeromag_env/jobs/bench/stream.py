@@ -53,8 +53,9 @@ class _TimedOut(io.StringIO):
 
     def __init__(self, lines: int) -> None:
         super().__init__()
-        self.wall_s = np.zeros(lines)
-        self.cpu_s = np.zeros(lines)
+        # written now: untouched pages would join the RSS as the stream fills them
+        self.wall_s = np.full(lines, np.nan)
+        self.cpu_s = np.full(lines, np.nan)
         self.count = 0
         self.sent = 0.0
         self.sent_cpu = 0.0

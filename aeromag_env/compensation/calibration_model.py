@@ -1,4 +1,4 @@
-"""A fitted compensation model as data: fit once on a calibration flight, apply to other flights.
+"""A fitted compensation model: fit once on a calibration flight, apply to other flights.
 
 The industry compensates a survey aircraft this way: after each installation it flies a
 calibration box, the coefficients are computed once and then applied to every survey flight of
@@ -8,7 +8,8 @@ that aircraft. A :class:`CalibrationModel` holds everything that takes:
   :class:`~aeromag_env.compensation.model.FilterConfig`);
 * ``coefficients``: the 18 Tolles–Lawson terms [nT] and the correction's constant offset [nT]
   (``tl``), or the filter's state (21), covariance (21×21), process-noise diagonal (21) and
-  measurement noise (3×3) at the end of calibration (the Kalman family), in physical units;
+  measurement noise (3×3) at the end of calibration, in physical units, and the samples it had
+  processed (the Kalman family);
 * ``channels``: the time, fluxgate and scalar channel names; ``mount``: the fluxgate's rotation
   into body axes (vector methods); ``sample_rate_hz`` [Hz] and ``gap_factor`` [-]: what a time
   gap is; ``spike_threshold_nt`` [nT] per magnetometer: the spike test of
@@ -17,6 +18,12 @@ that aircraft. A :class:`CalibrationModel` holds everything that takes:
   statistics the recalibrate check compares against, :mod:`aeromag_env.compensation.model_drift`);
 * ``provenance``: the calibration file's SHA-256, the date the model was made, the package
   version.
+
+It applies itself to a whole flight (:meth:`CalibrationModel.apply`:
+:mod:`aeromag_env.compensation.model_apply` for Tolles–Lawson,
+:mod:`aeromag_env.compensation.model_filter` for the filters) and to samples as they arrive
+(:meth:`CalibrationModel.stream`, :mod:`aeromag_env.compensation.model_stream`), with the same
+numbers; :mod:`aeromag_env.compensation.model_fit` fits it.
 
 On disk it is JSON (:meth:`CalibrationModel.save`, :func:`load_model`) with ``model_version``
 :data:`MODEL_VERSION` and ``kind`` :data:`MODEL_KIND`; a file that is not one, of another

@@ -355,3 +355,68 @@ def test_fault_suite_quick_takes_one_case_per_class_and_command(capsys):
     listed = capsys.readouterr().out.splitlines()
     pairs = [(line.split("/")[0], line.split(": aeromag ")[1].split()[0]) for line in listed]
     assert len(pairs) == len(set(pairs)) > 10
+
+
+def test_calibrate_then_apply_quick(tmp_path, capsys):
+    assert run_experiment("calibrate_then_apply", "--quick", "--out", str(tmp_path)) == 0
+    result = json.loads((tmp_path / "results.json").read_text())
+    summary = result["summary"]
+    assert summary["pairs"] == 3
+    warnings = summary["recalibrate_warnings"]
+    assert warnings["tl"] == {"survey": 0, "survey_geology": 0, "other": 3, "changed": 3}
+    assert warnings["kf"]["survey"] == 0 and warnings["kf"]["other"] == 3
+    comparison = summary["tl_rmse_nt"]["calibrated_minus_fitted_on_survey"]
+    low, high = comparison["ci95"]
+    assert low <= comparison["mean_difference"] <= high
+    # over geology the survey's own fit absorbs the anomaly: calibration is better in every pair;
+    # the filter continued from the calibrated state is better than a cold one in every pair
+    assert (
+        summary["tl_rmse_nt_geology"]["calibrated_minus_fitted_on_survey"]["pairs_a_at_most_b"] == 3
+    )
+    assert summary["kf_warm_minus_cold_first_60_s"]["pairs_a_at_most_b"] == 3
+
+
+def test_magnav_tl_check_on_a_file_in_magnavs_layout(tmp_path):
+    """experiments/magnav_tl_check.py on a synthetic file laid out as MagNav.jl's
+    test_data_TL.mat (a TL_data struct of column vectors, fields of other lengths beside them):
+    calibrate then compensate --model equals compensate --method tl, and MagNav's own numbers
+    (here made with this package's Tolles–Lawson at MagNav's settings) are compared."""
+    import scipy.io
+
+    from aeromag_env.compensation.tolles_lawson import TollesLawson
+    from aeromag_env.simulation.config import preset, with_overrides
+    from aeromag_env.simulation.simulate import simulate_flight
+    from aeromag_env.simulation.tolles_lawson_terms import design_matrix
+
+    cfg = with_overrides(preset("nominal"), {"trajectory.duration_s": 100.0})
+    flight = simulate_flight(cfg, 4)
+    flux, mag = flight.vector("flux_a"), flight["mag_1_uc"]
+    check = experiment("magnav_tl_check")
+    tl = TollesLawson(ridge=check["MAGNAV_RIDGE"]).fit(flux, mag, flight.sample_rate_hz)
+    column = {name: flight[name][:, None] for name in check["CHANNELS"]}
+    struct = {
+        "fs": float(flight.sample_rate_hz),
+        **column,
+        "A_a": design_matrix(flux),
+        "A_a_f_t": np.zeros((flight.n - 40, 18)),  # another length, as MagNav's filtered arrays
+        "TL_a_1": tl.coef_[:, None],
+        "mag_1_c": (mag - design_matrix(flux) @ tl.coef_)[:, None],
+    }
+    path = tmp_path / "test_data_TL.mat"
+    scipy.io.savemat(path, {"TL_data": struct})
+    assert run_experiment("magnav_tl_check", str(path), "--out", str(tmp_path)) == 0
+    result = json.loads((tmp_path / "magnav_tl_check.json").read_text())
+    assert result["samples"] == flight.n == result["compared_samples"]
+    assert result["equal_within_1e-9_nt"] and result["same_flagged_samples"]
+    assert result["coefficients_max_relative_difference_to_magnav"] < 1e-9  # the same fit
+    assert result["compensated_difference_std_to_magnav_nt"] < 1e-9  # a constant apart
+
+
+def test_the_calibrate_howto_quotes_its_results_file():
+    """docs/howto/calibrate.md's table is the one its committed results file gives."""
+    from tests._helpers import ROOT
+
+    results = json.loads((ROOT / "docs" / "howto" / "calibrate_then_apply.json").read_text())
+    table = experiment("calibrate_then_apply")["markdown_table"](results["summary"])
+    assert table in (ROOT / "docs" / "howto" / "calibrate.md").read_text()
+    assert results["summary"]["pairs"] >= 10

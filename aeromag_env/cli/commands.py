@@ -43,6 +43,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
                 pattern=args.pattern,
                 duration_s=args.duration_s,
                 replay=args.replay,
+                aircraft=args.aircraft,
+                permanent_shift_nt=options.triple(args.permanent_shift_nt),
+                scalar_permanent_shift_nt=options.triple(args.scalar_permanent_shift_nt),
                 progress=progress,
             )
     print(result.summary())
@@ -78,8 +81,8 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
-def _compensate_options(args: argparse.Namespace) -> dict[str, Any]:
-    """``compensate``'s options as the job's keyword arguments."""
+def _fit_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The channel, mount, Tolles–Lawson and filter options as the jobs' keyword arguments."""
     return {
         "flux": args.flux,
         "scalar": args.scalar,
@@ -91,19 +94,23 @@ def _compensate_options(args: argparse.Namespace) -> dict[str, Any]:
         "r_std_nt": args.r_std_nt,
         "mount": args.mount,
         "html": not args.no_html,
-        **options.selection(args),
     }
 
 
 def cmd_compensate(args: argparse.Namespace) -> int:
-    """``aeromag compensate``: compensate a flight file with one method (or each of a folder or
-    glob of them: :mod:`aeromag_env.jobs.fleet`); 2 when a flight of a fleet failed."""
+    """``aeromag compensate``: compensate a flight file with one method or a calibrated model
+    (or each of a folder or glob of them: :mod:`aeromag_env.jobs.fleet`); 2 when a flight of a
+    fleet failed."""
     from aeromag_env.cli.fleet import note_single_file, run_fleet
     from aeromag_env.cli.summaries import compensate_line
+    from aeromag_env.jobs import ArgumentError
     from aeromag_env.jobs.compensate import compensate
     from aeromag_env.jobs.fleet import is_fleet
 
-    out, kwargs = Path(args.out), _compensate_options(args)
+    if args.method is None and args.model is None:
+        raise ArgumentError("method", "is needed (or model, a calibrated model to apply)")
+    out = Path(args.out)
+    kwargs = {**_fit_options(args), **options.selection(args), "model": args.model}
     if is_fleet(args.file):
         return run_fleet(
             "compensate", args.file, out, args.ray, False, {"method": args.method, **kwargs}
@@ -112,6 +119,32 @@ def cmd_compensate(args: argparse.Namespace) -> int:
     with warnings_on_stderr("compensate"):
         result = compensate(args.file, args.method, out, **kwargs)
     print(compensate_line(result.report, out, html=not args.no_html))
+    return 0
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """``aeromag calibrate``: fit a model on a calibration flight; print its figures."""
+    from aeromag_env.cli.summaries import calibrate_line
+    from aeromag_env.jobs.calibrate import calibrate
+
+    out = Path(args.out)
+    kwargs = {
+        **_fit_options(args),
+        "calibration_line": options.parse_calibration_line(args.calibration_line),
+    }
+    with warnings_on_stderr("calibrate"):
+        result = calibrate(args.file, args.method, out, **kwargs)
+    print(calibrate_line(result.report, out, html=not args.no_html))
+    return 0
+
+
+def cmd_stream(args: argparse.Namespace) -> int:
+    """``aeromag stream``: compensate CSV samples on stdin, one flushed line each on stdout;
+    bad lines are warnings on stderr, skipped."""
+    from aeromag_env.jobs.stream import stream
+
+    with warnings_on_stderr("stream"):
+        stream(args.model, sys.stdin, sys.stdout, date=args.date)
     return 0
 
 

@@ -80,7 +80,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 #: The arguments that name files or folders (an empty one would silently mean ``.``).
-PATH_ARGUMENTS = ("file", "input", "output", "out", "config", "replay", "hyperparams", "mount")
+PATH_ARGUMENTS = (
+    "file",
+    "input",
+    "output",
+    "out",
+    "config",
+    "replay",
+    "hyperparams",
+    "mount",
+    "model",
+)
 
 
 def _check_paths(args: argparse.Namespace) -> None:

@@ -112,6 +112,11 @@ def selection(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
+def triple(values: list[float] | None) -> tuple[float, float, float] | None:
+    """``X Y Z`` (``nargs=3``) as a tuple (None when not given)."""
+    return None if values is None else (values[0], values[1], values[2])
+
+
 def window(values: list[float] | None) -> tuple[float, float] | None:
     """``--calibration-window T0 T1`` as a tuple (None when not given)."""
     return None if values is None else (values[0], values[1])

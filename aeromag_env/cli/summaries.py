@@ -69,6 +69,31 @@ def compensate_line(report: dict[str, Any], out: Path, html: bool = True) -> str
     return "; ".join(parts)
 
 
+def calibrate_line(report: dict[str, Any], out: Path, html: bool = True) -> str:
+    """The method, the files written (``html``: with ``report.html``), the figure of merit of
+    the last box and the calibration's residual, and the count of input warnings."""
+    cal = report["calibration"]
+    page = ", report.html" if html else ""
+    parts = [f"{report['method']}: wrote {out}/model.json, report.json{page}"]
+    parts.append(f"{cal['samples']} calibration samples")
+    boxes = cal.get("fom_boxes") or []
+    if cal.get("fom_nt") is not None:
+        parts.append(f"FOM {cal['fom_nt']:.3g} nT (box {boxes[-1]['box']} of {len(boxes)})")
+    residual = cal.get("residual") or {}
+    for key, label in (
+        ("band_std_nt", "residual std (0.1–0.9 Hz)"),
+        ("residual_rms_nt", "fluxgate residual RMS"),
+    ):
+        if residual.get(key) is not None:
+            parts.append(f"{label} {residual[key]:.3g} nT")
+    if report["input_problems"]:
+        parts.append(
+            f"{len(report['input_problems'])} input warning(s), listed in report.json "
+            "(aeromag info explains them)"
+        )
+    return "; ".join(parts)
+
+
 def discover_line(report: dict[str, Any], out: Path, html: bool = True) -> str:
     """The verdict, the held-out gap, the files written (``html``: with ``report.html``) and the
     count of input warnings."""

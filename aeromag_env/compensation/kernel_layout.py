@@ -45,6 +45,7 @@ class Ints(NamedTuple):
     run: int  #: the current run of consecutive rejections
     calm: int  #: samples accepted since the last rejection
     fell_back: int  #: 1 once an adaptive filter ran away and went on as the plain KF
+    base: int  #: samples processed before row 0 of the arrays (a continued or streamed filter)
 
 
 class Acc(NamedTuple):

@@ -387,7 +387,7 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
                     _update(z, p, gt, kt, kst, s, sinv, r)
                     window_add(r, s[0, 0] + s[1, 1] + s[2, 2], rbuf, sbuf, acc, ints)
                     if mode == FilterMode.SAGE_HUSA:
-                        sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INTS.k], par)
+                        sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INTS.base] + ints[INTS.k], par)
                 if not _healthy(ok, z, p, ints, work):
                     _restart(z, z_good, p, p0, qd, q0, rm, r0, ints)
                 else:

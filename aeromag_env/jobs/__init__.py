@@ -4,7 +4,12 @@ line (:mod:`aeromag_env.cli`) parses its arguments, calls one of them and prints
 * simulate a flight: :func:`~aeromag_env.jobs.simulate.simulate` (``aeromag simulate``)
 * inspect a file: :func:`~aeromag_env.jobs.info.info` (``aeromag info``)
 * convert a file: :func:`~aeromag_env.jobs.convert.convert` (``aeromag convert``)
-* compensate a flight: :func:`~aeromag_env.jobs.compensate.compensate` (``aeromag compensate``)
+* fit a model on a calibration flight: :func:`~aeromag_env.jobs.calibrate.calibrate`
+  (``aeromag calibrate``)
+* compensate a flight, or apply a model: :func:`~aeromag_env.jobs.compensate.compensate`
+  (``aeromag compensate``, ``--model``)
+* compensate samples as they arrive: :func:`~aeromag_env.jobs.stream.stream` (``aeromag
+  stream``)
 * a fleet of flights: :func:`~aeromag_env.jobs.fleet.fleet` (``aeromag compensate DIR``)
 * find a missing effect: :func:`~aeromag_env.jobs.discover.discover` (``aeromag discover``)
 * the paper's figures: :func:`~aeromag_env.jobs.reproduce.reproduce` (``aeromag

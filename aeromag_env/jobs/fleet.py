@@ -311,8 +311,9 @@ def _request(job: str, source: Path, out: Path, options: dict[str, Any]) -> Any:
     if job == "discover":
         request = discover_job.DiscoverRequest(source=source, out=out, **options)
     else:
+        method = options.get("method") or (None if options.get("model") else "tl")
         request = compensate_job.CompensateRequest(
-            source=source, out=out, **{"method": "tl", **options}
+            source=source, out=out, **{**options, "method": method}
         )
     request.check()
     return request

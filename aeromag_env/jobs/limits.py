@@ -40,6 +40,9 @@ R_STD_RANGE_NT = (1e-3, 1e5)
 #: Most Tolles–Lawson trim [samples] at each end of each run: 10⁶ samples is 28 hours at 10 Hz;
 #: a trim beyond a run's length is refused where the file is known.
 MAX_TL_TRIM = 10**6
+#: Largest maintenance shift of an aircraft's permanent field, per axis [nT]: above the Earth's
+#: whole field (about 65 000 nT); aircraft permanent fields are hundreds to a few thousand nT.
+MAX_PERMANENT_SHIFT_NT = 1e5
 #: Peak memory of ``simulate`` per field and sample [bytes]: measured 25 (HDF5, MAT) to 73
 #: (CSV, XYZ, whose writers build the text rows) for a 10-hour flight; rounded up.
 BYTES_PER_VALUE = 80
@@ -67,6 +70,24 @@ def check_number(
     if not (isinstance(value, int | float) and math.isfinite(value) and low <= value <= high):
         reason = f" ({why})" if why else ""
         raise ArgumentError(argument, f"must be in [{low:g}, {high:g}] {unit}{reason}", value)
+
+
+def check_vector(
+    argument: str, values: Sequence[float], low: float, high: float, unit: str, why: str = ""
+) -> None:
+    """``argument`` three finite numbers, each in [low, high] ``unit``."""
+    ok = len(values) == 3 and all(
+        isinstance(v, int | float)
+        and not isinstance(v, bool)
+        and math.isfinite(v)
+        and low <= v <= high
+        for v in values
+    )
+    if not ok:
+        reason = f" ({why})" if why else ""
+        raise ArgumentError(
+            argument, f"needs three numbers in [{low:g}, {high:g}] {unit}{reason}", tuple(values)
+        )
 
 
 def check_nonnegative(argument: str, value: float, unit: str) -> None:

@@ -10,6 +10,7 @@ written atomically and never over an input.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -22,12 +23,19 @@ from aeromag_env.atomic import check_output_file
 from aeromag_env.configs import from_json
 from aeromag_env.errors import ArgumentError, ConfigError, FlightFileError
 from aeromag_env.flight.data import Flight
-from aeromag_env.jobs.limits import BYTES_PER_VALUE, available_memory_bytes, check_seed
+from aeromag_env.jobs.limits import (
+    BYTES_PER_VALUE,
+    MAX_PERMANENT_SHIFT_NT,
+    available_memory_bytes,
+    check_seed,
+    check_vector,
+)
 from aeromag_env.jobs.provenance import JobWarnings
 from aeromag_env.simulation.config import (
     DURATION_SAMPLES,
     PATTERNS,
     PRESETS,
+    AircraftConfig,
     SimulationConfig,
     preset,
     with_overrides,
@@ -63,6 +71,14 @@ class SimulateRequest:
         The flight's duration [s] (None: the pattern's own).
     replay : Path or None
         A flight file whose time, position, attitude and auxiliary channels are flown.
+    aircraft : int or None
+        The aircraft's seed, in ``[0, 2³² − 1]``: it draws the interference coefficients, so
+        flights with one ``aircraft`` and different ``seed`` are flights of one aircraft
+        (:class:`~aeromag_env.simulation.config.AircraftConfig`); None: the flight's seed draws
+        them.
+    permanent_shift_nt, scalar_permanent_shift_nt : (float, float, float) or None
+        Maintenance: the aircraft's permanent field shifted at the fluxgate and at the scalar
+        magnetometer [nT] (with ``aircraft``).
     """
 
     out: Path
@@ -72,6 +88,9 @@ class SimulateRequest:
     pattern: str | None = None
     duration_s: float | None = None
     replay: Path | None = None
+    aircraft: int | None = None
+    permanent_shift_nt: tuple[float, float, float] | None = None
+    scalar_permanent_shift_nt: tuple[float, float, float] | None = None
 
     def check(self) -> None:
         """One-line errors for unusable arguments (before any file is read)."""
@@ -82,7 +101,21 @@ class SimulateRequest:
             raise ArgumentError("preset", f"must be one of {', '.join(PRESETS)}", self.preset)
         if self.pattern is not None and self.pattern not in PATTERNS:
             raise ArgumentError("pattern", f"must be one of {', '.join(PATTERNS)}", self.pattern)
+        self._check_aircraft()
         self.simulation_config()  # the configuration file and the duration against its rate
+
+    def _check_aircraft(self) -> None:
+        """The aircraft's seed, and the maintenance shifts only with an aircraft."""
+        if self.aircraft is not None:
+            check_seed("aircraft", self.aircraft)
+        for name in ("permanent_shift_nt", "scalar_permanent_shift_nt"):
+            shift = getattr(self, name)
+            if shift is None:
+                continue
+            if self.aircraft is None:
+                raise ArgumentError(name, "shifts an aircraft's field: it needs aircraft")
+            lo, hi = -MAX_PERMANENT_SHIFT_NT, MAX_PERMANENT_SHIFT_NT
+            check_vector(name, shift, lo, hi, "nT", "above the Earth's whole field")
 
     def inputs(self) -> list[Path]:
         """The files the run reads (never overwritten)."""
@@ -108,7 +141,18 @@ class SimulateRequest:
         if self.duration_s is not None:
             _check_duration(self.duration_s, cfg.trajectory.sample_rate_hz)
             overrides["trajectory.duration_s"] = float(self.duration_s)
-        return with_overrides(cfg, overrides) if overrides else cfg
+        cfg = with_overrides(cfg, overrides) if overrides else cfg
+        return cfg if self.aircraft is None else dataclasses.replace(cfg, aircraft=self.plane())
+
+    def plane(self) -> AircraftConfig:
+        """The aircraft (``aircraft`` given), with its maintenance shifts."""
+        assert self.aircraft is not None
+        zero = (0.0, 0.0, 0.0)
+        return AircraftConfig(
+            seed=self.aircraft,
+            permanent_shift_nt=self.permanent_shift_nt or zero,
+            scalar_permanent_shift_nt=self.scalar_permanent_shift_nt or zero,
+        )
 
 
 def _check_duration(duration_s: float, rate_hz: float) -> None:
@@ -171,6 +215,9 @@ def simulate(
     pattern: str | None = None,
     duration_s: float | None = None,
     replay: str | Path | None = None,
+    aircraft: int | None = None,
+    permanent_shift_nt: tuple[float, float, float] | None = None,
+    scalar_permanent_shift_nt: tuple[float, float, float] | None = None,
     progress: Callable[[str], Any] | None = None,
 ) -> SimulationResult:
     """Simulate a flight (or replay one) and write it, as ``aeromag simulate`` does.
@@ -179,7 +226,8 @@ def simulate(
     ----------
     out : str or Path
         The flight file to write (.h5, .hdf5, .csv, .xyz or .mat).
-    seed, preset, config, pattern, duration_s, replay
+    seed, preset, config, pattern, duration_s, replay, aircraft, permanent_shift_nt, \
+    scalar_permanent_shift_nt
         See :class:`SimulateRequest`.
     progress : callable or None
         Called with the name of each stage as it starts
@@ -208,6 +256,9 @@ def simulate(
         pattern=pattern,
         duration_s=duration_s,
         replay=None if replay is None else Path(replay),
+        aircraft=aircraft,
+        permanent_shift_nt=permanent_shift_nt,
+        scalar_permanent_shift_nt=scalar_permanent_shift_nt,
     )
     request.check()
     return run_simulate(request, JobWarnings(), progress)

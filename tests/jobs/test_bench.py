@@ -467,3 +467,26 @@ def test_bench_only_ppo_measures_the_speed_targets_figures_alone(tmp_path, capsy
     assert figures["ppo_env_to_filter_ratio"] == pytest.approx(ratio)
     assert all(r["benchmark"].startswith("PPO") for r in result["rows"])
     assert "≤ 1.5× the filter" in capsys.readouterr().out
+
+
+def test_bench_only_stream_measures_latency_and_memory_per_model(tmp_path, capsys):
+    """``--only stream``: per model, the latency (wall and processor time) of every sample the
+    stream answered, the memory once per simulated hour, and the rows with their targets."""
+    from aeromag_env.jobs.bench.stream import bench_stream, stream_rows
+
+    figures = bench_stream(hours=0.02)  # 720 samples of each model
+    for method, wait in (("tl", 2), ("kf", 1)):
+        assert figures[f"stream_{method}_samples"] == 720
+        assert figures[f"stream_{method}_answered"] == 720  # a clean flight: every sample
+        lat, cpu = figures[f"stream_{method}_latency_us"], figures[f"stream_{method}_cpu_us"]
+        assert 0 < lat["median"] <= lat["p99"] <= lat["max"]
+        assert cpu["median"] > 0 and figures[f"stream_{method}_lookahead_samples"] == wait
+        assert len(figures[f"stream_{method}_rss_mib"]) == 2  # the first hour and the end
+    rows = stream_rows(figures)
+    assert [r[0] for r in rows] == [
+        "stream tl, latency per sample",
+        "stream tl, memory over 0.02 h",
+        "stream kf, latency per sample",
+        "stream kf, memory over 0.02 h",
+    ]
+    assert rows[0][3] == "p99 < 100 000 µs" and rows[1][3] == "flat (±1 MiB)"

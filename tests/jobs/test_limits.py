@@ -14,6 +14,7 @@ import pytest
 from aeromag_env.cli.main import main
 from aeromag_env.cli.parser import build_parser
 from aeromag_env.errors import ArgumentError
+from aeromag_env.jobs.calibrate import calibrate
 from aeromag_env.jobs.compensate import compensate
 from aeromag_env.jobs.demo import demo
 from aeromag_env.jobs.discover import discover
@@ -38,6 +39,17 @@ CASES: dict[tuple[str, str], Case] = {
         ["0"],
         "duration_s",
         lambda d: simulate(d / "x.h5", duration_s=0.0),
+    ),
+    ("simulate", "--aircraft"): (["-1"], "aircraft", lambda d: simulate(d / "x.h5", aircraft=-1)),
+    ("simulate", "--permanent-shift-nt"): (
+        ["nan", "0", "0"],
+        "permanent_shift_nt",
+        lambda d: simulate(d / "x.h5", aircraft=1, permanent_shift_nt=(NAN, 0.0, 0.0)),
+    ),
+    ("simulate", "--scalar-permanent-shift-nt"): (
+        ["0", "1e6", "0"],
+        "scalar_permanent_shift_nt",
+        lambda d: simulate(d / "x.h5", aircraft=1, scalar_permanent_shift_nt=(0.0, 1e6, 0.0)),
     ),
     ("info", "--line"): (["nan"], "lines", lambda d: info(FILE, lines=(NAN,))),
     ("info", "--segment"): (["9:3"], "segment_s", lambda d: info(FILE, segment_s=(9.0, 3.0))),
@@ -72,6 +84,32 @@ CASES: dict[tuple[str, str], Case] = {
         ["1e-300"],
         "r_std_nt",
         lambda d: compensate(FILE, "kf", r_std_nt=1e-300),
+    ),
+    ("calibrate", "--tl-bandpass"): (
+        ["0.9", "0.1"],
+        "tl_bandpass_hz",
+        lambda d: calibrate(FILE, "tl", tl_bandpass_hz=(0.9, 0.1)),
+    ),
+    ("calibrate", "--tl-trim"): (["-1"], "tl_trim", lambda d: calibrate(FILE, "tl", tl_trim=-1)),
+    ("calibrate", "--tl-ridge"): (
+        ["-1"],
+        "tl_ridge",
+        lambda d: calibrate(FILE, "tl", tl_ridge=-1.0),
+    ),
+    ("calibrate", "--calibration-window"): (
+        ["5", "1"],
+        "calibration_window_s",
+        lambda d: calibrate(FILE, "kf", calibration_window_s=(5.0, 1.0)),
+    ),
+    ("calibrate", "--calibration-line"): (
+        ["nan"],
+        "calibration_line",
+        lambda d: calibrate(FILE, "kf", calibration_line="nan"),
+    ),
+    ("calibrate", "--r-std-nt"): (
+        ["1e6"],
+        "r_std_nt",
+        lambda d: calibrate(FILE, "kf", r_std_nt=1e6),
     ),
     ("reproduce-paper", "--seed"): (["-1"], "seed", lambda d: reproduce(d / "p", seed=-1)),
     ("evaluate", "--episodes"): (
@@ -137,9 +175,12 @@ def test_a_value_out_of_range_is_refused_by_the_library_and_the_command_line(
         call(tmp_path)
     assert raised.value.argument == argument
     assert str(raised.value).startswith(f"{argument} ") and "--" not in str(raised.value)
-    argv = [command, *([FILE] if command in ("info", "compensate", "discover") else [])]
+    argv = [
+        command,
+        *([FILE] if command in ("info", "compensate", "calibrate", "discover") else []),
+    ]
     argv += ["--out", str(tmp_path / "cli")] if command != "info" else []
-    argv += ["--method", "kf"] if command == "compensate" else []
+    argv += ["--method", "kf"] if command in ("compensate", "calibrate") else []
     argv += ["--quiet"] if command in ("simulate", "train", "evaluate", "discover") else []
     argv += [f"{option}={values[0]}"] if len(values) == 1 else [option, *values]
     if command == "simulate":

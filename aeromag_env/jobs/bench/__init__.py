@@ -23,6 +23,9 @@ Figures (``bench.json`` → ``figures``):
   (:func:`~aeromag_env.jobs.bench.workflows.peak_rss_mb`: interpreter, libraries, reading,
   filtering, writing and the figure; target < 1 GB), against
   ``compensate_baseline_mb``, the same process after its imports, before the work.
+* ``stream_<method>_…`` — ``aeromag stream``'s latency per sample (median, 99th percentile) and
+  its memory over a 10-hour stream (:mod:`aeromag_env.jobs.bench.stream`), for a Tolles–Lawson
+  and a Kalman filter model.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from aeromag_env.atomic import check_output_set, write_text
 from aeromag_env.errors import ArgumentError
 from aeromag_env.jobs.bench.filters import bench_filter_figures
 from aeromag_env.jobs.bench.on_ray import bench_ray, ray_rows
+from aeromag_env.jobs.bench.stream import HOURS, QUICK_HOURS, bench_stream, stream_rows
 from aeromag_env.jobs.bench.table import Row, discover_row, ppo_rows, rows
 from aeromag_env.jobs.bench.workflows import (
     bench_discover,
@@ -163,6 +167,10 @@ def _measure(request: BenchRequest, say: Callable[[str], Any]) -> tuple[dict[str
         say("discover")
         figures |= bench_discover(hour_flight(hours), 1 if quick else 3)
         return figures, [discover_row(figures)]
+    if request.only == "stream":
+        say("stream")
+        figures |= bench_stream(QUICK_HOURS if quick else HOURS)
+        return figures, stream_rows(figures)
     if request.only == "ppo":  # a third of a full run's steps per repeat: 3 runs in 15 minutes
         say("ppo")
         figures |= _bench_ppo_both(quick, scale=3)
@@ -184,7 +192,9 @@ def _measure(request: BenchRequest, say: Callable[[str], Any]) -> tuple[dict[str
     if not quick or q.bench_memory:
         say("memory")
         figures |= bench_memory()
-    return figures, rows(figures) + ray_rows(figures)
+    say("stream")
+    figures |= bench_stream(QUICK_HOURS if quick else HOURS)
+    return figures, rows(figures) + stream_rows(figures) + ray_rows(figures)
 
 
 def _bench_ppo_both(quick: bool, scale: int = 1) -> dict[str, Any]:

@@ -20,6 +20,7 @@ from typing import Any
 
 from aeromag_env.discovery.base_model import BaseSpan
 from aeromag_env.discovery.ground import SEPARABLE_FRACTION, GroundReference
+from aeromag_env.discovery.regressors import spline_group
 from aeromag_env.simulation.effects import EFFECTS, EffectContext, Group
 
 #: A group with less of its variance outside the base span than this is absorbed.
@@ -76,7 +77,7 @@ def candidate_groups(
     """
     out = Candidates()
     for name, eff in EFFECTS.items():
-        found, why = eff.groups(ctx)
+        found, why = _groups(name, ctx, ground)
         if why:
             out.skipped.append({"name": name, "reason": why})
         for g in found:
@@ -103,3 +104,14 @@ def candidate_groups(
             out.groups.append(g)
             out.fractions.append(frac)
     return out
+
+
+def _groups(
+    name: str, ctx: EffectContext, ground: GroundReference | None
+) -> tuple[list[Group], str | None]:
+    """Effect ``name``'s candidate groups from the channels present, and why none (or None); the
+    external field's B-splines compact (:func:`~aeromag_env.discovery.regressors.spline_group`)
+    unless the ground is separated (off the ground they are dense anyway)."""
+    if name == "external_field_variation" and ground is None:
+        return [spline_group(ctx)], None
+    return EFFECTS[name].groups(ctx)

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env.discovery.regressors import is_compact, stacked_rows
+from aeromag_env.discovery.regressors import is_sparse, rows_of, stacked_rows
 from aeromag_env.simulation.interference import STATE_SLICES
 
 
@@ -147,9 +147,9 @@ class BaseSpan:
         ``‖x‖² − ‖Qᵀx‖²`` free of a large mean (a bus voltage at 28 ± 0.5 V) and needs no
         axis-stacked copy: ``Qᵀx`` is one product per axis on the strided view.
         """
-        if is_compact(group):
+        if is_sparse(group):
             return self._compact_fraction(group)
-        g = group[self.rows]
+        g = rows_of(group, self.rows)
         scale = math.sqrt(float(np.einsum("kip,kip->p", g, g).max(initial=0.0)))
         g -= g.mean(axis=0, keepdims=True)
         centred = np.einsum("kip,kip->p", g, g)

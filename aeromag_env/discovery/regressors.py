@@ -17,6 +17,7 @@ external field's candidate group in the compact form.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any, cast
 
@@ -102,9 +103,89 @@ class SplineColumns:
         return Segments(3 * m, start, length, offset, values)
 
 
-def is_compact(columns: Any) -> bool:
-    """Whether a group's columns are compact (:class:`SplineColumns`), not a dense array."""
+class AxisColumns:
+    """Columns (n, 3, p) each non-zero on one body axis only, held as their values (n, p) and
+    axes (p,): the eddy, second-order, drift and current groups (``B_e`` rows, quadratic terms,
+    ``w(t) e_i``), a third of the dense array's size.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Each column's values on its axis (n, p).
+    axis : numpy.ndarray
+        Each column's body axis (p,), 0, 1 or 2.
+    """
+
+    ndim = 3
+
+    def __init__(self, values: np.ndarray, axis: np.ndarray) -> None:
+        self.values = np.ascontiguousarray(values, dtype=float)
+        self.axis = np.asarray(axis, dtype=np.int64)
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """(n, 3, p), as the dense columns."""
+        return (self.values.shape[0], 3, self.values.shape[1])
+
+    def rows(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """The dense columns (k, 3, p) on ``rows``: the values on their axes, zeros elsewhere."""
+        values = self.values[rows]
+        out = np.zeros((values.shape[0], 3, values.shape[1]))
+        out[:, self.axis, np.arange(values.shape[1])] = values
+        return out
+
+    def dense(self) -> np.ndarray:
+        """The dense columns (n, 3, p)."""
+        return self.rows()
+
+    def __array__(self, dtype: Any = None, copy: Any = None) -> np.ndarray:
+        """The dense columns, for code that reads a group as an array (correct, not compact)."""
+        return self.dense() if dtype is None else self.dense().astype(dtype)
+
+    def predict(self, beta: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """``Σ_p columns[:, :, p] beta[p]`` (k, 3) on ``rows`` (all samples when None)."""
+        values = self.values if rows is None else self.values[rows]
+        out = np.zeros((values.shape[0], 3))
+        for i in range(3):
+            on = self.axis == i
+            if on.any():
+                out[:, i] = values[:, on] @ beta[on]
+        return out
+
+
+def one_axis(columns: np.ndarray) -> AxisColumns | None:
+    """``columns`` (n, 3, p) as :class:`AxisColumns` when each column is non-zero on at most one
+    body axis, else None."""
+    nonzero = np.any(columns != 0, axis=0)  # (3, p)
+    if columns.shape[2] == 0 or (nonzero.sum(axis=0) > 1).any():
+        return None
+    axis = np.argmax(nonzero, axis=0)
+    return AxisColumns(columns[:, axis, np.arange(columns.shape[2])], axis)
+
+
+def compact_group(group: Group) -> Group:
+    """``group`` with its columns held as :class:`AxisColumns` where they are one-axis (and so
+    every group it rebuilds), else ``group`` as it is."""
+    if not isinstance(group.columns, np.ndarray):
+        return group
+    cols = one_axis(group.columns)
+    if cols is None:
+        return group
+    rebuild = group.rebuild
+    wrapped = None if rebuild is None else (lambda v: compact_group(rebuild(v)))
+    return dataclasses.replace(group, columns=cast(np.ndarray, cols), rebuild=wrapped)
+
+
+def is_sparse(columns: Any) -> bool:
+    """Whether a group's columns take the sparse path (:class:`SplineColumns`: whitened as runs,
+    projected through Gram matrices)."""
     return isinstance(columns, SplineColumns)
+
+
+def is_compact(columns: Any) -> bool:
+    """Whether a group's columns are held compact (:class:`SplineColumns`, :class:`AxisColumns`),
+    not as a dense array."""
+    return isinstance(columns, SplineColumns | AxisColumns)
 
 
 def width(columns: Any) -> int:
@@ -120,6 +201,15 @@ def predict(columns: Any, beta: np.ndarray, rows: np.ndarray | None = None) -> n
         return cast(SplineColumns, columns).predict(beta, idx)
     x = columns if rows is None else columns[rows]
     return np.einsum("kip,p->ki", x, beta)
+
+
+def rows_of(columns: Any, rows: np.ndarray) -> np.ndarray:
+    """A group's columns on ``rows`` (k, 3, p), dense, whatever their form."""
+    if isinstance(columns, AxisColumns):
+        return columns.rows(rows)
+    if isinstance(columns, SplineColumns):
+        return columns.dense()[rows]
+    return np.asarray(columns[rows])
 
 
 def predict_all(
@@ -144,9 +234,10 @@ def predict_all(
 def stacked_rows(columns: Any, rows: np.ndarray) -> Any:
     """A group's columns on ``rows`` (m,), axis-stacked (3m, p): dense, or :class:`Segments` for
     compact columns."""
-    if is_compact(columns):
+    if is_sparse(columns):
         return cast(SplineColumns, columns).stacked(rows)
-    return np.ascontiguousarray(columns.transpose(1, 0, 2)[:, rows]).reshape(-1, columns.shape[2])
+    x = rows_of(columns, rows)
+    return np.ascontiguousarray(x.transpose(1, 0, 2)).reshape(-1, x.shape[2])
 
 
 def spline_group(ctx: EffectContext) -> Group:

@@ -33,10 +33,12 @@ from aeromag_env.discovery.noise_model import (
 )
 from aeromag_env.discovery.preparation import PreparedFlight
 from aeromag_env.discovery.regressors import (
+    AxisColumns,
     Design,
     cross,
     design,
     is_compact,
+    is_sparse,
     predict_all,
     stacked_rows,
     width,
@@ -90,13 +92,13 @@ class SparseSpan:
         a = self.t @ coef
         return self.x.dot(a) - self.q @ (self.c @ a)
 
-    def remove(self, z: np.ndarray) -> np.ndarray:
-        """``z`` (rows, ...) with its part in the span removed (a new array), twice: ``u`` from
-        the Gram matrix is orthonormal only to ``eps · cond²``, and the second pass takes what
-        the first left (as :func:`~aeromag_env.discovery.base_model.orthonormal` re-orthogonalises
-        its basis)."""
-        z = z - self.dot(self.t_dot(z))
-        return z - self.dot(self.t_dot(z))
+    def remove(self, z: np.ndarray, passes: int = 2) -> np.ndarray:
+        """``z`` (rows, ...) with its part in the span removed (a new array). ``u`` from the Gram
+        matrix is orthonormal only to ``eps · cond²``; a second pass takes what the first left
+        (as :func:`~aeromag_env.discovery.base_model.orthonormal` re-orthogonalises its basis)."""
+        for _ in range(passes):
+            z = z - self.dot(self.t_dot(z))
+        return z
 
 
 @dataclass
@@ -110,11 +112,12 @@ class Span:
     r: np.ndarray
     rank: int
 
-    def remove(self, z: np.ndarray) -> np.ndarray:
-        """``z`` (rows, c), already off the base, off the span too."""
+    def remove(self, z: np.ndarray, passes: int = 2) -> np.ndarray:
+        """``z`` (rows, c), already off the base, off the span too (``passes``: of the sparse
+        part, :meth:`SparseSpan.remove`)."""
         if self.q.shape[1]:
             z = z - self.q @ (self.q.T @ z)
-        return z if self.sparse is None else self.sparse.remove(z)
+        return z if self.sparse is None else self.sparse.remove(z, passes)
 
 
 class ChunkedBasis:
@@ -153,7 +156,7 @@ class WhitenedProblem:
         self.gap = np.r_[np.inf, np.diff(data.ctx.tt[self.idx])]
         self.y = data.y[self.idx]
         self._y_axes = np.ascontiguousarray(self.y.T[:, :, None])  # (3, m, 1)
-        self.groups = [c if is_compact(c) else np.ascontiguousarray(c) for c in columns]
+        self.groups = [_stored(c) for c in columns]
         self.noise: NoiseModel | None = None
         self.yw = np.empty(0)
         self.r0 = np.empty(0)
@@ -166,7 +169,7 @@ class WhitenedProblem:
         self._buffer = np.empty((0, 0))
         self._spans: dict[tuple[int, ...], Span] = {}
         self._raw_spans: dict[tuple[int, ...], tuple[np.ndarray, SparseSpan | None]] = {}
-        self._bases: dict[tuple[int, ...], np.ndarray | ChunkedBasis] = {}
+        self._bases: dict[tuple[int, ...], ChunkedBasis] = {}
 
     @property
     def m(self) -> int:
@@ -186,7 +189,14 @@ class WhitenedProblem:
         self.noise = noise
         self._white, self._spans = {}, {}
         self.yw = self._whiten_dense(self._y_axes, noise)[:, 0]
-        dense = [j for j in range(len(self.groups)) if not is_compact(self.groups[j])]
+        self._white[0] = self._whitened(0, noise)
+        self._q0 = orthonormal(self._white[0])
+        self.k0 = self._q0.shape[1]
+        self.r0 = self._off_base(self.yw)
+        self.perp = [None] * len(self.groups)
+        self.scale = [0.0] * len(self.groups)
+        self.scale[0] = _largest_norm(self._white[0])
+        dense = [j for j in range(1, len(self.groups)) if not is_sparse(self.groups[j])]
         edges = np.cumsum([0] + [self.width(j) for j in dense])
         if self._buffer.shape != (3 * self.m, edges[-1]):
             # reused: a fresh 100-MB array costs more in page faults than its arithmetic
@@ -194,21 +204,15 @@ class WhitenedProblem:
         buf = self._buffer
         blocks = {j: buf[:, edges[k] : edges[k + 1]] for k, j in enumerate(dense)}
         self._whiten_into([(self.groups[j], blocks[j]) for j in dense], noise)
-        self.perp = [None] * len(self.groups)
-        self.scale = [0.0] * len(self.groups)
         for j in dense:
             self.scale[j] = _largest_norm(blocks[j])
-        self._white[0] = blocks[0].copy()
-        self._q0 = orthonormal(self._white[0])
-        self.k0 = self._q0.shape[1]
-        self.r0 = self._off_base(self.yw)
-        for a in range(edges[1], edges[-1], PROJECTION_CHUNK):  # the base's own block: unused
+        for a in range(0, edges[-1], PROJECTION_CHUNK):  # off the base, in place
             part = buf[:, a : min(a + PROJECTION_CHUNK, edges[-1])]
             part -= self._q0 @ (self._q0.T @ part)
-        for j in dense[1:]:
+        for j in dense:
             self.perp[j] = blocks[j]
         for j in range(len(self.groups)):
-            if is_compact(self.groups[j]):
+            if is_sparse(self.groups[j]):
                 self._install_compact(j)
 
     def _install_compact(self, j: int) -> None:
@@ -221,7 +225,7 @@ class WhitenedProblem:
     def _install(self, j: int) -> None:
         """Whiten group ``j`` under the current noise and project the base out of it."""
         self.perp[j] = None
-        if is_compact(self.groups[j]):
+        if is_sparse(self.groups[j]):
             self._install_compact(j)
             return
         w = self.white(j)
@@ -230,7 +234,7 @@ class WhitenedProblem:
 
     def add(self, columns: Any) -> int:
         """Append a candidate (n, 3, p) built after :meth:`set_noise`; returns its index."""
-        self.groups.append(columns if is_compact(columns) else np.ascontiguousarray(columns))
+        self.groups.append(_stored(columns))
         self.perp.append(None)
         self.scale.append(0.0)
         new = len(self.groups) - 1
@@ -250,7 +254,7 @@ class WhitenedProblem:
 
     def replace(self, index: int, columns: Any) -> None:
         """Rebuild candidate ``index`` from new columns (n, 3, p), under the current noise."""
-        self.groups[index] = columns if is_compact(columns) else np.ascontiguousarray(columns)
+        self.groups[index] = _stored(columns)
         self._white.pop(index, None)
         self._raw.pop(index, None)
         self._install(index)
@@ -270,21 +274,31 @@ class WhitenedProblem:
 
     def _whitened(self, j: int, noise: NoiseModel) -> Any:
         """Group ``j`` whitened under ``noise`` (a new array)."""
-        if is_compact(self.groups[j]):
+        if is_sparse(self.groups[j]):
             return whiten_segments(self._raw_rows(j), self.gap, noise)
         out = np.empty((3 * self.m, self.width(j)))
         self._whiten_into([(self.groups[j], out)], noise)
         return out
 
-    def _whiten_into(self, pairs: list[tuple[np.ndarray, np.ndarray]], noise: NoiseModel) -> None:
-        """Whiten each dense group's calibration rows (read from its (n, 3, p) columns) into its
-        axis-stacked block (3m, p); the three axes on their own threads."""
+    def _whiten_into(self, pairs: list[tuple[Any, np.ndarray]], noise: NoiseModel) -> None:
+        """Whiten each dense group's calibration rows (read from its (n, 3, p) columns, or from
+        :class:`~aeromag_env.discovery.regressors.AxisColumns`' values on their axes, zeros
+        elsewhere) into its axis-stacked block (3m, p); the three axes on their own threads."""
         m = self.m
 
         def axis(i: int) -> None:
             args = (noise.white_std_nt[i], noise.fogm_std_nt[i], noise.fogm_tau_s[i])
             for cols, out in pairs:
-                whiten_rows(cols, self.idx, i, self.gap, *args, out=out[i * m : (i + 1) * m])
+                rows = out[i * m : (i + 1) * m]
+                if not isinstance(cols, AxisColumns):
+                    whiten_rows(cols, self.idx, i, self.gap, *args, out=rows)
+                    continue
+                on = cols.axis == i
+                rows[:, ~on] = 0.0  # a zero column whitens to zeros
+                if on.any():
+                    values = np.ascontiguousarray(cols.values[:, on])[:, None, :]
+                    part = np.empty((m, values.shape[2]))
+                    rows[:, on] = whiten_rows(values, self.idx, 0, self.gap, *args, out=part)
 
         map_threads(axis, range(3))
 
@@ -308,7 +322,7 @@ class WhitenedProblem:
     def _raw_rows(self, j: int) -> Any:
         """Axis-stacked calibration rows (3m, p) of group ``j``: kept for compact groups (sparse,
         small), a new dense array otherwise."""
-        if not is_compact(self.groups[j]):
+        if not is_sparse(self.groups[j]):
             return stacked_rows(self.groups[j], self.idx)
         if j not in self._raw:
             self._raw[j] = stacked_rows(self.groups[j], self.idx)
@@ -326,8 +340,8 @@ class WhitenedProblem:
         key = tuple(chosen)
         if key not in self._spans:
             extra = [j for j in chosen if j != 0]
-            dense = [self._perp(j) for j in extra if not is_compact(self.groups[j])]
-            compact = [self.white(j) for j in extra if is_compact(self.groups[j])]
+            dense = [self._perp(j) for j in extra if not is_sparse(self.groups[j])]
+            compact = [self.white(j) for j in extra if is_sparse(self.groups[j])]
             q = orthonormal(np.concatenate(dense, axis=1)) if dense else np.zeros((self.yw.size, 0))
             r = self.r0 - q @ (q.T @ self.r0)
             sparse = None
@@ -387,8 +401,8 @@ class WhitenedProblem:
         and the compact ones' span off it; the same under every noise model, so cached."""
         key = tuple(chosen)
         if key not in self._raw_spans:
-            dense = [j for j in chosen if not is_compact(self.groups[j])]
-            compact = [j for j in chosen if is_compact(self.groups[j])]
+            dense = [j for j in chosen if not is_sparse(self.groups[j])]
+            compact = [j for j in chosen if is_sparse(self.groups[j])]
             cols = np.concatenate([self._raw_rows(j) for j in dense], axis=1)
             q0 = orthonormal(cols)
             sparse = None
@@ -399,15 +413,15 @@ class WhitenedProblem:
 
     def _absorbing_basis(self, chosen: list[int], candidate: int) -> np.ndarray | ChunkedBasis:
         """Orthonormal basis (3m, r) of ``candidate``'s un-whitened columns off the span of
-        ``chosen``; the same under every noise model, so cached (a group is asked about in the
-        step that tests it, after it enters and in the backward pass). A compact candidate's
-        basis is formed in pieces (:class:`ChunkedBasis`)."""
+        ``chosen``; the same under every noise model. A compact candidate's basis is formed in
+        pieces (:class:`ChunkedBasis`, whose small factors are kept: a group is asked about in
+        the step that tests it, after it enters and in the backward pass)."""
         key = (*chosen, -1, candidate)
         if key in self._bases:
             return self._bases[key]
         q0, sparse = self._raw_span(chosen)
         x = self._raw_rows(candidate)
-        if is_compact(self.groups[candidate]):
+        if is_sparse(self.groups[candidate]):
             assert sparse is None, "one compact group at a time"
             # the same basis, xp V Λ^{-1/2} with xp = (x − q0 c) / ‖x‖, from xp's Gram matrix
             norm = np.sqrt(x.squares().sum(axis=1))
@@ -426,11 +440,10 @@ class WhitenedProblem:
         xp /= np.maximum(np.linalg.norm(x, axis=0), 1e-300)
         # an orthonormal basis of xp's columns from the p × p Gram matrix, not a tall SVD:
         # singular values s > 1e-6 are eigenvalues s² > 1e-12 (the sum in absorbable_share does
-        # not depend on which basis of the span)
+        # not depend on which basis of the span); formed again when asked again, not kept
         lam, v = np.linalg.eigh(xp.T @ xp)
         keep = lam > 1e-12
-        self._bases[key] = xp @ (v[:, keep] / np.sqrt(lam[keep]))
-        return self._bases[key]
+        return xp @ (v[:, keep] / np.sqrt(lam[keep]))
 
     def test_columns(self, chosen: list[int], columns: Any) -> dict[str, float] | None:
         """:meth:`test` for columns (n, 3, p) not in the problem."""
@@ -446,7 +459,9 @@ class WhitenedProblem:
         r = span.r
         perp = self.perp[candidate]
         if perp is not None:
-            g = span.remove(perp)
+            # one pass: what it leaves in the span (eps · cond² of it) is orthogonal to r and
+            # adds its square to gᵀg, far below rounding
+            g = span.remove(perp, passes=1)
             gram, gr = g.T @ g, g.T @ r
         else:  # compact: its Gram matrix off the base and the chosen span, g never formed
             assert span.sparse is None, "one compact group at a time"
@@ -520,6 +535,12 @@ def least_squares(x: np.ndarray | Design, y: np.ndarray) -> tuple[np.ndarray, fl
     cov[np.ix_(seen, seen)] = g_inv / np.outer(ns, ns)
     cov[~seen, ~seen] = np.inf
     return beta, float(r @ r), cov
+
+
+def _stored(columns: Any) -> Any:
+    """A group's columns as the problem keeps them: compact forms as they are, dense arrays
+    C-contiguous (the whitening kernel reads a row's columns in one run)."""
+    return columns if is_compact(columns) else np.ascontiguousarray(columns)
 
 
 def _largest_norm(x: np.ndarray) -> float:

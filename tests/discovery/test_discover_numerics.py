@@ -16,12 +16,21 @@ from aeromag_env.discovery import whitened_problem
 from aeromag_env.discovery.base_model import BaseSpan, base_columns, orthonormal, stack
 from aeromag_env.discovery.noise_model import TAIL_TOL, NoiseModel, whiten, whiten_segments
 from aeromag_env.discovery.preparation import prepare
-from aeromag_env.discovery.regressors import is_compact, predict, spline_group, stacked_rows
+from aeromag_env.discovery.regressors import (
+    AxisColumns,
+    compact_group,
+    is_compact,
+    one_axis,
+    predict,
+    spline_group,
+    stacked_rows,
+)
 from aeromag_env.discovery.segments import Segments, concat, gram
 from aeromag_env.discovery.suite import base_config
 from aeromag_env.discovery.whitened_problem import WhitenedProblem, least_squares
 from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.effects import EFFECTS
+from aeromag_env.simulation.effects_base import body_columns
 from aeromag_env.simulation.simulate import simulate_flight
 
 
@@ -354,3 +363,34 @@ def test_a_problem_with_compact_splines_tests_and_fits_as_with_dense_ones(
         )
     gls0, gls1 = (p.gls([0, 1], noise) for p in probs)
     np.testing.assert_allclose(gls1, gls0, rtol=1e-8, atol=1e-12)
+
+
+def test_one_axis_groups_are_held_by_axis_and_whiten_as_the_dense_ones(flight: Flight) -> None:
+    """The eddy groups (B_e rows) and the currents (``w(t) e_i``) are one-axis: held as values by
+    axis, they are the dense columns bit for bit, whiten to the same bits and predict the same
+    field; a group with a column on two axes (the lag) stays dense."""
+    data = prepare(flight, "flux_a", None)
+    ctx = data.ctx
+    eddy = EFFECTS["eddy_time_constant"].groups(ctx)[0][3]
+    volts = np.linspace(27.5, 28.5, ctx.n)
+    current = body_columns(volts[:, None])
+    lag = EFFECTS["sensor_lag"].groups(ctx)[0][0]
+    assert one_axis(lag.columns) is None
+    compact = compact_group(eddy)
+    assert isinstance(compact.columns, AxisColumns) and compact.profile == eddy.profile
+    assert isinstance(compact.rebuild(0.3).columns, AxisColumns)  # type: ignore[misc]
+    base = base_columns(ctx.t_b, ctx.tdot_b)
+    noise = NoiseModel(np.ones(3), np.full(3, 1.5), np.full(3, 200.0))
+    for dense in (eddy.columns, current):
+        cols = one_axis(dense)
+        assert cols is not None
+        np.testing.assert_array_equal(cols.dense(), dense)
+        b = np.random.default_rng(5).standard_normal(dense.shape[2])
+        want = np.einsum("kip,p->ki", dense, b)
+        np.testing.assert_allclose(cols.predict(b), want, rtol=0, atol=1e-12 * np.abs(want).max())
+        probs = [WhitenedProblem(data, [base, c]) for c in (dense, cols)]
+        for prob in probs:
+            prob.set_noise(noise)
+        np.testing.assert_array_equal(probs[1].white(1), probs[0].white(1))
+        np.testing.assert_array_equal(probs[1].perp[1], probs[0].perp[1])
+        assert probs[1].test([0], 1) == probs[0].test([0], 1)

@@ -172,11 +172,13 @@ def fogm_quadratic(q: np.ndarray, gap: np.ndarray, tau: float) -> np.ndarray:
     m, c = q.shape
     a = np.exp(-gap / tau)  # once, not once per column
     out = np.zeros(c)
-    for j in range(c):
-        f = 0.0
-        for k in range(m):
-            f = q[k, j] + a[k] * f
-            out[j] += (2.0 * f - q[k, j]) * q[k, j]
+    f = np.zeros(c)
+    # row by row, the columns side by side: each column's operations in the same order as one
+    # column at a time (the same bits), the recursions of the columns in one vector
+    for k in range(m):
+        for j in range(c):
+            f[j] = q[k, j] + a[k] * f[j]
+            out[j] += (2.0 * f[j] - q[k, j]) * q[k, j]
     return out
 
 

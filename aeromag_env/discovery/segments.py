@@ -69,17 +69,17 @@ class Segments:
 
     def t_dot(self, d: np.ndarray) -> np.ndarray:
         """``selfᵀ d`` (p, k) of a dense ``d`` (rows, k) or (rows,) → (p,)."""
-        d2 = np.ascontiguousarray(d.reshape(self.rows, -1), np.float64)
-        out = np.zeros((self.shape[1], d2.shape[1]))
-        _t_dot(self.start, self.length, self.offset, self.values, d2, out)
+        d_t = np.ascontiguousarray(d.reshape(self.rows, -1).T, np.float64)  # (k, rows)
+        out = np.zeros((self.shape[1], d_t.shape[0]))
+        _t_dot(self.start, self.length, self.offset, self.values, d_t, out)
         return out if d.ndim == 2 else out[:, 0]
 
     def dot(self, c: np.ndarray) -> np.ndarray:
         """``self c`` (rows, k) of coefficients ``c`` (p, k) or (p,) → (rows,)."""
         c2 = np.ascontiguousarray(c.reshape(self.shape[1], -1), np.float64)
-        out = np.zeros((self.rows, c2.shape[1]))
-        _dot(self.start, self.length, self.offset, self.values, c2, out)
-        return out if c.ndim == 2 else out[:, 0]
+        out_t = np.zeros((c2.shape[1], self.rows))  # (k, rows): each run added as one stride
+        _dot(self.start, self.length, self.offset, self.values, c2, out_t)
+        return out_t.T.copy() if c.ndim == 2 else out_t[0]
 
     def __matmul__(self, c: np.ndarray) -> np.ndarray:
         return self.dot(c)
@@ -123,25 +123,26 @@ def concat(parts: list[Segments]) -> Segments:
     )
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath={"reassoc"})
 def _t_dot(
     start: np.ndarray,
     length: np.ndarray,
     offset: np.ndarray,
     values: np.ndarray,
-    d: np.ndarray,
+    d_t: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    """``out[j] = Σ_rows a[row, j] d[row]`` over each column's runs."""
+    """``out[j, c] = Σ_rows a[row, j] d_t[c, row]``: per run, a dot product of contiguous values
+    (summed in vector lanes: ``reassoc``, a rounding-level reordering of the sum)."""
     p, k = out.shape
     for j in range(p):
         for i in range(3):
-            a, o = start[j, i], offset[j, i]
-            for r in range(length[j, i]):
-                v = values[o + r]
-                row = a + r
-                for c in range(k):
-                    out[j, c] += v * d[row, c]
+            a, o, n = start[j, i], offset[j, i], length[j, i]
+            for c in range(k):
+                acc = 0.0
+                for r in range(n):
+                    acc += values[o + r] * d_t[c, a + r]
+                out[j, c] += acc
 
 
 @njit(cache=True, nogil=True)
@@ -151,21 +152,22 @@ def _dot(
     offset: np.ndarray,
     values: np.ndarray,
     c: np.ndarray,
-    out: np.ndarray,
+    out_t: np.ndarray,
 ) -> None:
-    """``out[row] += a[row, j] c[j]`` over each column's runs."""
+    """``out_t[q, row] += a[row, j] c[j, q]``: per run and coefficient, one contiguous ``axpy``."""
     p, k = c.shape
     for j in range(p):
         for i in range(3):
-            a, o = start[j, i], offset[j, i]
-            for r in range(length[j, i]):
-                v = values[o + r]
-                row = a + r
-                for q in range(k):
-                    out[row, q] += v * c[j, q]
+            a, o, n = start[j, i], offset[j, i], length[j, i]
+            for q in range(k):
+                w = c[j, q]
+                if w == 0.0:
+                    continue
+                for r in range(n):
+                    out_t[q, a + r] += w * values[o + r]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath={"reassoc"})
 def _gram(
     sa: np.ndarray,
     la: np.ndarray,
@@ -178,7 +180,7 @@ def _gram(
     out: np.ndarray,
 ) -> None:
     """``out[j, k] = Σ_rows a[row, j] b[row, k]``: per axis, the dot product over the overlap of
-    the two runs."""
+    the two runs (summed in vector lanes, as :func:`_t_dot`)."""
     pa, pb = out.shape
     for j in range(pa):
         for k in range(pb):

@@ -20,6 +20,7 @@ from aeromag_env.discovery.gap import effect_gap, rms
 from aeromag_env.discovery.ground import SEPARABLE_FRACTION, as_fitted
 from aeromag_env.discovery.joint import SCREEN_P
 from aeromag_env.discovery.preparation import PreparedFlight
+from aeromag_env.discovery.regressors import predict
 from aeromag_env.discovery.selection import Selection
 from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.effects import Group
@@ -201,7 +202,7 @@ def missing_effects(
         p = g.columns.shape[2]
         b, se = sel.beta[offset : offset + p], np.sqrt(np.diag(sel.cov)[offset : offset + p])
         offset += p
-        effect_field = np.einsum("kip,p->ki", g.columns, b)
+        effect_field = predict(g.columns, b)
         missing.append(
             {
                 "name": g.effect,

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from aeromag_env import reports
-from aeromag_env.atomic import atomic_path, check_output_set, output_set, write_text
+from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.configs import to_json
 from aeromag_env.discovery.ground import GROUND_MODES
 from aeromag_env.discovery.workflow import ALPHA, Discovery
@@ -32,6 +32,7 @@ from aeromag_env.flight.data import Flight
 from aeromag_env.flight.mount_choice import in_body_axes
 from aeromag_env.flight.selection import select
 from aeromag_env.flight.validation import PathLike
+from aeromag_env.jobs.discover_plot import plot_discovery
 from aeromag_env.jobs.limits import check_calibration_line, check_lines, check_number, check_window
 from aeromag_env.jobs.provenance import (
     IN_MEMORY,
@@ -380,84 +381,6 @@ def _ground_lines(ground: dict[str, Any]) -> list[str]:
         f"{ground['base_model']}.",
         "",
     ]
-
-
-def plot_discovery(result: Discovery, out: Path) -> None:
-    """``residual.png`` (before/after, held-out shaded) and ``diagnostics.png``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from scipy.signal import welch
-
-    s = result.series
-    tt, held = s["tt"], s["held_out"]
-    rows = 3 + len(result.drivers)
-    fig, axes = plt.subplots(rows, 1, figsize=(10, 2.3 * rows), squeeze=False)
-    axes = axes[:, 0]
-    for ax in axes[1:3]:
-        ax.sharex(axes[0])
-    for i, ax in enumerate(axes[:3]):
-        ax.plot(tt, s["residual_before"][:, i], lw=0.4, label="base model")
-        ax.plot(tt, s["residual_after"][:, i], lw=0.4, label="with named effects")
-        ax.fill_between(
-            tt,
-            0,
-            1,
-            where=held,
-            transform=ax.get_xaxis_transform(),
-            color="0.9",
-            label="held out" if i == 0 else None,
-        )
-        ax.set_ylabel(f"{'xyz'[i]} [nT]")
-    axes[0].legend(loc="upper right", fontsize=8)
-    axes[0].set_title(f"Measured − simulated ({result.report['verdict']})")
-    axes[2].set_xlabel("time [s]")
-    for ax, driver in zip(axes[3:], result.drivers, strict=True):
-        _plot_against_driver(ax, s["residual_before"], s["residual_after"], *driver)
-    fig.tight_layout()
-    with atomic_path(out / "residual.png") as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
-
-    d = result.report["diagnostics"]
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
-    dt = result.report["data"]["sample_interval_s"]
-    for key, label in (("residual_before", "base model"), ("residual_after", "with effects")):
-        r = np.nan_to_num(s[key])
-        f, p = welch(r, fs=1.0 / dt, nperseg=min(2048, r.shape[0]), axis=0)
-        axes[0].loglog(f[1:], p[1:].sum(axis=1), lw=0.8, label=label)
-    axes[0].set(xlabel="frequency [Hz]", ylabel="PSD [nT²/Hz]", title="residual spectrum")
-    axes[0].legend(fontsize=8)
-    bins = d["heading_bins_mean_nt"]
-    if bins:
-        centers = [float(k.split("-")[0]) + 15 for k in bins]
-        vals = np.array(list(bins.values()))
-        for i in range(3):
-            axes[1].plot(centers, vals[:, i], "o-", label="xyz"[i])
-        axes[1].legend(fontsize=8)
-    axes[1].set(xlabel="heading [deg]", ylabel="mean residual [nT]", title="heading bins")
-    corr = d["aux_partial_correlation"]
-    if corr:
-        axes[2].barh(list(corr), [v["max_abs"] for v in corr.values()])
-    axes[2].set(xlabel="|partial correlation|", title="auxiliary channels")
-    fig.tight_layout()
-    with atomic_path(out / "diagnostics.png") as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
-
-
-def _plot_against_driver(
-    ax: Any, before: np.ndarray, after: np.ndarray, name: str, driver: str, x: np.ndarray
-) -> None:
-    """The residual before and after against what drives a named effect, on the axis where the
-    effect changed the residual most (at most 4000 points)."""
-    i = int(np.nanargmax(np.nanstd(before - after, axis=0)))
-    step = max(1, x.size // 4000)
-    for r, label in ((before, "base model"), (after, "with named effects")):
-        ax.plot(x[::step], r[::step, i], ".", ms=1.5, alpha=0.5, label=label)
-    ax.set(xlabel=driver, ylabel=f"{'xyz'[i]} [nT]", title=f"{name}: residual against {driver}")
-    ax.legend(loc="upper right", fontsize=8, markerscale=6)
 
 
 def _effects_table(missing: list[dict[str, Any]]) -> list[str]:

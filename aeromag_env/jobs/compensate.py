@@ -413,17 +413,16 @@ def _accuracy_blocks(
 ) -> dict[str, Any]:
     """The real-data accuracy blocks of a model's application (``headline``, and
     ``vendor_comparison`` when the file has the vendor's compensated scalar), as a fit's."""
-    scalar = model.channels.get("scalar")
-    ours = scalar if comp.method == "tl" else model.channels["flux"]
+    scalar: str | None = model.channels.get("scalar")
+    vendor = None
+    if scalar:
+        ours = scalar if comp.method == "tl" else str(model.channels["flux"])
+        vendor = vendor_comparison(flight, scalar, comp.total_before, comp.total_after, ours)
     return {
         "headline": headline(
             flight, comp.total_before, comp.total_after, metrics_block.get("fom_nt")
         ),
-        "vendor_comparison": vendor_comparison(
-            flight, scalar, comp.total_before, comp.total_after, ours
-        )
-        if scalar
-        else None,
+        "vendor_comparison": vendor,
     }
 
 

@@ -49,7 +49,7 @@ def kf_update(
     return x + k @ innov, 0.5 * (p_new + p_new.T), innov, s, k
 
 
-class _Consistency:
+class Consistency:
     """The checks of :mod:`aeromag_env.compensation.consistency`, written out: the outlier gate
     (its lap reference, the run of rejections and the calm samples since the last) and the
     runaway test."""
@@ -95,7 +95,7 @@ class _Consistency:
         return True
 
 
-def _runaway(k: int, m: int, y: np.ndarray, est: np.ndarray, valid: np.ndarray) -> bool:
+def runaway(k: int, m: int, y: np.ndarray, est: np.ndarray, valid: np.ndarray) -> bool:
     """Over the valid samples among the last m up to k: Σ|y − H z⁻|² > RUNAWAY_POWER Σ|y|²."""
     rows = slice(max(0, k + 1 - m), k + 1)
     ok = valid[rows]
@@ -108,7 +108,13 @@ def run_reference(
 ) -> FilterResult:
     """Same contract as :func:`aeromag_env.compensation.kalman.run_filter`; of the divergence
     restarts only those of the consistency checks (a sustained shift, an adaptive filter's
-    runaway), not those of a non-finite or indefinite covariance."""
+    runaway), not those of a non-finite or indefinite covariance. The variational filters and
+    the bank are transcribed in :mod:`aeromag_env.compensation.adaptive_reference`."""
+    if cfg.method in ("vbakf", "vbakf-pr", "imm"):
+        # imported here: that module builds on this one's update and checks
+        from aeromag_env.compensation.adaptive_reference import run_adaptive_reference
+
+        return run_adaptive_reference(cfg, y, t_b, tdot_b)
     n, d = y.shape[0], STATE_SCALE
     h_all = measurement_rows(t_b, tdot_b) * d  # H_s = H diag(d)
     valid = np.all(np.isfinite(y), axis=1) & np.all(np.isfinite(h_all), axis=(1, 2))
@@ -121,7 +127,7 @@ def run_reference(
     est, innovations = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
     states = np.zeros((n, N_STATES))
     counts = {"skipped": 0, "divergences": 0, "outliers": 0}
-    since, gate = 0, _Consistency(cfg.window)
+    since, gate = 0, Consistency(cfg.window)
     for k in range(n):
         if cfg.method == "rls":
             p = p / cfg.forgetting  # RLS with forgetting: P⁻ = P / λ
@@ -196,7 +202,7 @@ def _accept(cfg, k, filt, q0, data, window, gate):
         post_fit = y[k] - h_all[k] @ z  # e = y − H x⁺
         hph_post = h_all[k] @ p @ h_all[k].T  # H P⁺ Hᵀ
         r, q = _sage_husa(cfg, k, innov, s, gain, r, q, q0, post_fit, hph_post)
-    restart = cfg.method in ADAPTIVE and lap and _runaway(k, cfg.window, y, est, valid)
+    restart = cfg.method in ADAPTIVE and lap and runaway(k, cfg.window, y, est, valid)
     return (z_prior if restart else z), p, q, r, window, gain, restart
 
 

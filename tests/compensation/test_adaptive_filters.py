@@ -25,7 +25,7 @@ from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kalman_reference import run_reference
 from aeromag_env.compensation.model import FilterConfig, measurement_rows
 from aeromag_env.configs import from_dict, from_json, to_json
-from aeromag_env.errors import ConfigError
+from aeromag_env.errors import AeromagError, ConfigError
 from tests._flights import simulated
 from tests._helpers import assert_one_line_error
 
@@ -266,3 +266,18 @@ def test_the_switching_matrix_is_built_from_stay():
     np.testing.assert_allclose(pi.sum(axis=1), 1.0, rtol=0, atol=1e-15)
     assert pi[0, 0] == 0.97 and pi[0, 1] == pytest.approx(0.01)
     assert ModelBank(models=(BankModel(),)).matrix().tolist() == [[1.0]]
+
+
+def test_filter_costs_times_every_method_against_the_kf(switched):
+    """The cost function the benchmark calls: ``kf`` first with ratio 1, every method timed,
+    in windows as the environment calls the loop; one-line errors for bad repeats."""
+    from aeromag_env.compensation.cost import filter_costs
+
+    y, t_b, td = (a[:300] for a in switched)
+    costs = filter_costs(y, t_b, td, methods=("imm", "vbakf"), repeats=2, window=10)
+    assert list(costs) == ["kf", "imm", "vbakf"]
+    assert costs["kf"].ratio_to_kf == 1.0
+    assert all(c.seconds_per_sample > 0 and c.repeats == 2 for c in costs.values())
+    with pytest.raises(AeromagError) as info:
+        filter_costs(y, t_b, td, repeats=0)
+    assert_one_line_error(info, "repeats", "≥ 1")

@@ -189,8 +189,12 @@ class VariationalReference:
 
     def predict(self) -> None:
         self.x, self.p = kf_predict(self.x, self.p, self.q)  # x⁻, P⁻ (P̃⁻ of vbakf-pr)
+
+    def _forget(self) -> None:
+        """R's posterior predicted: the papers' forgetting, done here on the samples that
+        update (a skipped or rejected sample leaves it as it was)."""
         m = self.r0.shape[0]
-        if self.cfg.method == "vbakf":
+        if self.cfg.method == "vbakf":  # α⁻ = ρ α, β⁻ = ρ β
             self.alpha, self.beta = self.cfg.vbakf.rho * self.alpha, self.cfg.vbakf.rho * self.beta
         else:  # û⁻ = ρ(û − m − 1) + m + 1, Û⁻ = ρ Û
             rho = self.cfg.vbakf_pr.rho
@@ -200,7 +204,8 @@ class VariationalReference:
         return self.q, self.r
 
     def update(self, y: np.ndarray, h: np.ndarray) -> np.ndarray:
-        """The variational update; returns the last gain."""
+        """R's posterior predicted, then the variational update; returns the last gain."""
+        self._forget()
         if self.cfg.method == "vbakf":
             vb = self.cfg.vbakf
             self.x, self.p, self.alpha, self.beta, gain = vbakf_update(

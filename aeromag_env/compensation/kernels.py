@@ -58,12 +58,7 @@ from aeromag_env.compensation.multiple_model import (
     imm_restart,
     imm_update,
 )
-from aeromag_env.compensation.variational import (
-    vb_predict,
-    vb_prior,
-    vbakf_pr_update,
-    vbakf_update,
-)
+from aeromag_env.compensation.variational import vb_prior, vbakf_pr_update, vbakf_update
 from aeromag_env.compensation.window import window_add
 from aeromag_env.numba_cache import njit
 
@@ -320,69 +315,6 @@ def _scratch(mode: int, f: FilterArrays) -> Scratch:
     )
 
 
-# inlined where it is called (numba IR), as arrays.named: a call would pass every array of the
-# filter and of the scratch, for every sample
-@njit(cache=True, inline="always")
-def _replaced_update(mode: int, k: int, f: FilterArrays, w: Scratch) -> bool:
-    """The update of sample k that replaces the plain one (the innovation passed the gate):
-    the variational update, or the bank's (with the combined prediction's gain, which QOQ
-    reads); False when it failed (an iteration's or a model's ``S`` not positive definite, or
-    no model fits)."""
-    st = f.state
-    if mode == FilterMode.VBAKF:
-        return vbakf_update(
-            st.z,
-            st.p,
-            w.gt,
-            w.kt,
-            w.kst,
-            w.r,
-            st.rm,
-            st.vb_shape,
-            st.ints[INTS.iterations],
-            w.col,
-            w.hv,
-            w.m33,
-            w.v3,
-        )
-    if mode == FilterMode.VBAKF_PR:
-        return vbakf_pr_update(
-            st.z,
-            st.p,
-            w.gt,
-            w.kt,
-            w.kst,
-            w.r,
-            st.rm,
-            st.vb_shape,
-            st.ints[INTS.iterations],
-            st.par[PAR.vb_tau],
-            w.col,
-            w.hv,
-            w.p_nominal,
-            w.z_prior,
-            w.m33,
-            w.v3,
-        )
-    gain(w.gt, w.sinv, w.kt)
-    return imm_update(
-        k,
-        f.signals.y,
-        f.bank,
-        st.ints[INTS.models],
-        w.col,
-        w.hv,
-        st.rm,
-        st.r0,
-        st.z,
-        st.p,
-        w.t3n,
-        w.m33,
-        w.v3,
-        w.mv[1],
-    )
-
-
 @njit(cache=True)
 def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
     """Advance the filter over samples ``k0 ≤ k < k1`` (see the module docstring).
@@ -397,8 +329,10 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
     rbuf, sbuf, acc = f.window
     est, innov, ror, qoq, q_scale, r_scale, states = f.outputs
     w = _scratch(mode, f)
-    col, hv, gt, kt, s, sinv, r = w.col, w.hv, w.gt, w.kt, w.s, w.sinv, w.r
-    lam = par[PAR.forget]
+    col, hv, gt, kt, kst, s, sinv, r = w.col, w.hv, w.gt, w.kt, w.kst, w.s, w.sinv, w.r
+    m33, v3 = w.m33, w.v3
+    lam, rho, tau = par[PAR.forget], par[PAR.vb_rho], par[PAR.vb_tau]
+    iterations, models = ints[INTS.iterations], ints[INTS.models]
     trq0 = q0.sum()
     trr0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
     if ints[INTS.fell_back]:  # an adaptive filter that ran away goes on as the plain KF
@@ -410,17 +344,15 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
         or mode == FilterMode.SAGE_HUSA
         or variational
     )
-    bank = mode == FilterMode.IMM
+    imm, bank = mode == FilterMode.IMM, f.bank
     # the noise the prediction carries: the filter's own, or the bank's probability-weighted
-    qn, rn = (w.q_mix, w.r_mix) if bank else (qd, rm)
+    qn, rn = (w.q_mix, w.r_mix) if imm else (qd, rm)
     for k in range(k0, k1):
-        if bank:
-            imm_predict(f.bank, ints, par, z, p, qd, q0, w.mix_w, w.mix_z, w.mix_p, w.mv[0])
-            bank_noise(f.bank, ints[INTS.models], qd, rm, q0, r0, qn, rn, w.m33[0])
+        if imm:
+            imm_predict(bank, ints, par, z, p, qd, q0, w.mix_w, w.mix_z, w.mix_p, w.mv[0])
+            bank_noise(bank, models, qd, rm, q0, r0, qn, rn, m33[0])
         else:
             _predict(mode, lam, p, qd)
-            if variational:
-                vb_predict(mode, vb_shape, par)
         _estimate(k, t, td, d, z, col, hv, est)
         rejected = False
         if not valid[k]:
@@ -434,10 +366,37 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
             inconsistent = rejected and reject(r, acc, ints)  # a window of shifted outliers
             if not rejected:
                 if ok:  # the update (eqs. 19–20), or the one that replaces it
-                    if variational or bank:
-                        ok = _replaced_update(mode, k, f, w)
+                    if mode == FilterMode.VBAKF:
+                        ok = vbakf_update(
+                            z, p, gt, kt, kst, r, rm, vb_shape, iterations, rho, col, hv, m33, v3
+                        )
+                    elif mode == FilterMode.VBAKF_PR:
+                        ok = vbakf_pr_update(
+                            z,
+                            p,
+                            gt,
+                            kt,
+                            kst,
+                            r,
+                            rm,
+                            vb_shape,
+                            iterations,
+                            rho,
+                            tau,
+                            col,
+                            hv,
+                            w.p_nominal,
+                            w.z_prior,
+                            m33,
+                            v3,
+                        )
+                    elif imm:
+                        gain(gt, sinv, kt)  # the combined prediction's gain, which QOQ reads
+                        ok = imm_update(
+                            k, y, bank, models, col, hv, rm, r0, z, p, w.t3n, m33, v3, w.mv[1]
+                        )
                     else:
-                        kalman_update(z, p, gt, kt, w.kst, s, sinv, r)
+                        kalman_update(z, p, gt, kt, kst, s, sinv, r)
                     window_add(r, s[0, 0] + s[1, 1] + s[2, 2], rbuf, sbuf, acc, ints)
                     if mode == FilterMode.SAGE_HUSA:
                         sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INTS.k], par)
@@ -447,14 +406,13 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
                     inconsistent = adaptive and runaway(k, y, est, valid, ints)
                     if inconsistent:  # restarted below; no more adaptation
                         mode, adaptive, ints[INTS.fell_back] = FilterMode.KF, False, 1
-                        variational = False
                     else:
                         _copy(z, z_good)
             if inconsistent:  # restart, and the window starts again at the new level
                 _restart(mode, f)
                 clear_window(acc, ints)
-        if bank:  # Q and R of the bank after the update (its posterior probabilities)
-            bank_noise(f.bank, ints[INTS.models], qd, rm, q0, r0, qn, rn, w.m33[0])
+        if imm:  # Q and R of the bank after the update (its posterior probabilities)
+            bank_noise(bank, models, qd, rm, q0, r0, qn, rn, m33[0])
         _statistics(k, valid[k] and not rejected, ints, acc, kt, qn, ror, qoq)
         if not rejected:  # a rejected sample leaves the window as it was: nothing to adapt to
             _adapt(mode, ror[k], qoq[k], ints, par, acc, qd, q0, rm, r0)

@@ -92,7 +92,8 @@ def bank_noise(
 @per_sample
 def combine(bank: Bank, m: int, z: np.ndarray, p: np.ndarray) -> None:
     """Step 5 (and the combined prediction of step 2): ``z = Σ μ_j z_j``,
-    ``P = Σ μ_j [P_j + (z_j − z)(z_j − z)ᵀ]``, with the bank's current ``μ``."""
+    ``P = Σ μ_j [P_j + (z_j − z)(z_j − z)ᵀ]``, with the bank's current ``μ`` (summed model by
+    model, the innermost loop along a row of P)."""
     bz, bp, mu = bank.bank_z, bank.bank_p, bank.bank_mu
     n_state = z.shape[0]
     for a in range(n_state):
@@ -100,13 +101,17 @@ def combine(bank: Bank, m: int, z: np.ndarray, p: np.ndarray) -> None:
         for j in range(m):
             acc += mu[j] * bz[j, a]
         z[a] = acc
-    for a in range(n_state):
         for b in range(a + 1):
-            acc = 0.0
-            for j in range(m):
-                acc += mu[j] * (bp[j, a, b] + (bz[j, a] - z[a]) * (bz[j, b] - z[b]))
-            p[a, b] = acc
-            p[b, a] = acc
+            p[a, b] = 0.0
+    for j in range(m):
+        w = mu[j]
+        for a in range(n_state):
+            da = bz[j, a] - z[a]
+            for b in range(a + 1):
+                p[a, b] += w * (bp[j, a, b] + da * (bz[j, b] - z[b]))
+    for a in range(n_state):
+        for b in range(a):
+            p[b, a] = p[a, b]
 
 
 @per_sample
@@ -120,7 +125,8 @@ def _mix(
 ) -> None:
     """Step 1: the weights ``μ_i|j`` into ``mix_w``, the mixed estimates of every model into
     ``mix_z``, ``mix_p`` (lower triangles), then into the bank; ``μ = c̄``. A model no other can
-    switch to (``c̄_j = 0``) keeps its own estimate."""
+    switch to (``c̄_j = 0``) keeps its own estimate. Summed model by model, the innermost loop
+    along a row of P."""
     bz, bp, mu, pi = bank.bank_z, bank.bank_p, bank.bank_mu, bank.bank_pi
     n_state = bz.shape[1]
     for j in range(m):
@@ -139,13 +145,14 @@ def _mix(
             for i in range(m):
                 acc += mix_w[i, j] * bz[i, a]
             mix_z[j, a] = acc
-        for a in range(n_state):
             for b in range(a + 1):
-                acc = 0.0
-                for i in range(m):
-                    spread = (bz[i, a] - mix_z[j, a]) * (bz[i, b] - mix_z[j, b])
-                    acc += mix_w[i, j] * (bp[i, a, b] + spread)
-                mix_p[j, a, b] = acc
+                mix_p[j, a, b] = 0.0
+        for i in range(m):
+            w = mix_w[i, j]
+            for a in range(n_state):
+                da = bz[i, a] - mix_z[j, a]
+                for b in range(a + 1):
+                    mix_p[j, a, b] += w * (bp[i, a, b] + da * (bz[i, b] - mix_z[j, b]))
     for j in range(m):
         mu[j] = cbar[j]
         for a in range(n_state):

@@ -8,6 +8,13 @@ kept as the estimate ``R̂`` in ``State.rm`` (the matrix an external controller 
 shape in ``State.vb_shape``; the posterior's scale follows from the two (``β = α R̂``,
 ``Û = (û − m − 1) R̂``), so a rescaled ``R̂`` rescales the posterior.
 
+R's posterior is predicted (its forgetting) on the samples that update the filter, just before
+the update; a skipped sample or one the outlier gate rejected leaves it as it was, as it leaves
+the innovation window. (The papers predict it every time step. Under ρ = 0.95 a 60-s burst of
+rejected samples then left α at 0.95⁶⁰⁰ ≈ 4e-14 of its value: the first update after it started
+its fixed point at Σ ≈ 0, R̂ collapsed to the floor of ``scale_bounds`` and 18 more samples were
+rejected.)
+
 ``vbakf`` (the paper's Algorithm, R diagonal): per axis i, predict ``α⁻ = ρ α``, ``β⁻ = ρ β``;
 update ``α = α⁻ + ½`` and, from ``β⁽⁰⁾ = β⁻``, N times: ``Σ = diag(β/α)``, the Kalman update
 with ``Σ``, ``β = β⁻ + ½ (y − H x)ᵢ² + ½ (H P Hᵀ)ᵢᵢ``; then ``R̂ = diag(β/α)``. The iterations run
@@ -44,12 +51,12 @@ def vb_prior(mode: int, shape: np.ndarray, par: np.ndarray) -> None:
 
 
 @per_sample
-def vb_predict(mode: int, shape: np.ndarray, par: np.ndarray) -> None:
+def vb_predict(mode: int, shape: np.ndarray, rho: float) -> None:
     """The forgetting of R's posterior: ``α⁻ = ρ α`` (``vbakf``), ``û⁻ − m − 1 = ρ (û − m − 1)``
     (``vbakf-pr``); with ``R̂`` unchanged, ``β⁻ = ρ β`` and ``Û⁻ = ρ Û``."""
     n = M_MEAS if mode == FilterMode.VBAKF else 1
     for i in range(n):
-        shape[i] *= par[PAR.vb_rho]
+        shape[i] *= rho
 
 
 @per_sample
@@ -88,17 +95,19 @@ def vbakf_update(
     rm: np.ndarray,
     shape: np.ndarray,
     iterations: int,
+    rho: float,
     col: np.ndarray,
     hv: np.ndarray,
     m33: np.ndarray,
     v3: np.ndarray,
 ) -> bool:
     """Särkkä & Nummenmaa's update of ``z``, ``p`` (the prediction, with ``gt`` its ``Gᵀ``) by
-    the innovation ``r`` [nT]; ``R̂`` (``rm``) and ``α`` (``shape``) updated; ``kt`` the last
-    gain; ``m33`` (≥ 4, 3, 3) and ``v3`` (≥ 3, 3) scratch. False if an ``S`` is not positive
-    definite."""
+    the innovation ``r`` [nT], R's posterior predicted with the forgetting factor ``rho`` first;
+    ``R̂`` (``rm``) and ``α`` (``shape``) updated; ``kt`` the last gain; ``m33`` (≥ 4, 3, 3) and
+    ``v3`` (≥ 3, 3) scratch. False if an ``S`` is not positive definite."""
     mm, s_it, sinv_it, hph = m33[0], m33[1], m33[2], m33[3]
     beta, sigma, e = v3[0], v3[1], v3[2]
+    vb_predict(FilterMode.VBAKF, shape, rho)
     h_g(gt, col, hv, mm)  # M = H P⁻ Hᵀ
     for i in range(3):
         beta[i] = shape[i] * rm[i, i]  # β⁻ = α⁻ R̂
@@ -132,6 +141,7 @@ def vbakf_pr_update(
     rm: np.ndarray,
     shape: np.ndarray,
     iterations: int,
+    rho: float,
     tau: float,
     col: np.ndarray,
     hv: np.ndarray,
@@ -141,12 +151,14 @@ def vbakf_pr_update(
     v3: np.ndarray,
 ) -> bool:
     """Huang et al.'s update of ``z``, ``p`` (the nominal prediction ``P̃⁻``, with ``gt`` its
-    ``Gᵀ``) by the innovation ``r`` [nT]; ``R̂`` (``rm``) and ``û − m − 1`` (``shape[0]``)
-    updated; ``kt`` the last gain; ``p_nominal`` (n, n), ``z_prior`` (n,), ``m33`` (≥ 5, 3, 3)
-    and ``v3`` (≥ 3, 3) scratch. False if an ``S`` is not positive definite."""
+    ``Gᵀ``) by the innovation ``r`` [nT], R's posterior predicted with the forgetting factor
+    ``rho`` first; ``R̂`` (``rm``) and ``û − m − 1`` (``shape[0]``) updated; ``kt`` the last
+    gain; ``p_nominal`` (n, n), ``z_prior`` (n,), ``m33`` (≥ 5, 3, 3) and ``v3`` (≥ 3, 3)
+    scratch. False if an ``S`` is not positive definite."""
     n_state = z.shape[0]
     mm, s_it, sinv_it, hph, r_it = m33[0], m33[1], m33[2], m33[3], m33[4]
     e = v3[2]
+    vb_predict(FilterMode.VBAKF_PR, shape, rho)
     dof_prior = shape[0]  # û⁻ − m − 1
     dof = dof_prior + 1.0  # û − m − 1, û = û⁻ + 1
     for a in range(n_state):

@@ -281,3 +281,27 @@ def test_filter_costs_times_every_method_against_the_kf(switched):
     with pytest.raises(AeromagError) as info:
         filter_costs(y, t_b, td, repeats=0)
     assert_one_line_error(info, "repeats", "≥ 1")
+
+
+@pytest.mark.parametrize("method", ["vbakf", "vbakf-pr", "imm"])
+def test_the_environment_runs_the_new_filters_through_its_reset_option(method):
+    """``reset(options={"filter_method": m})`` of the tuning environment runs the filter as
+    the library does: with zero actions (scale factors of exactly 1) the episode's estimates
+    are bitwise those of ``run_filter`` on the episode's signals, advanced window by window."""
+    import gymnasium as gym
+
+    import aeromag_env  # noqa: F401  (registers the environment)
+    from aeromag_env.environment.truth import flight_truth
+
+    env = gym.make("AeroMagCompensation-v0", scenario="noise_bursts", duration_s=120.0)
+    env.reset(seed=1000, options={"filter_method": method})
+    assert flight_truth(env).filter_method == method
+    action = np.zeros(env.action_space.shape, dtype=np.float32)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(action)
+        done = terminated or truncated
+    ep, got = env.unwrapped.episode, env.unwrapped.filter.result()
+    want = run_filter(replace(ep.filter_cfg, method=method), ep.y, ep.t_b, ep.tdot_b, False)
+    np.testing.assert_array_equal(got.interference, want.interference)
+    np.testing.assert_array_equal(got.r_scale, want.r_scale)

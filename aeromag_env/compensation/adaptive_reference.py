@@ -7,8 +7,9 @@ Algorithm 1 (t̂, T̂, û, Û, :func:`vbakf_pr_update`), Blom & Bar-Shalom 1988'
 (:mod:`aeromag_env.compensation.variational`, :mod:`aeromag_env.compensation.multiple_model`),
 which works in the 3×3 measurement space where it can and keeps R's posterior as ``R̂`` and a
 shape. :func:`run_adaptive_reference` runs them with the checks of
-:mod:`aeromag_env.compensation.consistency` as :func:`~aeromag_env.compensation.
-kalman_reference.run_reference` does for the other methods, so the two are tested to agree.
+:mod:`aeromag_env.compensation.consistency` (:mod:`aeromag_env.compensation.reference_steps`) as
+:func:`~aeromag_env.compensation.kalman_reference.run_reference` does for the other methods (and
+for these, through this module), so the two are tested to agree.
 """
 
 from __future__ import annotations
@@ -16,13 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from aeromag_env.compensation.kalman import FilterResult
-from aeromag_env.compensation.kalman_reference import (
-    Consistency,
-    kf_predict,
-    kf_update,
-    runaway,
-)
 from aeromag_env.compensation.model import STATE_SCALE, FilterConfig, measurement_rows
+from aeromag_env.compensation.reference_steps import Consistency, kf_predict, kf_update, runaway
 from aeromag_env.simulation.interference import N_STATES
 
 #: The methods of this module.

@@ -10,6 +10,8 @@ equations as written.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from aeromag_env.numba_cache import njit
@@ -26,6 +28,21 @@ NZ_PERMANENT, NZ_INDUCED, NZ_EDDY, H_NNZ = 0, 1, 4, 7
 #: these helpers ran ~25% slower than the same code as one function (1.0 against 1.36 M samples/s
 #: on one flight); without, within ~5%. Dropping the option changes the speed, not the results.
 per_sample = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+
+
+class SparseH(NamedTuple):
+    """The non-zeros of ``H_s(k)`` (:func:`h_row`)."""
+
+    col: np.ndarray  #: (3, 7) int64 their columns
+    hv: np.ndarray  #: (3, 7) their values
+
+
+class GainWork(NamedTuple):
+    """The work arrays of one Kalman update, each (3, n), stored transposed."""
+
+    gt: np.ndarray  #: ``Gᵀ = (P⁻ H_sᵀ)ᵀ``
+    kt: np.ndarray  #: ``Kᵀ``
+    kst: np.ndarray  #: ``(K S)ᵀ``
 
 
 @per_sample

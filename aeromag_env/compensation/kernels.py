@@ -42,6 +42,8 @@ from aeromag_env.compensation.arrays import FilterArrays, Packed, named
 from aeromag_env.compensation.consistency import clear_window, outlier, reject, runaway
 from aeromag_env.compensation.kalman_steps import (
     H_NNZ,
+    GainWork,
+    SparseH,
     gain,
     gain_terms,
     h_row,
@@ -58,7 +60,12 @@ from aeromag_env.compensation.multiple_model import (
     imm_restart,
     imm_update,
 )
-from aeromag_env.compensation.variational import vb_prior, vbakf_pr_update, vbakf_update
+from aeromag_env.compensation.variational import (
+    VbWork,
+    vb_prior,
+    vbakf_pr_update,
+    vbakf_update,
+)
 from aeromag_env.compensation.window import window_add
 from aeromag_env.numba_cache import njit
 
@@ -276,7 +283,7 @@ class Scratch(NamedTuple):
     mix_w: np.ndarray  #: the mixing weights ``μ_i|j`` (the shape of ``Bank.bank_pi``)
     mix_z: np.ndarray  #: the bank's mixed states (the shape of ``Bank.bank_z``)
     mix_p: np.ndarray  #: the bank's mixed covariances (the shape of ``Bank.bank_p``)
-    mv: np.ndarray  #: (2, m) ``c̄`` and the models' log-likelihoods
+    cbar: np.ndarray  #: (m,) the models' predicted probabilities ``c̄``
     q_mix: np.ndarray  #: (n,) the bank's probability-weighted Q (imm)
     r_mix: np.ndarray  #: (3, 3) its probability-weighted R [nT²] (imm)
 
@@ -309,7 +316,7 @@ def _scratch(mode: int, f: FilterArrays) -> Scratch:
         np.empty((m, m)),
         np.empty((m, n)),
         np.empty((m, n, n)),
-        np.empty((2, m)),
+        np.empty(m),
         np.empty(bk),
         np.empty((mixed, mixed)),
     )
@@ -331,6 +338,10 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
     w = _scratch(mode, f)
     col, hv, gt, kt, kst, s, sinv, r = w.col, w.hv, w.gt, w.kt, w.kst, w.s, w.sinv, w.r
     m33, v3 = w.m33, w.v3
+    # the groups the variational and bank updates take (built once per call)
+    h, g = SparseH(col, hv), GainWork(gt, kt, kst)
+    g_model = GainWork(w.t3n[0], w.t3n[1], w.t3n[2])
+    vb_work = VbWork(m33, v3, w.p_nominal, w.z_prior)
     lam, rho, tau = par[PAR.forget], par[PAR.vb_rho], par[PAR.vb_tau]
     iterations, models = ints[INTS.iterations], ints[INTS.models]
     trq0 = q0.sum()
@@ -349,7 +360,7 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
     qn, rn = (w.q_mix, w.r_mix) if imm else (qd, rm)
     for k in range(k0, k1):
         if imm:
-            imm_predict(bank, ints, par, z, p, qd, q0, w.mix_w, w.mix_z, w.mix_p, w.mv[0])
+            imm_predict(bank, ints, par, z, p, qd, q0, w.mix_w, w.mix_z, w.mix_p, w.cbar)
             bank_noise(bank, models, qd, rm, q0, r0, qn, rn, m33[0])
         else:
             _predict(mode, lam, p, qd)
@@ -367,34 +378,14 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
             if not rejected:
                 if ok:  # the update (eqs. 19–20), or the one that replaces it
                     if mode == FilterMode.VBAKF:
-                        ok = vbakf_update(
-                            z, p, gt, kt, kst, r, rm, vb_shape, iterations, rho, col, hv, m33, v3
-                        )
+                        ok = vbakf_update(z, p, r, rm, vb_shape, iterations, rho, h, g, vb_work)
                     elif mode == FilterMode.VBAKF_PR:
                         ok = vbakf_pr_update(
-                            z,
-                            p,
-                            gt,
-                            kt,
-                            kst,
-                            r,
-                            rm,
-                            vb_shape,
-                            iterations,
-                            rho,
-                            tau,
-                            col,
-                            hv,
-                            w.p_nominal,
-                            w.z_prior,
-                            m33,
-                            v3,
+                            z, p, r, rm, vb_shape, iterations, rho, tau, h, g, vb_work
                         )
                     elif imm:
                         gain(gt, sinv, kt)  # the combined prediction's gain, which QOQ reads
-                        ok = imm_update(
-                            k, y, bank, models, col, hv, rm, r0, z, p, w.t3n, m33, v3, w.mv[1]
-                        )
+                        ok = imm_update(k, y, bank, models, h, rm, r0, z, p, g_model, m33, v3)
                     else:
                         kalman_update(z, p, gt, kt, kst, s, sinv, r)
                     window_add(r, s[0, 0] + s[1, 1] + s[2, 2], rbuf, sbuf, acc, ints)

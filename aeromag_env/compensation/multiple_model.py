@@ -31,6 +31,8 @@ import numpy as np
 
 from aeromag_env.compensation.arrays import Bank
 from aeromag_env.compensation.kalman_steps import (
+    GainWork,
+    SparseH,
     det3,
     gain_terms,
     h_times,
@@ -194,22 +196,22 @@ def imm_update(
     y: np.ndarray,
     bank: Bank,
     m: int,
-    col: np.ndarray,
-    hv: np.ndarray,
+    h: SparseH,
     rm: np.ndarray,
     r0: np.ndarray,
     z: np.ndarray,
     p: np.ndarray,
-    t3n: np.ndarray,
+    g: GainWork,
     m33: np.ndarray,
     v3: np.ndarray,
-    loglik: np.ndarray,
 ) -> bool:
-    """Steps 3–5 for sample k (``y`` (n, 3) [nT]; ``col``, ``hv`` the sparse ``H_s(k)``): the
-    models updated, ``μ`` and the combined ``z``, ``p``; ``t3n`` (3, 3, n), ``m33`` (≥ 3, 3, 3),
-    ``v3`` (≥ 1, 3) and ``loglik`` (m,) scratch. False if a model's ``S_j`` is not positive
-    definite or no model explains the data (all weights zero or not finite)."""
-    gt, kt, kst = t3n[0], t3n[1], t3n[2]
+    """Steps 3–5 for sample k (``y`` (n, 3) [nT], ``h`` the sparse ``H_s(k)``): the models
+    updated, ``μ`` and the combined ``z``, ``p``; ``g`` a model's gain work, ``m33``
+    (≥ 3, 3, 3) and ``v3`` (≥ 1, 3) scratch. Step 4 in logarithms: ``μ_j`` holds
+    ``ln c̄_j + ln Λ_j`` until all are known, then ``exp`` of it relative to the largest. False
+    if a model's ``S_j`` is not positive definite or no model explains the data (all weights
+    zero or not finite)."""
+    col, hv, gt, kt, kst = h.col, h.hv, g.gt, g.kt, g.kst
     s, sinv, rj, r = m33[0], m33[1], m33[2], v3[0]
     mu = bank.bank_mu
     top = -np.inf
@@ -224,13 +226,13 @@ def imm_update(
         nis = 0.0
         for a in range(3):
             nis += r[a] * (sinv[a, 0] * r[0] + sinv[a, 1] * r[1] + sinv[a, 2] * r[2])
-        loglik[j] = -0.5 * (nis + math.log(det3(s)))  # ln Λ_j + (3/2) ln 2π
-        if mu[j] > 0.0 and loglik[j] > top:
-            top = loglik[j]
+        loglik = -0.5 * (nis + math.log(det3(s)))  # ln Λ_j + (3/2) ln 2π
+        mu[j] = math.log(mu[j]) + loglik if mu[j] > 0.0 else -np.inf  # ln c̄_j Λ_j
+        top = max(top, mu[j])
         kalman_update(zj, pj, gt, kt, kst, s, sinv, r)
     total = 0.0
     for j in range(m):
-        mu[j] = mu[j] * math.exp(loglik[j] - top) if mu[j] > 0.0 else 0.0
+        mu[j] = math.exp(mu[j] - top) if mu[j] > -np.inf else 0.0
         total += mu[j]
     if not (0.0 < total < np.inf):
         return False

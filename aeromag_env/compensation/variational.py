@@ -32,14 +32,33 @@ around the nominal ``P̃⁻ = P + Q``, R's predicted by ``û⁻ = ρ(û − m �
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from aeromag_env.compensation.kalman_steps import gain_terms, h_g, inv3, kalman_update, per_sample
+from aeromag_env.compensation.kalman_steps import (
+    GainWork,
+    SparseH,
+    gain_terms,
+    h_g,
+    inv3,
+    kalman_update,
+    per_sample,
+)
 from aeromag_env.compensation.kernel_layout import PAR
 from aeromag_env.compensation.model import FilterMode
 
 #: The dimension m of the measurement (3 fluxgate axes).
 M_MEAS = 3
+
+
+class VbWork(NamedTuple):
+    """Work arrays of the variational updates (and of the bank's, which uses the first two)."""
+
+    m33: np.ndarray  #: (5, 3, 3) 3×3 matrices
+    v3: np.ndarray  #: (3, 3) 3-vectors
+    p_nominal: np.ndarray  #: (n, n) vbakf-pr's nominal ``P⁻`` ((0, 0) otherwise)
+    z_prior: np.ndarray  #: (n,) vbakf-pr's ``x⁻`` ((0,) otherwise)
 
 
 @per_sample
@@ -88,25 +107,22 @@ def _posterior_terms(
 def vbakf_update(
     z: np.ndarray,
     p: np.ndarray,
-    gt: np.ndarray,
-    kt: np.ndarray,
-    kst: np.ndarray,
     r: np.ndarray,
     rm: np.ndarray,
     shape: np.ndarray,
     iterations: int,
     rho: float,
-    col: np.ndarray,
-    hv: np.ndarray,
-    m33: np.ndarray,
-    v3: np.ndarray,
+    h: SparseH,
+    g: GainWork,
+    work: VbWork,
 ) -> bool:
-    """Särkkä & Nummenmaa's update of ``z``, ``p`` (the prediction, with ``gt`` its ``Gᵀ``) by
-    the innovation ``r`` [nT], R's posterior predicted with the forgetting factor ``rho`` first;
-    ``R̂`` (``rm``) and ``α`` (``shape``) updated; ``kt`` the last gain; ``m33`` (≥ 4, 3, 3) and
-    ``v3`` (≥ 3, 3) scratch. False if an ``S`` is not positive definite."""
-    mm, s_it, sinv_it, hph = m33[0], m33[1], m33[2], m33[3]
-    beta, sigma, e = v3[0], v3[1], v3[2]
+    """Särkkä & Nummenmaa's update of ``z``, ``p`` (the prediction, with ``g.gt`` its ``Gᵀ``)
+    by the innovation ``r`` [nT], R's posterior predicted with the forgetting factor ``rho``
+    first; ``R̂`` (``rm``) and ``α`` (``shape``) updated; ``g.kt`` the last gain. False if an
+    ``S`` is not positive definite."""
+    col, hv, gt = h.col, h.hv, g.gt
+    mm, s_it, sinv_it, hph = work.m33[0], work.m33[1], work.m33[2], work.m33[3]
+    beta, sigma, e = work.v3[0], work.v3[1], work.v3[2]
     vb_predict(FilterMode.VBAKF, shape, rho)
     h_g(gt, col, hv, mm)  # M = H P⁻ Hᵀ
     for i in range(3):
@@ -122,7 +138,7 @@ def vbakf_update(
         _posterior_terms(mm, sinv_it, r, e, hph)
         for i in range(3):  # β = β⁻ + ½ (y − H x)ᵢ² + ½ (H P Hᵀ)ᵢᵢ
             beta[i] = shape[i] * rm[i, i] + 0.5 * e[i] * e[i] + 0.5 * hph[i, i]
-    kalman_update(z, p, gt, kt, kst, s_it, sinv_it, r)  # with the last Σ
+    kalman_update(z, p, gt, g.kt, g.kst, s_it, sinv_it, r)  # with the last Σ
     for i in range(3):
         shape[i] += 0.5
         for j in range(3):
@@ -134,30 +150,26 @@ def vbakf_update(
 def vbakf_pr_update(
     z: np.ndarray,
     p: np.ndarray,
-    gt: np.ndarray,
-    kt: np.ndarray,
-    kst: np.ndarray,
     r: np.ndarray,
     rm: np.ndarray,
     shape: np.ndarray,
     iterations: int,
     rho: float,
     tau: float,
-    col: np.ndarray,
-    hv: np.ndarray,
-    p_nominal: np.ndarray,
-    z_prior: np.ndarray,
-    m33: np.ndarray,
-    v3: np.ndarray,
+    h: SparseH,
+    g: GainWork,
+    work: VbWork,
 ) -> bool:
-    """Huang et al.'s update of ``z``, ``p`` (the nominal prediction ``P̃⁻``, with ``gt`` its
+    """Huang et al.'s update of ``z``, ``p`` (the nominal prediction ``P̃⁻``, with ``g.gt`` its
     ``Gᵀ``) by the innovation ``r`` [nT], R's posterior predicted with the forgetting factor
-    ``rho`` first; ``R̂`` (``rm``) and ``û − m − 1`` (``shape[0]``) updated; ``kt`` the last
-    gain; ``p_nominal`` (n, n), ``z_prior`` (n,), ``m33`` (≥ 5, 3, 3) and ``v3`` (≥ 3, 3)
-    scratch. False if an ``S`` is not positive definite."""
+    ``rho`` first; ``R̂`` (``rm``) and ``û − m − 1`` (``shape[0]``) updated; ``g.kt`` the last
+    gain. False if an ``S`` is not positive definite."""
     n_state = z.shape[0]
+    col, hv, gt = h.col, h.hv, g.gt
+    p_nominal, z_prior = work.p_nominal, work.z_prior
+    m33 = work.m33
     mm, s_it, sinv_it, hph, r_it = m33[0], m33[1], m33[2], m33[3], m33[4]
-    e = v3[2]
+    e = work.v3[2]
     vb_predict(FilterMode.VBAKF_PR, shape, rho)
     dof_prior = shape[0]  # û⁻ − m − 1
     dof = dof_prior + 1.0  # û − m − 1, û = û⁻ + 1
@@ -184,7 +196,7 @@ def vbakf_pr_update(
         if not inv3(s_it, sinv_it):
             return False
         h_g(gt, col, hv, mm)  # M = H P⁻⁽ⁱ⁺¹⁾ Hᵀ
-        kalman_update(z, p, gt, kt, kst, s_it, sinv_it, r)
+        kalman_update(z, p, gt, g.kt, g.kst, s_it, sinv_it, r)
         _posterior_terms(mm, sinv_it, r, e, hph)  # B's terms for the next iteration
     for i in range(3):
         for j in range(3):

@@ -167,11 +167,12 @@ class ModelBank:
     models : the m models (1 ≤ m ≤ :data:`MAX_MODELS`), each a :class:`BankModel`. Default
         :data:`DEFAULT_BANK`, R(0) × (1, 0.01, 1000): ×0.779 (geometric-mean RMSE ratio to
         ``kf`` over the 32 search flights, ``docs/results/adaptive_defaults.json``), the best of
-        the seven banks tried. The whole table of the tuned constants (8 models) scored ×1.51
-        and a 3 × 3 grid of Q × (1e-4, 1, 1e4) and R × (0.01, 1, 100) ×1.31: mixing models of
+        the seven banks tried. The whole table of the tuned constants (8 models) scored ×1.50
+        and a 3 × 3 grid of Q × (1e-4, 1, 1e4) and R × (0.01, 1, 100) ×1.30: mixing models of
         very different Q makes the combined estimate follow the loosest one. A bank of Q scales
         alone (Q × 1e4 and 1e-4) follows the interference steps of ``nonstationary`` (3.1 nT,
-        ``kf`` 17.2) but not the noise of ``noise_bursts`` (53 nT).
+        against 26 nT for the default bank) but not the noise of ``noise_bursts`` (53 nT,
+        against 2.2).
     stay : probability that the model in force stays in force from one sample to the next,
         in (0, 1]; the rest is spread evenly over the other models. Used when ``transition``
         is empty. Default 0.999 (a model is expected to hold ~100 s at 10 Hz): ×0.773, with

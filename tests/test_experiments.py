@@ -16,11 +16,37 @@ from tests._helpers import SHIPPED, experiment, run_experiment, run_script
 
 
 def test_compare_methods_quick_writes_to_results_by_default(tmp_path, capsys, monkeypatch):
+    from aeromag_env.compensation.compensate import METHODS
+
     monkeypatch.chdir(tmp_path)
     assert run_experiment("compare_methods", "--quick") == 0
     text = (tmp_path / "results" / "methods" / "table.md").read_text()
-    assert text.count("\n| `") == 7  # one row per method
+    assert text.count("\n| `") == len(METHODS)  # one row per method
     assert "`tl`" in capsys.readouterr().out
+
+
+def test_choose_adaptive_defaults_quick(tmp_path, capsys):
+    """The search behind the adaptive filters' defaults, on one short flight of two scenarios:
+    every searched setting of every method is tried and one value chosen, and the check table
+    has the baselines and the three methods."""
+    out = tmp_path / "defaults.json"
+    assert run_experiment("choose_adaptive_defaults", "--quick", "--out", str(out)) == 0
+    found = json.loads(out.read_text())
+    assert set(found["searches"]) == {"vbakf", "vbakf-pr", "imm"}
+    for search in found["searches"].values():
+        assert all(
+            step["chosen"] in [t["value"] for t in step["tried"]] for step in search["steps"]
+        )
+    assert set(found["check_mean_rmse_nt"]) == {
+        "kf",
+        "sage-husa",
+        "ding",
+        "vbakf",
+        "vbakf-pr",
+        "imm",
+    }
+    assert found["check_seeds"] and max(found["seeds"] + found["check_seeds"]) < 100_000
+    assert f"wrote {out}" in capsys.readouterr().out
 
 
 @pytest.mark.slow

@@ -1,6 +1,7 @@
 """Compensate a flight with one method and score it (the library side of ``aeromag compensate``).
 
-Vector methods (``kf``, ``fakf``, ``rls``, ``sage-husa``, ``ding``, ``lsq``) estimate the
+Vector methods (the recursive filters of :data:`FILTER_METHODS` — ``kf``, ``fakf``, ``rls``,
+``sage-husa``, ``ding``, ``vbakf``, ``vbakf-pr``, ``imm`` — and ``lsq``) estimate the
 interference at the fluxgate from ``y = T_m − T``, with ``T`` the model Earth field: IGRF-14 at
 the file's positions and date, plus the ``diurnal`` channel along the main-field direction when
 present, rotated into body axes with the file's attitude. The scalar method ``tl`` fits the
@@ -28,6 +29,7 @@ import numpy as np
 from aeromag_env.compensation import metrics
 from aeromag_env.compensation.kalman import run_filter
 from aeromag_env.compensation.least_squares import fit_vector_lsq
+from aeromag_env.compensation.model import METHODS as RECURSIVE_METHODS
 from aeromag_env.compensation.model import FilterConfig, interference_from_states
 from aeromag_env.compensation.samples import Samples, flight_samples, vector_inputs, within
 from aeromag_env.compensation.tolles_lawson import TollesLawson
@@ -38,7 +40,8 @@ from aeromag_env.flight.earth_model import earth_model, earth_model_ned
 from aeromag_env.flight.mounting import Mount, mount_warning, solve_wahba
 from aeromag_env.simulation.interference import VectorCoefficients
 
-FILTER_METHODS = ("kf", "fakf", "rls", "sage-husa", "ding")
+#: The recursive filters (:data:`aeromag_env.compensation.model.METHODS`).
+FILTER_METHODS = RECURSIVE_METHODS
 METHODS = (*FILTER_METHODS, "lsq", "tl")
 #: Prefix of every channel a compensator writes [-]: ``aeromag_flux_a_c_x``, ``aeromag_mag_1_c``.
 OUTPUT_PREFIX = "aeromag_"

@@ -1,4 +1,5 @@
-"""Find the ``tuned_constant`` baseline: the best constant Q and R scales per scenario.
+"""Find the ``tuned_constant`` baselines: the best constant Q and R scales per scenario, or one
+pair for the whole suite (``--suite``).
 
 ``python experiments/tune_constants.py [--seeds 8] [--scenarios paper,nominal,...] [--out PATH]``
 grid-searches log10 scales of Q (−10…6) and R (−2…6), steps of 1, on training seeds 0…N−1,
@@ -6,13 +7,23 @@ minimising the mean episode RMSE (:func:`agents.search.tuned_constant.tune_const
 writes the table — ``--out``'s, or when it does not exist yet the shipped one, with the
 searched scenarios' rows replaced — to ``--out`` (default ``results/tuned_constants.json``).
 The shipped table, which ``agents`` loads, is replaced only when named: ``--out
-agents/policies/tuned_constants.json``. ``--quick``: the first scenario on 2 seeds over every
-fourth grid point.
+agents/policies/tuned_constants.json``.
+
+``--suite``: one constant pair for every scenario of ``--scenarios`` (default: the suite,
+``aeromag_env.environment.ids.SUITE``, the scenarios the ``general`` policy trains on), the cell
+of the same grid with the lowest mean over the scenarios of ln(mean RMSE)
+(:func:`agents.search.tuned_constant.tune_constant_suite`); writes it with every scenario's grid,
+the command, the date and the seeds to ``--out`` (default
+``results/tuned_constant_suite.json``; the shipped one, which the ``tuned_constant_suite``
+policy loads, is ``agents/policies/tuned_constant_suite.json``).
+
+``--quick``: the first scenario (two with ``--suite``) on 2 seeds over every fourth grid point.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import sys
 import time
@@ -22,11 +33,20 @@ from pathlib import Path
 if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import aeromag_env
 from aeromag_env.atomic import write_text
+from aeromag_env.environment.ids import SUITE
 from aeromag_env.environment.scenarios import SCENARIOS
 from agents.policies.tuned_table import TABLE
-from agents.search.tuned_constant import LOG10_Q_GRID, LOG10_R_GRID, tune_constant
+from agents.search.tuned_constant import (
+    LOG10_Q_GRID,
+    LOG10_R_GRID,
+    tune_constant,
+    tune_constant_suite,
+)
 from agents.training.quick import QUICK
+
+Grids = tuple[Sequence[float], Sequence[float]]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -34,18 +54,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--seeds", type=int, default=8, help="training seeds 0…N−1 (default 8)")
-    parser.add_argument("--scenarios", default=",".join(SCENARIOS), help="comma-separated")
     parser.add_argument(
-        "--out", type=Path, default=Path("results/tuned_constants.json"), help="the table"
+        "--scenarios", default=None, help="comma-separated (default: all; --suite: the suite)"
     )
+    parser.add_argument("--suite", action="store_true", help="one constant for all scenarios")
+    parser.add_argument("--out", type=Path, default=None, help="the table")
     parser.add_argument("--quick", action="store_true", help="one scenario, 2 seeds, coarse")
     args = parser.parse_args(argv)
-    scenarios = args.scenarios.split(",")
-    grids: tuple[Sequence[float], Sequence[float]] = (LOG10_Q_GRID, LOG10_R_GRID)
+    default = SUITE if args.suite else SCENARIOS
+    scenarios = args.scenarios.split(",") if args.scenarios else list(default)
+    grids: Grids = (LOG10_Q_GRID, LOG10_R_GRID)
     seeds = range(args.seeds)
     if args.quick:
-        scenarios, seeds, grids = scenarios[:1], range(QUICK.seeds), (grids[0][::4], grids[1][::4])
-    table = json.loads((args.out if args.out.exists() else TABLE).read_text())
+        keep = 2 if args.suite else 1
+        scenarios, seeds, grids = (
+            scenarios[:keep],
+            range(QUICK.seeds),
+            (grids[0][::4], grids[1][::4]),
+        )
+    if args.suite:
+        return _suite(args, argv, scenarios, seeds, grids)
+    out = args.out or Path("results/tuned_constants.json")
+    table = json.loads((out if out.exists() else TABLE).read_text())
     for scenario in scenarios:
         t0 = time.perf_counter()
         table[scenario] = row = tune_constant(scenario, seeds, *grids)
@@ -54,8 +84,44 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"RMSE {row['rmse_nt']:.3g} nT ({time.perf_counter() - t0:.0f} s)",
             flush=True,
         )
-    write_text(args.out, json.dumps(table, indent=2, sort_keys=True) + "\n")
-    print(f"wrote {args.out}")
+    write_text(out, json.dumps(table, indent=2, sort_keys=True) + "\n")
+    print(f"wrote {out}")
+    return 0
+
+
+def _suite(
+    args: argparse.Namespace,
+    argv: Sequence[str] | None,
+    scenarios: Sequence[str],
+    seeds: Sequence[int],
+    grids: Grids,
+) -> int:
+    """``--suite``: the one constant, written with its provenance."""
+    out = args.out or Path("results/tuned_constant_suite.json")
+    t0, cells = time.perf_counter(), len(grids[0]) * len(grids[1])
+    done: dict[str, int] = {}
+
+    def progress(scenario: str, k: int) -> None:
+        done[scenario] = done.get(scenario, 0) + k
+        if done[scenario] == cells:
+            print(f"{scenario}: {cells} cells ({time.perf_counter() - t0:.0f} s)", flush=True)
+
+    row = tune_constant_suite(scenarios, list(seeds), *grids, progress=progress)
+    words = sys.argv[1:] if argv is None else list(argv)
+    record = {
+        "command": " ".join(["python experiments/tune_constants.py", *words]),
+        "date": datetime.date.today().isoformat(),
+        "package_version": aeromag_env.__version__,
+        "seconds": round(time.perf_counter() - t0),
+        **row,
+    }
+    write_text(out, json.dumps(record, indent=2, sort_keys=True) + "\n")
+    ratios = ", ".join(f"{s} ×{r:.2f}" for s, r in row["ratio_to_own_best"].items())
+    print(
+        f"suite: log10 Q ×{row['log10_q']:+.1f}, log10 R ×{row['log10_r']:+.1f}; RMSE over each "
+        f"scenario's own best constant: {ratios}"
+    )
+    print(f"wrote {out}")
     return 0
 
 

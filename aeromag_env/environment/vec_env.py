@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import functools
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -16,6 +17,7 @@ from aeromag_env.compensation.arrays import Packed, packed
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kernel_layout import INTS
+from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.environment import kernels
 from aeromag_env.environment.checks import RESET_OPTIONS, reset_options
 from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig, step_settings
@@ -25,7 +27,7 @@ from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simula
 from aeromag_env.environment.spaces import action_size, check_actions
 
 #: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
-VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS)
+VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS, "filter_method")
 
 
 class AeroMagCompensationVecEnv(VectorEnv):
@@ -78,8 +80,11 @@ class AeroMagCompensationVecEnv(VectorEnv):
     ``reset(seed=s)`` seeds environment i with ``s + i`` (a list gives one seed per
     environment), like Gymnasium's vectorizers; each environment then draws its flights from its
     own generator, as the single environment does. ``options={"scenario": name}`` switches the
-    scenario of the environments being reset; ``scenario`` and ``reset_mask`` are the only
-    option keys (others, or options that are not a dict, are refused).
+    scenario of the environments being reset; ``options={"filter_method": m}`` runs their
+    filters with the built-in adaptation of method ``m`` (as the single environment's option),
+    for their following episodes too, autoresets included, until another ``filter_method``;
+    ``scenario``, ``filter_method`` and ``reset_mask`` are the only option keys (others, or
+    options that are not a dict, are refused).
 
     ## Arguments
 
@@ -132,6 +137,8 @@ class AeroMagCompensationVecEnv(VectorEnv):
         n = self.num_envs
         self._rngs: list[np.random.Generator | None] = [None] * n
         self.scenarios = [self.config.scenario] * n
+        #: Each environment's filter method (None: its scenario's own).
+        self.filter_methods: list[str | None] = [None] * n
         self.flight_seeds = np.zeros(n, np.int64)
         self._filters: BatchFilterState | None = None
         self._truth = np.zeros((n, 0, 3))
@@ -181,6 +188,8 @@ class AeroMagCompensationVecEnv(VectorEnv):
         super().reset(seed=int(seed) if isinstance(seed, int | np.integer) else None)
         seeds = _per_env_seeds(seed, self.num_envs)
         mask = options.pop("reset_mask", None)
+        if "filter_method" in options:  # refused in one line before any environment takes it
+            FilterConfig(method=options["filter_method"])
         if mask is None:
             mask = np.ones(self.num_envs, bool)
         elif self._filters is None:
@@ -307,6 +316,8 @@ class AeroMagCompensationVecEnv(VectorEnv):
             self._rngs[i] = seeding.np_random(seed)[0]
         if "scenario" in options:
             self.scenarios[i] = options["scenario"]
+        if "filter_method" in options:
+            self.filter_methods[i] = options["filter_method"]
         rng = self._rngs[i]
         assert rng is not None
         self.flight_seeds[i] = int(rng.integers(2**31))
@@ -314,9 +325,10 @@ class AeroMagCompensationVecEnv(VectorEnv):
         flight = self._simulate(key) if self._prefetcher is None else self._prefetcher.take(i, key)
         if self.autoreset_mode != AutoresetMode.DISABLED:
             self.prefetch_next(i)  # the autoreset after this flight draws from the generator
-        state = FilterState(
-            flight.filter_cfg, flight.y, flight.t_b, flight.tdot_b, store_states=False
-        )
+        cfg, method = flight.filter_cfg, self.filter_methods[i]
+        if method is not None:
+            cfg = replace(cfg, method=method)
+        state = FilterState(cfg, flight.y, flight.t_b, flight.tdot_b, store_states=False)
         return state, flight.truth_interf
 
     def _load(self, i: int, state: FilterState, truth: np.ndarray) -> None:

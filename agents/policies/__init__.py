@@ -1,14 +1,15 @@
 """The tuning policies and their registry: one name → one policy, all with the stable-baselines3
 ``predict`` shape (:class:`~agents.policies.protocol.TuningPolicy`).
 
-``constant``, ``fis`` (the paper's rules), the classical adaptive filters (``sage_husa``,
-``ding``), ``tuned_constant``, ``oracle``, ``privileged`` (knows the noise and the steps),
-``ppo`` (the shipped numpy export of a stable-baselines3 policy trained on ``nonstationary``)
-and ``general`` (one PPO policy trained across the scenario suite, shipped the same way).
-:mod:`~agents.policies.baselines` holds the hand-written ones, :mod:`~agents.policies.
-numpy_policy` the exported PPO (read by :mod:`~agents.policies.policy_file`), :mod:`~agents.
-policies.tuned_table` the stored tuned constants. :func:`make_policy` is the one door from a
-name to a policy.
+``constant``, ``fis`` (the paper's rules), the adaptive filters (``sage_husa``, ``ding``, the
+variational ``vbakf`` and ``vbakf_pr``, the model bank ``imm``), ``tuned_constant`` (per
+scenario), ``tuned_constant_suite`` (one for every scenario, scenario-blind), ``oracle``,
+``privileged`` (knows the noise and the steps), ``ppo`` (the shipped numpy export of a
+stable-baselines3 policy trained on ``nonstationary``) and ``general`` (one PPO policy trained
+across the scenario suite, shipped the same way). :mod:`~agents.policies.baselines` holds the
+hand-written ones, :mod:`~agents.policies.numpy_policy` the exported PPO (read by
+:mod:`~agents.policies.policy_file`), :mod:`~agents.policies.tuned_table` the stored tuned
+constants. :func:`make_policy` is the one door from a name to a policy.
 """
 
 from __future__ import annotations
@@ -27,7 +28,11 @@ POLICIES = (
     "fis",
     "sage_husa",
     "ding",
+    "vbakf",
+    "vbakf_pr",
+    "imm",
     "tuned_constant",
+    "tuned_constant_suite",
     "oracle",
     "privileged",
     "ppo",
@@ -86,7 +91,11 @@ def make_policy(name: str, env: Any) -> TuningPolicy:
         "fis": lambda: p.FisPolicy(s_max=s_max, interval=interval),
         "sage_husa": lambda: p.ClassicalPolicy("sage-husa", env),
         "ding": lambda: p.ClassicalPolicy("ding", env),
+        "vbakf": lambda: p.ClassicalPolicy("vbakf", env),
+        "vbakf_pr": lambda: p.ClassicalPolicy("vbakf-pr", env),
+        "imm": lambda: p.ClassicalPolicy("imm", env),
         "tuned_constant": lambda: p.TunedConstantPolicy(env),
+        "tuned_constant_suite": lambda: p.TunedConstantSuitePolicy(env.unwrapped.config.action),
         "oracle": lambda: p.OraclePolicy(env),
         "privileged": lambda: p.PrivilegedPolicy(env),
         "ppo": lambda: _load_ppo("ppo"),

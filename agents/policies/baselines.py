@@ -10,16 +10,21 @@ each policy says only how it acts (:meth:`BasePolicy.act`). Actions are ``[a_q, 
 * ``fis`` — the paper's fuzzy rules (§3.4, :mod:`aeromag_env.compensation.fuzzy`, the code the
   ``fakf`` filter uses) on the observed ROR and QOQ, once per statistics window (every M / K
   steps), as ``fakf``.
-* ``sage_husa``, ``ding`` — the classical adaptive filters: the environment runs its filter with
-  that built-in adaptation (``reset``'s ``filter_method`` option, which these policies name in
-  ``BasePolicy.reset_options``; the same compiled code as ``aeromag compensate --method``)
-  and they output zero actions.
-* ``tuned_constant`` — the best constant Q and R scale found offline on training seeds
-  (:mod:`agents.search.tuned_constant`), applied at the start of the episode, then held.
+* ``sage_husa``, ``ding``, ``vbakf``, ``vbakf_pr``, ``imm`` — the adaptive filters: the
+  environment runs its filter with that built-in adaptation (``reset``'s ``filter_method``
+  option, which these policies name in ``BasePolicy.reset_options``; the same compiled code as
+  ``aeromag compensate --method``) and they hold Q and R at their initial scales (the neutral
+  action), leaving the adaptation to the filter.
+* ``tuned_constant`` — the best constant Q and R scale of the scenario found offline on
+  training seeds (:mod:`agents.search.tuned_constant`), applied at the start of the episode,
+  then held.
+* ``tuned_constant_suite`` — one constant Q and R scale for every scenario, found the same way
+  over the whole suite; scenario-blind (it reads neither the scenario nor the truth, only its
+  own past actions), so it also takes batches.
 * ``oracle`` — knows the true noise variance (simulation only) and steers R to it.
 
 The policies that know more than the observations (``oracle``, ``privileged``,
-``tuned_constant``, the classical ones) read one environment's
+``tuned_constant``, the adaptive filters' ones) read one environment's
 :func:`~aeromag_env.environment.truth.flight_truth`, a read-only view: they never change the
 environment.
 """
@@ -48,7 +53,7 @@ from aeromag_env.environment.spaces import (
 from aeromag_env.environment.truth import FlightTruth, flight_truth
 from aeromag_env.errors import ConfigError
 from agents.policies.protocol import State
-from agents.policies.tuned_table import load_tuned
+from agents.policies.tuned_table import load_suite, load_tuned
 
 
 class BasePolicy(ABC):
@@ -174,14 +179,29 @@ class _Bound(BasePolicy):
 
 
 class ClassicalPolicy(_Bound):
-    """Sage–Husa or Ding et al. 2007: the filter's own adaptation, which the environment runs
-    when reset with this policy's ``reset_options``; zero actions."""
+    """An adaptive filter's own adaptation (Sage–Husa, Ding et al. 2007, the variational
+    ``vbakf`` and ``vbakf-pr``, the model bank ``imm``), which the environment runs when reset
+    with this policy's ``reset_options``; the action holds Q and R at their initial scales
+    (:func:`neutral_action`), so that the filter alone adapts.
+
+    Parameters
+    ----------
+    method : one of :data:`ADAPTIVE_METHODS` (the filter's method name, ``vbakf-pr``)
+    env : the environment it is evaluated in (wrapped or not); its action layout must be able
+        to hold the scales at 1 (:func:`neutral_action` refuses otherwise)
+    """
 
     def __init__(self, method: str, env: Any) -> None:
+        if method not in ADAPTIVE_METHODS:
+            raise ConfigError(
+                f"no adaptive-filter policy for method {method!r}; methods: "
+                f"{', '.join(ADAPTIVE_METHODS)}"
+            )
         super().__init__(env)
         self.name = method.replace("-", "_")
         self.method = method
         self.reset_options = MappingProxyType({"filter_method": method})
+        self.neutral = neutral_action(self.config.action, self.name)
 
     def act(
         self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
@@ -192,7 +212,30 @@ class ClassicalPolicy(_Bound):
                 f"options={dict(self.reset_options)} "
                 "(agents.evaluation.episodes.run_episode passes them)"
             )
-        return np.zeros((1, len(BASE_ACTIONS))), state
+        return self.neutral[None, :].copy(), state
+
+
+#: The filter methods whose adaptation :class:`ClassicalPolicy` leaves to the filter.
+ADAPTIVE_METHODS = ("sage-husa", "ding", "vbakf", "vbakf-pr", "imm")
+
+
+def neutral_action(act: Any, name: str) -> np.ndarray:
+    """The action that keeps Q and R at their initial scales in the action layout ``act`` (an
+    :class:`~aeromag_env.environment.config.ActionSpec`): zeros in the relative mode; in the
+    absolute mode the action of ``log10(scale) = 0``, which the ranges must contain. A policy
+    ``name`` that cannot hold the scales so (a range without 0, a T_p switch) is refused in one
+    line."""
+    if act.permanent == "gate":
+        raise ConfigError(f"policy {name!r} cannot hold T_p's Q with action.permanent='gate'")
+    ranges = [act.q_log10, act.r_log10] + ([act.qp_log10] if act.size == 3 else [])
+    if act.mode == "relative":
+        return np.zeros(act.size)
+    if not all(lo <= 0.0 <= hi for lo, hi in ranges):
+        raise ConfigError(
+            f"policy {name!r} holds the initial Q and R: the absolute action ranges "
+            "(action.q_log10, r_log10, qp_log10) must contain 0"
+        )
+    return np.array([_to_action(0.0, r) for r in ranges])
 
 
 class TargetScalePolicy(_Bound):
@@ -237,6 +280,73 @@ class TunedConstantPolicy(TargetScalePolicy):
             )
         entry = table[scenario]
         super().__init__(env, math.log(10.0) * entry["log10_q"], math.log(10.0) * entry["log10_r"])
+
+
+class TunedConstantSuitePolicy(BasePolicy):
+    """One constant Q and R scale for every scenario, found offline on training flights of the
+    whole suite (:func:`agents.search.tuned_constant.tune_constant_suite`, stored in
+    ``agents/policies/tuned_constant_suite.json``); deployable on a real flight, whose scenario
+    nobody knows.
+
+    Scenario-blind and truth-blind: it steers the cumulative log scales from the initial ones to
+    the targets by counting its own actions (kept in the ``state`` slot, per environment,
+    restarted at ``episode_start``), as the environment applies them (relative mode: ``s_max **
+    a`` per step, float32 actions), or sets them with a constant action (absolute mode); so it
+    takes batches (vector environments) and never reads the environment after construction,
+    where it reads only the action layout.
+
+    Parameters
+    ----------
+    action : the environment's :class:`~aeromag_env.environment.config.ActionSpec` (two
+        actions: ``permanent='joint'``)
+    log10_q, log10_r : the targets, log10 of the scales over Q(0) and R(0); default the stored
+        suite constant (:func:`agents.policies.tuned_table.load_suite`)
+    """
+
+    name = "tuned_constant_suite"
+
+    def __init__(
+        self, action: Any, log10_q: float | None = None, log10_r: float | None = None
+    ) -> None:
+        if log10_q is None or log10_r is None:
+            stored = load_suite()
+            log10_q = stored["log10_q"] if log10_q is None else log10_q
+            log10_r = stored["log10_r"] if log10_r is None else log10_r
+        targets = (float(log10_q), float(log10_r))
+        if not all(math.isfinite(t) for t in targets):
+            raise ConfigError(f"{self.name}: log10_q and log10_r must be finite, got {targets}")
+        if action.size != len(BASE_ACTIONS):
+            raise ConfigError(
+                f"{self.name} sets Q and R (two actions); action.permanent must be 'joint', got "
+                f"{action.permanent!r}"
+            )
+        self.absolute = action.mode == "absolute"
+        ranges = (action.q_log10, action.r_log10)
+        limit = math.log10(action.scale_limit)
+        reach = ranges if self.absolute else ((-limit, limit), (-limit, limit))
+        for label, t, (lo, hi) in zip(("log10_q", "log10_r"), targets, reach, strict=True):
+            if not lo <= t <= hi:
+                raise ConfigError(
+                    f"{self.name}: {label} = {t:g} is out of the action's reach [{lo:g}, {hi:g}] "
+                    "decades"
+                )
+        self.log10_q, self.log10_r = targets
+        self.log_s_max = math.log(action.s_max)
+        self.targets = np.array(targets) * math.log(10.0)
+        self.fixed = np.array([_to_action(t, r) for t, r in zip(targets, ranges, strict=True)])
+
+    def act(
+        self, obs: np.ndarray, state: State, episode_start: np.ndarray | None
+    ) -> tuple[np.ndarray, State]:
+        n = obs.shape[0]
+        if self.absolute:
+            return np.repeat(self.fixed[None, :], n, axis=0), state
+        logs = np.zeros((n, 2)) if state is None else np.array(state, dtype=np.float64)
+        if episode_start is not None:
+            logs[np.asarray(episode_start, bool).reshape(-1)] = 0.0
+        # the action as the environment reads it (float32, clipped), and where it moves the scales
+        actions = np.clip((self.targets - logs) / self.log_s_max, -1.0, 1.0).astype(np.float32)
+        return actions, logs + actions.astype(np.float64) * self.log_s_max
 
 
 class OraclePolicy(TargetScalePolicy):

@@ -99,6 +99,28 @@ def test_table_rows_give_ratios_and_targets_and_tolerate_missing_figures():
     assert np.isfinite(peak_rss_mb()) and peak_rss_mb() > 0
 
 
+def test_each_filter_method_has_a_cost_row_against_the_kf(nominal_box):
+    """``method_costs`` times every method of ``COST_METHODS`` side by side (the KF's ratio is 1
+    by construction); the table gives each its µs per sample and ratio; an older bench.json
+    without the figures has no such rows."""
+    from aeromag_env.compensation.cost import COST_METHODS
+    from aeromag_env.jobs.bench.filters import method_costs
+
+    t_b, td = earth_model(nominal_box)
+    y = nominal_box.vector("flux_a") - t_b
+    figures = method_costs(y[:100], t_b[:100], td[:100], repeats=1)
+    keys = [m.replace("-", "_") for m in COST_METHODS]
+    assert set(figures) == {f"filter_cost_{w}_{k}" for k in keys for w in ("s_per_sample", "ratio")}
+    assert figures["filter_cost_ratio_kf"] == 1.0
+    assert all(v > 0 for v in figures.values())
+    made_up = {**FIGURES, **figures, "filter_cost_s_per_sample_imm": 4e-6}
+    made_up["filter_cost_ratio_imm"] = 5.0
+    rows = {r[0]: r for r in table_rows(made_up)}
+    assert rows["filter cost per sample, imm"][1:] == ("4.00 µs", "5.00× kf", "", None)
+    assert len([r for r in rows if r.startswith("filter cost per sample, ")]) == len(keys)
+    assert not any(r[0].startswith("filter cost") for r in table_rows(FIGURES))
+
+
 #: The environments-inside-PPO figures, made up: 23.4 µs per step against a 7.8 µs filter at 8
 #: environments, 10.5 against 7.0 at 64; the env's share 12 % at both.
 TARGET_FIGURES = {

@@ -12,6 +12,10 @@ the
   plain-numpy transcription.
 * ``filterpy_samples_per_s`` — ``filterpy.kalman.KalmanFilter`` doing the same 21-state predict
   and update (its own Joseph form; the tests check it gives our states).
+* ``filter_cost_s_per_sample_<method>`` and ``filter_cost_ratio_<method>`` — each adaptive
+  method's compiled cost per sample and its ratio to the plain KF's, timed side by side on the
+  same samples (:func:`aeromag_env.compensation.cost.filter_costs`; the method's dashes are
+  underscores in the key).
 
 Building the filter states is outside the timing; only the pass over the samples is timed.
 The four alternate within each repeat, so that a slow minute of the host (these machines
@@ -28,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from aeromag_env.compensation.cost import COST_METHODS, filter_costs
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kalman_reference import run_reference
@@ -105,4 +110,19 @@ def bench_filter_figures(flight: Flight, samples: int, repeats: int) -> dict[str
 
     t_b, tdot_b = earth_model(flight)
     y = flight.vector("flux_a") - t_b
-    return bench_filters(y[:samples], t_b[:samples], tdot_b[:samples], repeats)
+    cut = (y[:samples], t_b[:samples], tdot_b[:samples])
+    return bench_filters(*cut, repeats) | method_costs(*cut, repeats)
+
+
+def method_costs(
+    y: np.ndarray, t_b: np.ndarray, tdot_b: np.ndarray, repeats: int
+) -> dict[str, float]:
+    """Each method of :data:`~aeromag_env.compensation.cost.COST_METHODS`' compiled cost per
+    sample [s] and its ratio to the plain KF's [-], side by side on ``y``, ``t_b``, ``tdot_b``
+    (n, 3)."""
+    figures: dict[str, float] = {}
+    for method, cost in filter_costs(y, t_b, tdot_b, COST_METHODS, repeats).items():
+        key = method.replace("-", "_")
+        figures[f"filter_cost_s_per_sample_{key}"] = cost.seconds_per_sample
+        figures[f"filter_cost_ratio_{key}"] = cost.ratio_to_kf
+    return figures

@@ -66,6 +66,7 @@ def rows(f: dict[str, Any]) -> list[Row]:
             None,
         ),
         ("filterpy KalmanFilter (reference)", _num(fp, "samples/s"), "1×", "", None),
+        *method_cost_rows(f),
         (
             "env steps, 1 env, K = 10",
             f"{env1:,.0f} /s",
@@ -100,6 +101,30 @@ def rows(f: dict[str, Any]) -> list[Row]:
             None if peak is None else peak < 1024,
         ),
     ]
+
+
+def method_cost_rows(f: dict[str, Any]) -> list[Row]:
+    """Each filter method's compiled cost per sample against the plain KF's, measured side by
+    side (``filter_cost_*``; none in older bench.json files, which lack them)."""
+    from aeromag_env.compensation.cost import COST_METHODS
+
+    out: list[Row] = []
+    for method in COST_METHODS:
+        key = method.replace("-", "_")
+        seconds = f.get(f"filter_cost_s_per_sample_{key}")
+        if seconds is None:
+            continue
+        ratio = f[f"filter_cost_ratio_{key}"]
+        out.append(
+            (
+                f"filter cost per sample, {method}",
+                f"{1e6 * seconds:.2f} µs",
+                f"{ratio:.2f}× kf",
+                "",
+                None,
+            )
+        )
+    return out
 
 
 def discover_row(f: dict[str, Any]) -> Row:

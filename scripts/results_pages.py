@@ -15,7 +15,8 @@ Run from the checkout::
 The output depends only on the results files and their git history: no clock, no machine. A
 page whose results files are not committed yet (:data:`PENDING`) is left out, and the index
 names it among the results without a page. The learners' page and its figures are made in
-``scripts/results_learners.py``; the helpers every page uses are in ``scripts/results_common.py``.
+``scripts/results_learners.py``, the adaptive filters' in ``scripts/results_adaptive.py``; the
+helpers every page uses are in ``scripts/results_common.py``.
 """
 
 from __future__ import annotations
@@ -408,6 +409,13 @@ def learners_files(docs: Path) -> dict[str, str | bytes]:
     return results_learners.learners_files(docs)
 
 
+def adaptive_page(docs: Path) -> str:
+    """``adaptive.md``: the adaptive filters and the tuners on fresh test flights."""
+    import results_adaptive
+
+    return results_adaptive.adaptive_page(docs)
+
+
 def index_page(docs: Path) -> str:
     """``index.md``: what the results pages are and which results are not among them."""
     lines = [
@@ -444,10 +452,14 @@ PAGES: dict[str, tuple[str, Callable[[Path], str]]] = {
     "tuners.md": ("The PPO tuners' training", tuners_page),
     "discovery.md": ("Discovery power and false alarms", discovery_page),
     "learners.md": ("Learners for the general tuner", learners_page),
+    "adaptive.md": ("Adaptive filters and tuners on fresh test flights", adaptive_page),
 }
 #: Pages made only once their results files are committed; until then the index names them
 #: among the results without a page.
-PENDING: dict[str, tuple[str, ...]] = {"learners.md": LEARNERS_DATA}
+PENDING: dict[str, tuple[str, ...]] = {
+    "learners.md": LEARNERS_DATA,
+    "adaptive.md": ("results/adaptive_benchmark.json",),
+}
 #: The files a page shows beside it (figures, tables), made from the same results files.
 FILES: dict[str, Callable[[Path], dict[str, str | bytes]]] = {"learners.md": learners_files}
 

@@ -275,6 +275,42 @@ def test_tune_constants_quick_writes_its_table_not_the_shipped_one(tmp_path, cap
     assert f"wrote {out}" in capsys.readouterr().out
 
 
+@pytest.mark.slow
+def test_tune_constants_suite_quick_writes_one_constant_with_its_provenance(tmp_path, capsys):
+    from agents.policies.tuned_table import SUITE_TABLE
+
+    shipped = SUITE_TABLE.read_bytes()
+    out = tmp_path / "suite.json"
+    assert run_experiment("tune_constants", "--suite", "--quick", "--out", str(out)) == 0
+    found = json.loads(out.read_text())
+    assert SUITE_TABLE.read_bytes() == shipped
+    assert found["seeds"] == [0, 1] and len(found["scenarios"]) == 2
+    assert found["command"].startswith("python experiments/tune_constants.py --suite --quick")
+    assert set(found["grid_rmse_nt"]) == set(found["scenarios"]) and found["date"]
+    assert "suite: log10 Q" in capsys.readouterr().out
+
+
+def test_adaptive_benchmark_quick_and_a_resumed_run(tmp_path, capsys):
+    """Two scenarios, two flights, the quick policies; a resumed run with one more policy keeps
+    the flights it had and records both runs."""
+    out = tmp_path / "bench.json"
+    assert run_experiment("adaptive_benchmark", "--quick", "--out", str(out)) == 0
+    first = json.loads(out.read_text())
+    assert first["seeds"] == [400_000, 400_001] and len(first["scenarios"]) == 2
+    assert "vbakf" in first["tables"][first["scenarios"][0]]["policies"]
+    argv = ["--quick", "--resume", "--policies", "constant,vbakf,tuned_constant,privileged,imm"]
+    assert run_experiment("adaptive_benchmark", *argv, "--out", str(out)) == 0
+    again = json.loads(out.read_text())
+    assert len(again["runs"]) == 2 and "seconds" in again["runs"][1]
+    assert again["flights"]["paper"]["vbakf"] == first["flights"]["paper"]["vbakf"]
+    assert list(again["flights"]["paper"]) == [*first["flights"]["paper"], "imm"]
+    capsys.readouterr()
+    assert (
+        run_experiment("adaptive_benchmark", "--resume", "--episodes", "3", "--out", str(out)) == 2
+    )
+    assert "was flown on other seeds" in capsys.readouterr().err
+
+
 def test_hidden_effects_only_needs_the_run_it_replaces_cases_in(tmp_path, capsys):
     argv = ["--quick", "--only", "null", "--out", str(tmp_path)]
     assert run_experiment("hidden_effects", *argv) == 2

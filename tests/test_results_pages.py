@@ -261,3 +261,80 @@ def test_partial_learners_data_is_a_one_line_error(tmp_path: Path) -> None:
     done = run(tmp_path / "out", docs)
     assert done.returncode == 2
     assert done.stderr.strip().count("\n") == 0 and "docs/learners/curves.csv" in done.stderr
+
+
+# --- the adaptive filters' page on synthetic data -----------------------------------------------
+
+
+def write_adaptive_data(docs: Path) -> None:
+    """``docs/results/adaptive_benchmark.json`` as ``experiments/adaptive_benchmark.py`` writes
+    it, synthetic: on ``noise_bursts`` ``vbakf`` beats ``general`` and ``constant`` by 1 nT on
+    every flight; on ``nominal`` ``imm`` diverges on one flight and ties ``general``."""
+    from agents.comparison.adaptive import summarize
+
+    rng = np.random.default_rng(1)
+    seeds = list(range(400_000, 400_000 + FLIGHTS))
+    flights: dict = {}
+    for scenario, offsets in (
+        ("nominal", {"constant": 0.0, "imm": 0.0, "general": 0.0, "tuned_constant": 0.0}),
+        ("noise_bursts", {"constant": 1.0, "vbakf": 0.0, "general": 1.0, "tuned_constant": 0.5}),
+    ):
+        base = rng.uniform(1.0, 3.0, FLIGHTS)
+        flights[scenario] = {}
+        for name, off in offsets.items():
+            rmse = base + off + rng.normal(0.0, 0.01, FLIGHTS)
+            div = [
+                1.0 if (scenario, name) == ("nominal", "imm") and k == 0 else 0.0
+                for k in range(FLIGHTS)
+            ]
+            flights[scenario][name] = {
+                "rmse_nt": rmse.tolist(),
+                "divergences": div,
+                "outliers_rejected": [0.0] * FLIGHTS,
+            }
+    run = {
+        "command": "python experiments/adaptive_benchmark.py --episodes 10",
+        "date": "2026-01-02",
+    }
+    record = {
+        "runs": [run],
+        "seeds": seeds,
+        "scenarios": list(flights),
+        "policies": ["constant", "imm", "vbakf", "general", "tuned_constant"],
+        "tables": summarize(flights),
+        "flights": flights,
+    }
+    (docs / "results").mkdir(parents=True, exist_ok=True)
+    (docs / "results" / "adaptive_benchmark.json").write_text(json.dumps(record))
+
+
+def test_the_adaptive_page_says_what_its_data_show(tmp_path: Path) -> None:
+    docs = tmp_path / "docs"
+    for folder in ("paper", "ppo", "general", "discovery"):
+        shutil.copytree(ROOT / "docs" / folder, docs / folder)
+    write_adaptive_data(docs)
+    pages = generate(tmp_path / "out", docs)
+    page = pages["adaptive.md"]
+    assert "* [Adaptive filters and tuners on fresh test flights](adaptive.md)" in pages["index.md"]
+    assert "seeds 400,000–400,009" in page
+    assert "* `nominal`: diverged: `imm` (1)." in page
+    assert "`noise_bursts` (R moves): `vbakf` is better than `constant`" in page
+    assert (
+        "beats the learned `general` tuner** beyond the paired interval on `noise_bursts` (`vbakf`)"
+        in page
+    )
+    rmse = _table(page, "## Mean RMSE [nT]")
+    assert rmse[0] == ["policy", "`nominal`", "`noise_bursts`"]
+    assert [r[0] for r in rmse[2:]] == [
+        "`constant`",
+        "`vbakf`",
+        "`imm`",
+        "`tuned_constant`",
+        "`general`",
+    ]
+    assert rmse[3][1] == "–" and rmse[3][2].endswith("▼")  # vbakf: not flown on nominal
+    divergences = _table(page, "## Divergences")
+    assert divergences[4][1] == "1/10"
+    versus = _table(page, "## The best adaptive filter against the learned `general` tuner")
+    assert versus[2][:2] == ["`nominal`", "`imm`"] and versus[2][-1] == "same"
+    assert versus[3][:2] == ["`noise_bursts`", "`vbakf`"] and versus[3][-1] == "**filter better**"

@@ -182,7 +182,11 @@ class ClassicalPolicy(_Bound):
     """An adaptive filter's own adaptation (Sage–Husa, Ding et al. 2007, the variational
     ``vbakf`` and ``vbakf-pr``, the model bank ``imm``), which the environment runs when reset
     with this policy's ``reset_options``; the action holds Q and R at their initial scales
-    (:func:`neutral_action`), so that the filter alone adapts.
+    (:func:`neutral_action`), so that the filter alone adapts. The filter's settings are the
+    package defaults chosen on training flights (``docs/results/adaptive_defaults.json``):
+    ``imm``'s bank is :class:`~aeromag_env.compensation.adaptive_settings.ModelBank`'s default,
+    Q(0) with R(0) × 1, 0.01 and 1000 around the scenario's own Q(0) and R(0) (the whole
+    table of tuned constants as a bank scored worse there).
 
     Parameters
     ----------

@@ -31,6 +31,7 @@ from aeromag_env.jobs.choices import (
     LEARNERS,
     METHODS,
     PATTERNS,
+    POLICIES,
     PRESETS,
 )
 
@@ -390,7 +391,7 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--policies",
         default="constant,fis,sage_husa,ding,tuned_constant,oracle",
-        help="comma-separated policy names",
+        help=f"comma-separated policy names of: {', '.join(POLICIES)}, or ppo:PATH.npz",
     )
     p.add_argument("--episodes", type=int, default=20, help="episodes (seeds) per policy (20)")
     p.add_argument(

@@ -1,6 +1,6 @@
 """The values the jobs' arguments choose among, in one light module: the command line builds its
 ``--help`` and its choices from these without loading the jobs themselves (and ``agents`` only
-for the learners' names, which its package's face holds)."""
+for the policies' and the learners' names, which their packages' faces hold)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from aeromag_env.compensation.compensate import METHODS
 from aeromag_env.compensation.model_fit import FIT_METHODS
 from aeromag_env.discovery.ground import GROUND_MODES
 from aeromag_env.simulation.config import PATTERNS, PRESETS
+from agents.policies import POLICIES
 from agents.training import LEARNERS
 
 #: The filter settings ``compensate``'s ``filter_preset`` names: the package defaults or the
@@ -24,5 +25,6 @@ __all__ = [
     "LEARNERS",
     "METHODS",
     "PATTERNS",
+    "POLICIES",
     "PRESETS",
 ]

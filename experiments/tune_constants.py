@@ -17,6 +17,10 @@ the command, the date and the seeds to ``--out`` (default
 ``results/tuned_constant_suite.json``; the shipped one, which the ``tuned_constant_suite``
 policy loads, is ``agents/policies/tuned_constant_suite.json``).
 
+``--suite --choose-from FILE``: choose again from the grids a suite file holds (after a change of
+the rule, :func:`agents.search.tuned_constant.choose_suite`), without flying; the record keeps
+the command that flew them and adds this one as ``chosen_by``.
+
 ``--quick``: the first scenario (two with ``--suite``) on 2 seeds over every fourth grid point.
 """
 
@@ -30,6 +34,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -41,6 +47,8 @@ from agents.policies.tuned_table import TABLE
 from agents.search.tuned_constant import (
     LOG10_Q_GRID,
     LOG10_R_GRID,
+    choose_suite,
+    reach_log10,
     tune_constant,
     tune_constant_suite,
 )
@@ -59,6 +67,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--suite", action="store_true", help="one constant for all scenarios")
     parser.add_argument("--out", type=Path, default=None, help="the table")
+    parser.add_argument(
+        "--choose-from", type=Path, default=None, help="--suite: choose from this file's grids"
+    )
     parser.add_argument("--quick", action="store_true", help="one scenario, 2 seeds, coarse")
     args = parser.parse_args(argv)
     default = SUITE if args.suite else SCENARIOS
@@ -72,6 +83,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             range(QUICK.seeds),
             (grids[0][::4], grids[1][::4]),
         )
+    if args.suite and args.choose_from:
+        return _choose_again(args, argv)
     if args.suite:
         return _suite(args, argv, scenarios, seeds, grids)
     out = args.out or Path("results/tuned_constants.json")
@@ -107,18 +120,38 @@ def _suite(
             print(f"{scenario}: {cells} cells ({time.perf_counter() - t0:.0f} s)", flush=True)
 
     row = tune_constant_suite(scenarios, list(seeds), *grids, progress=progress)
-    words = sys.argv[1:] if argv is None else list(argv)
     record = {
-        "command": " ".join(["python experiments/tune_constants.py", *words]),
+        "command": _command(argv),
         "date": datetime.date.today().isoformat(),
         "package_version": aeromag_env.__version__,
         "seconds": round(time.perf_counter() - t0),
         **row,
     }
+    return _write_suite(out, record)
+
+
+def _command(argv: Sequence[str] | None) -> str:
+    words = sys.argv[1:] if argv is None else list(argv)
+    return " ".join(["python experiments/tune_constants.py", *words])
+
+
+def _choose_again(args: argparse.Namespace, argv: Sequence[str] | None) -> int:
+    """``--suite --choose-from FILE``: the choice again from the file's grids."""
+    old = json.loads(args.choose_from.read_text())
+    grids = {s: np.asarray(g, dtype=float) for s, g in old["grid_rmse_nt"].items()}
+    row = choose_suite(grids, old["grid_log10_q"], old["grid_log10_r"], reach_log10())
+    chosen_by = {"command": _command(argv), "date": datetime.date.today().isoformat()}
+    record = {**old, **row, "chosen_by": chosen_by}
+    return _write_suite(args.out or Path("results/tuned_constant_suite.json"), record)
+
+
+def _write_suite(out: Path, record: dict) -> int:
+    """Write the suite's record to ``out`` and say what it chose."""
     write_text(out, json.dumps(record, indent=2, sort_keys=True) + "\n")
-    ratios = ", ".join(f"{s} ×{r:.2f}" for s, r in row["ratio_to_own_best"].items())
+    ratios = ", ".join(f"{s} ×{r:.2f}" for s, r in record["ratio_to_own_best"].items())
     print(
-        f"suite: log10 Q ×{row['log10_q']:+.1f}, log10 R ×{row['log10_r']:+.1f}; RMSE over each "
+        f"suite: log10 Q ×{record['log10_q']:+.1f}, log10 R ×{record['log10_r']:+.1f}; RMSE over "
+        "each "
         f"scenario's own best constant: {ratios}"
     )
     print(f"wrote {out}")

@@ -108,6 +108,16 @@ def suite_objective(grids: dict[str, np.ndarray]) -> np.ndarray:
     return np.where(np.isfinite(total), total, np.inf)
 
 
+def reach_log10(scenario: str = "nominal") -> float:
+    """How far, in decades, the tuning environment's default action layout lets a constant move
+    Q and R from Q(0) and R(0): ``log10(action.scale_limit)``. A cell of the grid beyond it
+    is flown at the limit (the environment clamps the scales), so it is the limit's cell."""
+    env = gym.make("AeroMagCompensation-v0", scenario=scenario)
+    limit = float(np.log10(env.unwrapped.config.action.scale_limit))
+    env.close()
+    return limit
+
+
 def tune_constant_suite(
     scenarios: Sequence[str],
     seeds: Sequence[int],
@@ -116,16 +126,13 @@ def tune_constant_suite(
     progress: Callable[[str, int], None] | None = None,
 ) -> dict[str, Any]:
     """One constant Q and R scale pair for every scenario of ``scenarios``: the grid cell with
-    the lowest :func:`suite_objective` over the mean episode RMSEs on ``seeds`` of each.
+    the lowest :func:`suite_objective` over the mean episode RMSEs on ``seeds`` of each, among
+    the cells the environment reaches (:func:`choose_suite`).
 
     Returns
     -------
     dict
-        ``log10_q``, ``log10_r`` (the choice), ``objective`` (its score and
-        :data:`SUITE_OBJECTIVE`), ``rmse_nt`` (scenario → the choice's mean RMSE [nT]),
-        ``ratio_to_own_best`` (scenario → that over the scenario's best cell [-]),
-        ``worst_ratio`` (the largest of those), ``seeds``, ``scenarios``, the grids, and
-        ``grid_rmse_nt`` (scenario → the whole grid of mean RMSEs, rows Q, columns R).
+        :func:`choose_suite`'s record, with ``seeds``.
     """
     if not scenarios:
         raise AeromagError("the suite's constant needs at least one scenario")
@@ -134,21 +141,47 @@ def tune_constant_suite(
     for s in scenarios:
         step = None if progress is None else (lambda k, s=s: progress(s, k))
         grids[s] = grid_rmse(s, seeds, log10_q, log10_r, step)
+    return {**choose_suite(grids, log10_q, log10_r, reach_log10()), "seeds": list(seeds)}
+
+
+def choose_suite(
+    grids: dict[str, np.ndarray],
+    log10_q: Sequence[float],
+    log10_r: Sequence[float],
+    reach: float,
+) -> dict[str, Any]:
+    """The suite's constant from every scenario's grid of mean RMSEs (rows Q, columns R): the
+    cell with the lowest :func:`suite_objective` among those within ``reach`` decades of Q(0)
+    and R(0) (the environment clamps the scales beyond it: such a cell repeats the limit's,
+    and a policy could not hold it); the first such cell on a tie.
+
+    Returns
+    -------
+    dict
+        ``log10_q``, ``log10_r`` (the choice), ``objective`` (its score and
+        :data:`SUITE_OBJECTIVE`), ``reach_log10``, ``rmse_nt`` (scenario → the choice's mean
+        RMSE [nT]), ``ratio_to_own_best`` (scenario → that over the scenario's best cell [-]),
+        ``worst_ratio`` (the largest of those), ``scenarios``, the grids, and ``grid_rmse_nt``
+        (scenario → the whole grid).
+    """
     score = suite_objective(grids)
+    inside = np.abs(np.asarray(log10_q))[:, None] <= reach
+    inside = inside & (np.abs(np.asarray(log10_r))[None, :] <= reach)
+    score = np.where(inside, score, np.inf)
     if not np.isfinite(score).any():
-        raise AeromagError("every cell of the grid diverged on some scenario; no constant chosen")
+        raise AeromagError("no cell of the grid is within reach and finite on every scenario")
     i, j = (int(v) for v in np.unravel_index(np.argmin(score), score.shape))
     ratios = {s: float(g[i, j] / np.nanmin(g)) for s, g in grids.items()}
     return {
-        "log10_q": log10_q[i],
-        "log10_r": log10_r[j],
+        "log10_q": float(log10_q[i]),
+        "log10_r": float(log10_r[j]),
         "objective": {"value": float(score[i, j]), "definition": SUITE_OBJECTIVE},
+        "reach_log10": reach,
         "rmse_nt": {s: float(g[i, j]) for s, g in grids.items()},
         "ratio_to_own_best": ratios,
         "worst_ratio": max(ratios.values()),
-        "scenarios": list(scenarios),
-        "seeds": list(seeds),
+        "scenarios": list(grids),
         "grid_log10_q": list(log10_q),
         "grid_log10_r": list(log10_r),
-        "grid_rmse_nt": {s: g.tolist() for s, g in grids.items()},
+        "grid_rmse_nt": {s: np.asarray(g).tolist() for s, g in grids.items()},
     }

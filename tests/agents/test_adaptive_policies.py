@@ -222,7 +222,7 @@ def test_the_suite_search_minimises_the_mean_log_rmse_over_scenarios():
     each scenario's best cell; test seeds are refused."""
     from agents.search.tuned_constant import tune_constant_suite
 
-    grid = {"log10_q": (-10.0, 0.0), "log10_r": (-2.0, 3.0)}
+    grid = {"log10_q": (-8.0, 0.0), "log10_r": (-2.0, 3.0)}
     found = tune_constant_suite(["paper", "nominal"], [0], grid["log10_q"], grid["log10_r"])
     grids = {s: np.array(g) for s, g in found["grid_rmse_nt"].items()}
     score = np.mean([np.log(g) for g in grids.values()], axis=0)
@@ -233,3 +233,21 @@ def test_the_suite_search_minimises_the_mean_log_rmse_over_scenarios():
         assert found["ratio_to_own_best"][s] == pytest.approx(g[i, j] / g.min(), rel=1e-12)
     with pytest.raises(AeromagError, match="must be training seeds"):
         tune_constant_suite(["paper"], [100_000], grid["log10_q"], grid["log10_r"])
+
+
+def test_the_suite_choice_skips_cells_the_environment_cannot_hold():
+    """A cell beyond the action's reach is flown clamped at the limit; it is never chosen, even
+    when it scores best (here Q × 1e-10 with a reach of 8 decades), and ties go to the first."""
+    from agents.search.tuned_constant import choose_suite
+
+    q, r = (-10.0, -8.0, 0.0), (0.0, 1.0)
+    grids = {
+        "a": np.array([[1.0, 2.0], [1.5, 2.0], [3.0, 3.0]]),
+        "b": np.array([[1.0, 1.0], [1.5, 1.5], [1.0, 1.0]]),
+    }
+    found = choose_suite(grids, q, r, reach=8.0)
+    assert (found["log10_q"], found["log10_r"]) == (-8.0, 0.0)
+    assert found["ratio_to_own_best"] == {"a": 1.5, "b": 1.5} and found["worst_ratio"] == 1.5
+    assert choose_suite(grids, q, r, reach=10.0)["log10_q"] == -10.0
+    with pytest.raises(AeromagError, match="no cell of the grid is within reach"):
+        choose_suite(grids, (-10.0, -9.0, 9.0), r, reach=8.0)

@@ -186,6 +186,15 @@ def _findings(d: dict[str, Any], beaten: list[str]) -> list[str]:
             f"* `noise_bursts` (R moves): `vbakf` is {said[r['vs_constant']]} `constant` "
             f"beyond the paired interval: {_diff(r, 'constant')} nT."
         )
+    for p in ("tuned_constant_suite", "general"):
+        worse = [s for s in t if t[s]["policies"].get(p, {}).get("vs_tuned_constant") == "worse"]
+        flown = [s for s in t if p in t[s]["policies"] and "tuned_constant" in t[s]["policies"]]
+        if flown:
+            where = f": {', '.join(f'`{s}`' for s in worse)}" if worse else ""
+            out.append(
+                f"* `{p}` is worse than the per-scenario `tuned_constant` beyond the paired "
+                f"interval on {len(worse)} of {len(flown)} scenarios{where}."
+            )
     if beaten:
         out.append(
             "* **A classical adaptive filter beats the learned `general` tuner** beyond the paired "

@@ -338,3 +338,15 @@ def test_the_adaptive_page_says_what_its_data_show(tmp_path: Path) -> None:
     versus = _table(page, "## The best adaptive filter against the learned `general` tuner")
     assert versus[2][:2] == ["`nominal`", "`imm`"] and versus[2][-1] == "same"
     assert versus[3][:2] == ["`noise_bursts`", "`vbakf`"] and versus[3][-1] == "**filter better**"
+
+
+def test_the_which_method_howto_quotes_the_adaptive_page() -> None:
+    """Every figure the how-to quotes from the benchmark (the sections before its costs) is a
+    figure of the committed results page."""
+    howto = (ROOT / "docs" / "howto" / "which-method.md").read_text()
+    quoted = howto.split("## What they cost")[0].split("## The answer")[1]
+    page = (RESULTS / "adaptive.md").read_text()
+    cells = set(re.findall(r"(?<![\d.])\d+\.\d+(?![\d.])", page))
+    figures = re.findall(r"(?<![\d.e])\d+\.\d+(?![\d.])", quoted)
+    assert len(figures) > 30
+    assert [f for f in figures if f not in cells] == []

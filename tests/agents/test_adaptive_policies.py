@@ -152,11 +152,12 @@ class _Blind(AeroMagCompensationEnv):
         raise AssertionError("the policy read the scenario")
 
 
-def test_the_suite_constant_reads_no_scenario():
+@pytest.mark.parametrize("name", ["tuned_constant_suite", *FILTER_POLICIES])
+def test_the_new_policies_read_no_scenario(name):
     """Built and flown on an environment whose ``scenario`` raises; the per-scenario
     ``tuned_constant`` fails there (so the check can fail)."""
     env = _Blind(scenario="noise_bursts")
-    policy = make_policy("tuned_constant_suite", env)
+    policy = make_policy(name, env)
     assert np.isfinite(run_episode(env, policy, SEED)["rmse_nt"])
     with pytest.raises(AssertionError, match="read the scenario"):
         make_policy("tuned_constant", env)

@@ -16,9 +16,8 @@
   process (the default), SB3's ``DummyVecEnv``, and ``ppo_batched_no_prefetch_steps_per_s``
   (batched stepping alone). The four run side by side in one process, taking turns one
   rollout (and its update) at a time, the order rotating each turn, so that the slow drifts of
-  a shared machine's speed fall on all of them alike (until 2026-11-27 each repeat ran one
-  variant's whole run after another's, and single repeats of the share below scattered from
-  −6 to 59 %). Steady-state throughput: one untimed rollout first (the first reset of every
+  a shared machine's speed fall on all of them alike (run one after another, single repeats
+  of the share below scattered from −6 to 59 %). Steady-state throughput: one untimed rollout first (the first reset of every
   environment, torch's first calls), then ``learn`` goes on, timed, for five episodes per
   environment in each repeat (with 8; two with 64), the resets at episode ends included. A
   training run of 1.5M steps has 20–160 episodes per environment, so its first reset
@@ -263,7 +262,7 @@ def filter_figures(prefix: str, parts: Seconds, timesteps: int, window: int) -> 
     env = [1e6 * s / timesteps for s in parts["batched"]["env"]]
     figures: dict[str, Any] = {f"{prefix}_decision_window": window}
     for name in ("filter", IN_PPO):
-        if name not in parts:  # (IN_PPO: from 2026-11-28 on)
+        if name not in parts:  # older bench.json files have no IN_PPO part
             continue
         kernel = [1e6 * s / timesteps for s in parts[name]["kernel"]]
         paired = [e / k for e, k in zip(env, kernel, strict=True)]

@@ -17,11 +17,11 @@
   (batched stepping alone). The four run side by side in one process, taking turns one
   rollout (and its update) at a time, the order rotating each turn, so that the slow drifts of
   a shared machine's speed fall on all of them alike (run one after another, single repeats
-  of the share below scattered from −6 to 59 %). Steady-state throughput: one untimed rollout first (the first reset of every
-  environment, torch's first calls), then ``learn`` goes on, timed, for five episodes per
-  environment in each repeat (with 8; two with 64), the resets at episode ends included. A
-  training run of 1.5M steps has 20–160 episodes per environment, so its first reset
-  (``env_reset_s`` per environment) weighs little. With them the share of each run's time
+  of the share below scattered from −6 to 59 %). Steady-state throughput: one untimed rollout
+  first (the first reset of every environment, torch's first calls), then ``learn`` goes on,
+  timed, for five episodes per environment in each repeat (with 8; two with 64), the resets
+  at episode ends included. A training run of 1.5M steps has 20–160 episodes per environment,
+  so its first reset (``env_reset_s`` per environment) weighs little. With them the share of each run's time
   spent in the environments (``ppo_*_env_time_share``) and the microseconds per environment
   step in each part of the run (``ppo_*_{env,forward,update,rest}_us_per_step``: the
   environments' ``step_wait``, the policy's forward pass in the rollouts, the updates, the

@@ -285,6 +285,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     result = demo(args.out, seed=args.seed)
     print(result.text, end="")
     files = "flight.h5, flight.png, compensation_*.png, tuners.png, summary.md, summary.json"
+    files += ", report.html"
     print(f"results in {args.out}/: {files}")
     return 0
 

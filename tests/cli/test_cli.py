@@ -115,6 +115,9 @@ def test_info_and_demo_through_the_console_script(tmp_path):
     assert (tmp_path / "demo" / "flight.png").stat().st_size > 10_000
     summary = (tmp_path / "demo" / "summary.md").read_text()
     assert all(f"| {m} |" in summary for m in ("kf", "fakf", "lsq", "tl"))
+    tuners = ("fis", "tuned_constant_suite", "vbakf_pr", "general", "tuned_constant", "privileged")
+    assert all(f"* `{p}`: " in summary for p in tuners) and "oracle" not in summary
+    assert "Bokeh" in (tmp_path / "demo" / "report.html").read_text()
     assert "summary.md" in demo.stdout
     info = subprocess.run(
         [str(exe), "info", str(tmp_path / "demo" / "flight.h5"), "--json"],

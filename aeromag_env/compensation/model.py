@@ -124,12 +124,12 @@ class FilterConfig:
         R(0) = 2e-3 nT², but an interference step can make it run away.
     scale_bounds : limits of the adapted Q and R relative to Q(0), R(0) (runaway guard).
     rate_scheme : ``backward`` (causal) or ``central`` (offline) derivative for ``Ṫ``.
-    vbakf : the settings of ``vbakf`` (:class:`~aeromag_env.compensation.adaptive_settings.
-        VbakfSettings`: ρ, iterations, prior).
-    vbakf_pr : the settings of ``vbakf-pr`` (:class:`~aeromag_env.compensation.
-        adaptive_settings.VbakfPrSettings`: τ, ρ, iterations, prior).
-    imm : the bank of ``imm`` (:class:`~aeromag_env.compensation.adaptive_settings.ModelBank`:
-        the models' Q and R scales around Q(0) and R(0), the switching matrix, IMM or MMAE).
+    vbakf : the settings of ``vbakf``: ρ, iterations, prior
+        (:class:`~aeromag_env.compensation.adaptive_settings.VbakfSettings`).
+    vbakf_pr : the settings of ``vbakf-pr``: τ, ρ, iterations, prior
+        (:class:`~aeromag_env.compensation.adaptive_settings.VbakfPrSettings`).
+    imm : the bank of ``imm``: the models' Q and R scales around Q(0) and R(0), the switching
+        matrix, IMM or MMAE (:class:`~aeromag_env.compensation.adaptive_settings.ModelBank`).
     """
 
     method: str = "kf"

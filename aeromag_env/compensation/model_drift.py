@@ -3,8 +3,8 @@
 A model fitted on one aircraft's calibration flight fits that aircraft's other flights as long
 as the aircraft is unchanged. Applied to another aircraft, or to the same one after maintenance
 (a shifted permanent field), it leaves the interference it no longer describes in the output.
-:func:`drift_evidence` measures that against the calibration's own figures (stored in the model
-at calibration, :func:`calibration_residual`):
+:func:`tl_residual` and :func:`vector_residual` measure that against the calibration's own
+figures (the same measures of the calibration flight, stored in the model at calibration):
 
 * ``tl``: the compensated field's spread in MagNav's 0.1–0.9 Hz band (where the aircraft's
   manoeuvre-driven field lives) and the share of it that the 18 Tolles–Lawson terms explain

@@ -21,7 +21,7 @@ field.
 The learners' file (``agents/search/spaces/tune_space_learners.json``, :func:`read_learner_space`)
 holds one such space per learner of ``aeromag tune --learner`` under ``learners``, its keys
 fields of the learner's ``algo`` (constructor parameters of its algorithm:
-:class:`~agents.training.hyperparameters.SACAlgo`… in
+:class:`~agents.training.learner_hyperparameters.SACAlgo`… in
 ``agents/training/hyperparams/learners.json``), checked the same way against those fields.
 Ray is imported by :func:`tune_domains` only.
 """

@@ -332,7 +332,7 @@ class Pretrain(Model):
 
 class PPOHyperparams(LearnerSettings):
     """One scenario's PPO hyperparameters (an entry of ``agents/training/hyperparams/ppo.json``),
-    with the environment settings the policy is trained and evaluated with; :attr:`version` is
+    with the environment settings the policy is trained and evaluated with; ``version`` is
     the version of the file it was read from (0: not read from a file)."""
 
     model_config = ConfigDict(

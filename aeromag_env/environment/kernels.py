@@ -4,10 +4,13 @@
 once the action has been checked: map the action to Q and R scale factors, rescale, advance the
 filter (:func:`aeromag_env.compensation.kernels.advance`) over one decision window, score the
 window against the true interference and write the observation. :func:`env_step_batch` runs it for
-many environments at once, in compiled chunks spread over the cores (:mod:`aeromag_env.threads`;
-used by :class:`aeromag_env.environment.vec_env.AeroMagCompensationVecEnv`). Both run the same
-compiled code, so environment i of the vector environment is bitwise the single environment given
-the same flight and actions (tested).
+many environments at once, with the vector environment's bookkeeping of a step (the action check,
+the episode's step count and limit, the end flags, the rewards: :class:`BatchArrays
+<aeromag_env.environment.layout.BatchArrays>`), in one compiled call, or in compiled chunks
+spread over the cores for many environments (:mod:`aeromag_env.threads`; used by
+:class:`aeromag_env.environment.vec_env.AeroMagCompensationVecEnv`). Both run the same compiled
+step, so environment i of the vector environment is bitwise the single environment given the same
+flight and actions (tested).
 
 The action mapping, reward and observation are specified in the environment's docstring; the
 action and observation layouts are named in :mod:`aeromag_env.environment.spaces`, the
@@ -24,12 +27,21 @@ import numpy as np
 from aeromag_env.compensation.arrays import FilterArrays, Packed, named, packed, row
 from aeromag_env.compensation.kernel_layout import INTS
 from aeromag_env.compensation.kernels import advance
-from aeromag_env.environment.layout import LN10, OUT, RUN, STEP_PAR, EnvArrays, EnvSettings
-from aeromag_env.environment.observe import observe
+from aeromag_env.environment.layout import (
+    LN10,
+    OUT,
+    RUN,
+    STEP_PAR,
+    BatchArrays,
+    EnvArrays,
+    EnvSettings,
+    RewardForm,
+)
+from aeromag_env.environment.observe import keep_sums, observe, take_leaving_updates
 from aeromag_env.environment.spaces import ACT_Q, ACT_QP, ACT_R
 from aeromag_env.numba_cache import njit
 from aeromag_env.simulation.interference import INDUCED_START, PERMANENT_START
-from aeromag_env.threads import run_chunks
+from aeromag_env.threads import MIN_CHUNK, run_chunks
 
 
 @njit(cache=True, inline="always")  # as arrays.row
@@ -95,12 +107,12 @@ def _episode_rmse(run: np.ndarray, window_rmse: float) -> float:
 
 
 @njit(cache=True)
-def _reward(e: float, form: float) -> float:
-    """The reward of a window error ``e`` in units of the reward's ``scale_nt``: ``−ln(1 + e)``
-    (form 0, log), ``−e`` (1, linear) or ``−e²`` (2, squared)."""
-    if form == 0.0:
+def _reward(e: float, form: int) -> float:
+    """The reward of a window error ``e`` in units of the reward's ``scale_nt`` by its
+    :class:`~aeromag_env.environment.layout.RewardForm`: ``−ln(1 + e)``, ``−e`` or ``−e²``."""
+    if form == RewardForm.LOG:
         return -math.log1p(e)
-    if form == 1.0:
+    if form == RewardForm.LINEAR:
         return -e
     return -e * e
 
@@ -137,12 +149,15 @@ def env_step(
     rm *= s_r
     k0, divergences = ints[INTS.k], ints[INTS.div]
     k1 = min(k0 + int(e[STEP_PAR.k]), n)
+    window = (ints[INTS.pos], ints[INTS.updates], divergences)  # before the filter's updates
+    taken = take_leaving_updates(k0, k1, env, settings, f)
     if k1 > k0:
         advance(mode, k0, k1, f)
+    keep_sums(k0, k1, taken, window, env, settings, f)
     ror, qoq = f.outputs.ror, f.outputs.qoq
     rmse = _window_error(k0, k1, env.truth, f.outputs.est, score_start, run)
     terminated = ints[INTS.div] > divergences
-    reward = _reward(rmse / e[STEP_PAR.reward_nt], e[STEP_PAR.reward_form])
+    reward = _reward(rmse / e[STEP_PAR.reward_nt], int(e[STEP_PAR.reward_form]))
     out[OUT.reward] = e[STEP_PAR.penalty] if terminated else reward
     out[OUT.rmse] = rmse
     out[OUT.ror], out[OUT.qoq] = ror[k1 - 1], qoq[k1 - 1]
@@ -158,49 +173,105 @@ def env_step(
 def _env_step_range(
     lo: int,
     hi: int,
-    active: np.ndarray,
-    modes: np.ndarray,
-    n: np.ndarray,
-    score_start: np.ndarray,
+    limit: int,
+    batch: Packed,
     env_arrays: Packed,
     shared: Packed,
     filter_arrays: Packed,
-) -> None:
-    """Environments ``lo ≤ i < hi`` of :func:`env_step_batch`."""
-    envs, settings, filters = EnvArrays(*env_arrays), EnvSettings(*shared), named(filter_arrays)
+) -> int:
+    """Environments ``lo ≤ i < hi`` of :func:`env_step_batch` (their actions checked): step the
+    active ones, zero the others' outcome, and write each one's step count, end flags and
+    reward; the number of environments whose episode ended."""
+    b, envs, settings = BatchArrays(*batch), EnvArrays(*env_arrays), EnvSettings(*shared)
+    filters = named(filter_arrays)
+    ended = 0
     for i in range(lo, hi):
-        if active[i]:
+        out = envs.outcome[i]
+        if b.active[i]:
             env = _env_row(envs, i)
-            env_step(modes[i], n[i], score_start[i], env, settings, row(filters, i))
+            env_step(b.mode[i], b.n[i], b.score_start[i], env, settings, row(filters, i))
+            b.steps[i] += 1
+            if limit > 0 and b.steps[i] >= limit:  # a TimeLimit's cut, as gym.make's
+                out[OUT.truncated] = 1.0
+        else:
+            out[:] = 0.0
+        b.reward[i] = out[OUT.reward]
+        b.terminated[i], b.truncated[i] = out[OUT.terminated] > 0.0, out[OUT.truncated] > 0.0
+        b.ended[i] = b.terminated[i] or b.truncated[i]
+        ended += b.ended[i]
+    return ended
+
+
+#: What :func:`env_step_batch` refuses (:func:`refusal`): an environment's action that is not
+#: finite, a step of an environment whose episode ended and which was not reset.
+NOT_FINITE, NOT_RESET = 0, 1
+
+
+@njit(cache=True, nogil=True)
+def _refused(batch: Packed, actions: np.ndarray) -> int:
+    """0, or the refusal code of :func:`env_step_batch`: an active environment i that ended and
+    was not reset (−1 − N − i; checked first), a row i of ``actions`` not finite (−1 − i)."""
+    b = BatchArrays(*batch)
+    n = b.active.shape[0]
+    for i in range(n):
+        if b.active[i] and b.ended[i]:
+            return -1 - n - i
+    for i in range(n):
+        for j in range(actions.shape[1]):
+            if not np.isfinite(actions[i, j]):
+                return -1 - i
+    return 0
+
+
+def refusal(code: int, n: int) -> tuple[int, int]:
+    """:func:`env_step_batch`'s negative return ``code`` for N = ``n`` environments as
+    (:data:`NOT_FINITE` or :data:`NOT_RESET`, the environment)."""
+    i = -1 - code
+    return (NOT_RESET, i - n) if i >= n else (NOT_FINITE, i)
+
+
+@njit(cache=True, nogil=True)
+def _env_step_all(
+    limit: int, batch: Packed, env_arrays: Packed, shared: Packed, filter_arrays: Packed
+) -> int:
+    """:func:`env_step_batch` in one compiled call: the refusals first, then the step."""
+    code = _refused(batch, EnvArrays(*env_arrays).action)
+    if code < 0:
+        return code
+    n = BatchArrays(*batch).active.shape[0]
+    return _env_step_range(0, n, limit, batch, env_arrays, shared, filter_arrays)
 
 
 def env_step_batch(
-    active: np.ndarray,
-    modes: np.ndarray,
-    n: np.ndarray,
-    score_start: np.ndarray,
+    limit: int,
+    batch: BatchArrays | Packed,
     envs: EnvArrays | Packed,
     settings: EnvSettings | Packed,
     filters: FilterArrays | Packed,
-) -> None:
-    """:func:`env_step` for every environment i with ``active[i]`` (N,) bool, on all cores.
+) -> int:
+    """One step of N environments: :func:`env_step` for every environment i with
+    ``batch.active[i]``, the others' outcome zeroed, and the step's bookkeeping of every one
+    (:class:`~aeromag_env.environment.layout.BatchArrays`: step count, end flags, reward; the
+    step count reaching ``limit`` > 0 truncates, as a ``TimeLimit``).
 
-    ``modes``, ``n``, ``score_start`` (N,) int64 and the arrays of ``envs`` and ``filters`` have
-    a leading environment axis (the actions (N, 2 or 3) float64 finite); ``settings`` are
-    shared. Each group as a NamedTuple or already :func:`~aeromag_env.compensation.arrays.packed`
-    (a caller stepping the same arrays again and again packs them once).
+    ``batch`` and the arrays of ``envs`` and ``filters`` have a leading environment axis (the
+    actions (N, 2 or 3) float64); ``settings`` are shared. Each group as a NamedTuple or already
+    :func:`~aeromag_env.compensation.arrays.packed` (a caller stepping the same arrays again and
+    again packs them once). Returns the number of environments whose episode ended; or, before
+    any environment moved, a negative code (:func:`refusal`) when an active environment's
+    episode ended on an earlier step and it was not reset (``batch.ended`` still set), or when
+    an action is not finite. A few environments are one compiled call; many are spread over the
+    cores (:func:`aeromag_env.threads.run_chunks`).
     """
-    run_chunks(
-        _env_step_range,
-        int(active.shape[0]),
-        active,
-        modes,
-        n,
-        score_start,
-        _packed(envs),
-        _packed(settings),
-        _packed(filters),
-    )
+    args = (limit, _packed(batch), _packed(envs), _packed(settings), _packed(filters))
+    n = int(args[1][0].shape[0])
+    if n < 2 * MIN_CHUNK:  # one chunk anyway (run_chunks would run it here, in this thread)
+        return int(_env_step_all(*args))
+    code = int(_refused(args[1], EnvArrays(*args[2]).action))
+    if code < 0:
+        return code
+    run_chunks(_env_step_range, n, *args)
+    return int(np.count_nonzero(BatchArrays(*args[1]).ended))
 
 
 def _packed(arrays: tuple) -> Packed:

@@ -46,7 +46,11 @@ CASES: dict[str, tuple[dict[str, Any], int, str]] = {
         7,
         "random",
     ),
-    "general_nonstationary": ({"preset": "general", "scenario": "nonstationary"}, 100_003, "random"),
+    "general_nonstationary": (
+        {"preset": "general", "scenario": "nonstationary"},
+        100_003,
+        "random",
+    ),
     "general_misspecified": ({"preset": "general", "scenario": "misspecified"}, 11, "zero"),
     "general_bursts_recent": (
         {"preset": "general", "scenario": "noise_bursts", "recent_samples": 20},

@@ -160,3 +160,34 @@ def test_building_either_environment_loads_no_training_or_plotting_package():
     )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert run.stdout.strip() == ""
+
+
+def test_many_environments_on_threads_equal_single_envs_and_refuse_before_moving():
+    """17 environments (the step spread over threads: more than one chunk) with every optional
+    observation, a step limit and random actions: bitwise the single environments. A
+    non-finite action, or stepping an ended environment with autoreset disabled, is refused
+    before any environment moves."""
+    n = 17
+    kw = {"preset": "general", "scenario": "misspecified", "duration_s": 30.0}
+    ours, sync = _pair(n, AutoresetMode.NEXT_STEP, max_episode_steps=20, **kw)
+    _assert_identical(ours.reset(seed=5), sync.reset(seed=5))
+    rng = np.random.default_rng(1)
+    for _ in range(45):  # two episodes cut at 20 steps, and their restarts
+        actions = rng.uniform(-1.5, 1.5, (n, 3)).astype(np.float32)
+        _assert_identical(ours.step(actions), sync.step(actions))
+    k = ours.unwrapped.filters.k
+    bad = rng.uniform(-1, 1, (n, 3))
+    bad[13, 2] = np.inf
+    with pytest.raises(ValueError, match=r"finite; environment 13 got \[.*inf\]"):
+        ours.step(bad)
+    np.testing.assert_array_equal(ours.unwrapped.filters.k, k)  # nothing moved
+
+    disabled = AeroMagCompensationVecEnv(n, autoreset_mode="Disabled", max_episode_steps=2, **kw)
+    disabled.reset(seed=0)
+    disabled.step(np.zeros((n, 3)))
+    _, _, _, truncated, _ = disabled.step(np.zeros((n, 3)))
+    assert truncated.all()
+    k = disabled.filters.k
+    with pytest.raises(ResetNeeded, match="ended"):
+        disabled.step(np.zeros((n, 3)))
+    np.testing.assert_array_equal(disabled.filters.k, k)

@@ -1,0 +1,193 @@
+"""The environment's running sums over its statistics windows, kept up to date in O(K) a step.
+
+The observations over the filter's statistics window of M (:mod:`~aeromag_env.environment
+.statistics`) read sums instead of looping over the window at every step. Two windows, their
+sums in the environment's running values (:class:`aeromag_env.environment.layout.Run`):
+
+* **the last M updates** (the filter's circular buffer ``rbuf``, which holds the innovations the
+  window's ROR and QOQ are made of): ``Σ r`` and ``Σ |r|²`` (``win_r``, ``win_rr``), for the
+  innovation bias and the two-window change statistic. The filter overwrites an update as it
+  leaves, so before it advances the step takes out of the sums the oldest updates that the
+  step's updates could push out (at most one per sample: :func:`take_leaving`), and afterwards
+  puts back those that stayed and adds the new ones (:func:`put_updates`).
+* **the last M samples** of the innovation history ``innov`` (its rows NaN where a sample was
+  skipped): the finite rows, their ``Σ r``, ``Σ |r|²`` and ``Σ r_p · r_k`` over consecutive
+  finite rows p < k both in the window (``white_*``), for the whiteness
+  (:func:`slide_samples`).
+
+Each is exact in exact arithmetic. In floating point a sum is summed afresh once per lap of
+the window (so rounding cannot drift), after the filter restarted (the window may have been
+emptied), and whenever a term leaving carried more than :data:`SUM_RATIO` times what is left:
+the actions may swing R, and with it the innovations, by decades within a window, and
+subtracting a huge term from a sum of small ones leaves only rounding error. The sums stay
+within a few 1e-13 of the window's own, relative (tested against a plain numpy reference).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aeromag_env.compensation.kernel_layout import INTS
+from aeromag_env.environment.layout import RUN
+from aeromag_env.numba_cache import njit
+
+#: A running sum is summed afresh when a term leaving it carried more than SUM_RATIO times what
+#: is left (4 of 16 digits lost to the subtraction, at most). Clean runs rarely get there (the
+#: innovations' squares within a window span less than 1e4 but after an interference step).
+SUM_RATIO = 1e4
+
+
+@njit(cache=True, inline="always")
+def _wrapped(w: int, size: int) -> int:
+    """``w mod size`` for ``0 ≤ w < 2 size`` (no integer division)."""
+    return w - size if w >= size else w
+
+
+@njit(cache=True)
+def _add_update(run: np.ndarray, rbuf: np.ndarray, w: int, sign: float) -> float:
+    """Add (``sign`` 1) or take out (−1) the update in slot ``w`` of the window sums; its
+    ``|r|²``."""
+    rr = rbuf[w, 0] ** 2 + rbuf[w, 1] ** 2 + rbuf[w, 2] ** 2
+    for i in range(3):
+        run[RUN.win_r + i] += sign * rbuf[w, i]
+    run[RUN.win_rr] += sign * rr
+    return rr
+
+
+@njit(cache=True)
+def update_sums(ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray) -> None:
+    """``Σ r`` and ``Σ |r|²`` over the updates in the window, afresh (oldest first)."""
+    size, count = ints[INTS.window], ints[INTS.updates]
+    for i in range(3):
+        run[RUN.win_r + i] = 0.0
+    run[RUN.win_rr] = 0.0
+    w = _wrapped(ints[INTS.pos] - count + size, size)
+    for _ in range(count):
+        _add_update(run, rbuf, w, 1.0)
+        w = _wrapped(w + 1, size)
+
+
+@njit(cache=True)
+def take_leaving(
+    samples: int, ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray
+) -> tuple[int, float]:
+    """Before the filter advances over ``samples`` samples: take out of the window sums the
+    oldest updates that the step's updates could push out of the window (at most one update a
+    sample). Returns their count (−1 when the step could turn the whole window over: the sums
+    are then summed afresh after it) and the largest ``|r|²`` among them [nT²]."""
+    size, count = ints[INTS.window], ints[INTS.updates]
+    if samples >= size:
+        return -1, 0.0
+    candidates = max(0, count + samples - size)  # ≤ samples, ≤ count
+    largest, w = 0.0, _wrapped(ints[INTS.pos] - count + size, size)  # from the oldest update
+    for _ in range(candidates):
+        largest = max(largest, _add_update(run, rbuf, w, -1.0))
+        w = _wrapped(w + 1, size)
+    return candidates, largest
+
+
+@njit(cache=True)
+def put_updates(
+    taken: tuple[int, float],
+    pos0: int,
+    count0: int,
+    restarts0: int,
+    ints: np.ndarray,
+    rbuf: np.ndarray,
+    run: np.ndarray,
+) -> None:
+    """After the filter advanced from a window at slot ``pos0`` holding ``count0`` updates with
+    ``restarts0`` restarts so far, ``taken`` what :func:`take_leaving` took out of the sums
+    before: put back the updates that stayed in the window and add the new ones; or sum afresh
+    after a lap of the window, a restart, or when one of the updates taken out carried more
+    than :data:`SUM_RATIO` times what is left."""
+    candidates, largest = taken
+    size, pos = ints[INTS.window], ints[INTS.pos]
+    added = _wrapped(pos - pos0 + size, size)  # fewer than size: the step has fewer samples
+    if candidates < 0 or ints[INTS.div] != restarts0 or pos0 + added >= size:
+        update_sums(ints, rbuf, run)
+        return
+    left = max(0, count0 + added - size)  # the oldest ones: their slots hold new updates now
+    w = _wrapped(pos0 - count0 + size + left, size)
+    for _ in range(left, candidates):
+        _add_update(run, rbuf, w, 1.0)
+        w = _wrapped(w + 1, size)
+    w = pos0
+    for _ in range(added):
+        _add_update(run, rbuf, w, 1.0)
+        w = _wrapped(w + 1, size)
+    if largest > 0.0 and not run[RUN.win_rr] * SUM_RATIO >= largest:
+        update_sums(ints, rbuf, run)
+
+
+@njit(cache=True, inline="always")
+def finite_row(x: np.ndarray, k: int) -> bool:
+    """Row k of the (n, 3) array ``x`` is finite."""
+    return np.isfinite(x[k, 0]) and np.isfinite(x[k, 1]) and np.isfinite(x[k, 2])
+
+
+@njit(cache=True)
+def _dot(x: np.ndarray, a: int, b: int) -> float:
+    return x[a, 0] * x[b, 0] + x[a, 1] * x[b, 1] + x[a, 2] * x[b, 2]
+
+
+@njit(cache=True)
+def _add_sample(run: np.ndarray, innov: np.ndarray, k: int, sign: float) -> float:
+    """Add (``sign`` 1) or take out (−1) the finite row k of ``innov`` from the row count and
+    the sums of ``r`` and ``|r|²``; its ``|r|²``."""
+    rr = _dot(innov, k, k)
+    run[RUN.white_rows] += sign
+    for i in range(3):
+        run[RUN.white_r + i] += sign * innov[k, i]
+    run[RUN.white_rr] += sign * rr
+    return rr
+
+
+@njit(cache=True)
+def sample_sums(lo: int, k1: int, innov: np.ndarray, run: np.ndarray) -> None:
+    """The whiteness sums over the samples ``lo ≤ k < k1``, afresh."""
+    run[RUN.white_rows] = 0.0
+    for i in range(3):
+        run[RUN.white_r + i] = 0.0
+    run[RUN.white_rr] = 0.0
+    run[RUN.white_link] = 0.0
+    last = -1
+    for k in range(lo, k1):
+        if finite_row(innov, k):
+            _add_sample(run, innov, k, 1.0)
+            if last >= 0:
+                run[RUN.white_link] += _dot(innov, last, k)
+            last = k
+    run[RUN.white_last] = last + 1
+
+
+@njit(cache=True)
+def slide_samples(k0: int, k1: int, size: int, innov: np.ndarray, run: np.ndarray) -> None:
+    """Move the whiteness sums from the samples ``max(0, k0 − size) ≤ k < k0`` to
+    ``max(0, k1 − size) ≤ k < k1``: take out the rows that left (and the link from each to the
+    next finite row), add the new ones (and the link from the last finite row, if it is still
+    in the window); afresh once per lap of ``size`` samples, or when a row that left carried
+    more than :data:`SUM_RATIO` times what is left."""
+    lo0, lo1 = max(0, k0 - size), max(0, k1 - size)
+    if k1 // size != k0 // size:  # a lap (every step with K ≥ size)
+        sample_sums(lo1, k1, innov, run)
+        return
+    largest = 0.0
+    for j in range(lo0, lo1):
+        if finite_row(innov, j):
+            largest = max(largest, _add_sample(run, innov, j, -1.0))
+            nxt = j + 1
+            while nxt < k0 and not finite_row(innov, nxt):
+                nxt += 1
+            if nxt < k0:
+                run[RUN.white_link] -= _dot(innov, j, nxt)
+    last = int(run[RUN.white_last]) - 1
+    for k in range(k0, k1):
+        if finite_row(innov, k):
+            _add_sample(run, innov, k, 1.0)
+            if last >= lo1:
+                run[RUN.white_link] += _dot(innov, last, k)
+            last = k
+    run[RUN.white_last] = last + 1
+    if largest > 0.0 and not run[RUN.white_rr] * SUM_RATIO >= largest:
+        sample_sums(lo1, k1, innov, run)

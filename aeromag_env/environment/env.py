@@ -155,6 +155,14 @@ class AeroMagCompensationEnv(gym.Env):
     ## Version History
 
     * v0: first version.
+    * v0, second revision (the ids unchanged): the observations over the filter's statistics
+      window (``whiteness``, ``log_innovation_power``, ``log_step_statistic``,
+      ``log_innovation_bias``) are computed from running sums
+      (:mod:`aeromag_env.environment.window_sums`) instead of a loop over the window at every
+      step. They may differ from the first revision's in their last bits: about 1e-12
+      relative before the float32 rounding, at most one float32 unit in the last place
+      (whiteness: 1e-8) as observations; on the recorded test episodes not at all. The action
+      mapping, rewards, infos, the filter and the episode ends are bitwise as before.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}  # noqa: RUF012 (gymnasium API)

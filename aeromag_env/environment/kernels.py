@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from aeromag_env.compensation.arrays import FilterArrays, Packed, named, packed, row
+from aeromag_env.compensation.arrays import FilterArrays, Packed, named, row
 from aeromag_env.compensation.kernel_layout import INTS
 from aeromag_env.compensation.kernels import advance
 from aeromag_env.environment.layout import (
@@ -39,6 +39,8 @@ from aeromag_env.environment.layout import (
 )
 from aeromag_env.environment.observe import keep_sums, observe, take_leaving_updates
 from aeromag_env.environment.spaces import ACT_Q, ACT_QP, ACT_R
+from aeromag_env.environment.step_arrays import StepArrays
+from aeromag_env.environment.window_sums import per_step
 from aeromag_env.numba_cache import njit
 from aeromag_env.simulation.interference import INDUCED_START, PERMANENT_START
 from aeromag_env.threads import MIN_CHUNK, run_chunks
@@ -50,7 +52,7 @@ def _env_row(e: EnvArrays, i: int) -> EnvArrays:
     return EnvArrays(e.action[i], e.run[i], e.truth[i], e.obs[i], e.outcome[i])
 
 
-@njit(cache=True)
+@per_step
 def _scale(a: float, slot: int, lo: float, hi: float, run: np.ndarray, par: np.ndarray) -> float:
     """One action → the factor that moves the cumulative log scale ``run[slot]`` to its new value.
 
@@ -68,7 +70,7 @@ def _scale(a: float, slot: int, lo: float, hi: float, run: np.ndarray, par: np.n
     return math.exp(new - old)
 
 
-@njit(cache=True)
+@per_step
 def _window_error(
     k0: int, k1: int, truth: np.ndarray, est: np.ndarray, score_start: int, run: np.ndarray
 ) -> float:
@@ -94,7 +96,7 @@ def _window_error(
     return math.sqrt(total / (3 * (k1 - k0))) if k1 > k0 else np.nan
 
 
-@njit(cache=True)
+@per_step
 def _episode_rmse(run: np.ndarray, window_rmse: float) -> float:
     """The episode's RMSE so far [nT]: over the flight after ``score_from``; before it (an
     episode cut or diverged early) over the part flown, so that a score is never NaN; the
@@ -106,7 +108,7 @@ def _episode_rmse(run: np.ndarray, window_rmse: float) -> float:
     return window_rmse
 
 
-@njit(cache=True)
+@per_step
 def _reward(e: float, form: int) -> float:
     """The reward of a window error ``e`` in units of the reward's ``scale_nt`` by its
     :class:`~aeromag_env.environment.layout.RewardForm`: ``−ln(1 + e)``, ``−e`` or ``−e²``."""
@@ -117,7 +119,20 @@ def _reward(e: float, form: int) -> float:
     return -e * e
 
 
-@njit(cache=True)
+@per_step
+def _rescale(qd: np.ndarray, rm: np.ndarray, s_qp: float, s_q: float, s_r: float) -> None:
+    """Eq. 21: ``Q ← s_a Q``, ``R ← s_r R``, with T_p's block of Q scaled by ``s_qp`` (``s_q``
+    without a T_p action), element by element (a slice would need numba's runtime)."""
+    for a in range(PERMANENT_START, INDUCED_START):
+        qd[a] *= s_qp
+    for a in range(INDUCED_START, qd.shape[0]):
+        qd[a] *= s_q
+    for i in range(3):
+        for j in range(3):
+            rm[i, j] *= s_r
+
+
+@njit(cache=True, inline="always")
 def env_step(
     mode: int,
     n: int,
@@ -139,14 +154,11 @@ def env_step(
     qd, rm, ints = f.state.qd, f.state.rm, f.state.ints
     s_q = _scale(a[ACT_Q], RUN.log_q, e[STEP_PAR.q_lo], e[STEP_PAR.q_hi], run, e)
     s_r = _scale(a[ACT_R], RUN.log_r, e[STEP_PAR.r_lo], e[STEP_PAR.r_hi], run, e)
+    s_qp = s_q
     if e[STEP_PAR.split_q] != 0.0:  # T_p's Q on its own, the coefficient blocks' by s_q
         a_qp = a[ACT_QP] if e[STEP_PAR.qp_gate] == 0.0 else (1.0 if a[ACT_QP] > 0.0 else -1.0)
         s_qp = _scale(a_qp, RUN.log_qp, e[STEP_PAR.qp_lo], e[STEP_PAR.qp_hi], run, e)
-        qd[PERMANENT_START:INDUCED_START] *= s_qp
-        qd[INDUCED_START:] *= s_q
-    else:
-        qd *= s_q  # eq. 21: Q ← s_a Q, R ← s_r R
-    rm *= s_r
+    _rescale(qd, rm, s_qp, s_q, s_r)
     k0, divergences = ints[INTS.k], ints[INTS.div]
     k1 = min(k0 + int(e[STEP_PAR.k]), n)
     window = (ints[INTS.pos], ints[INTS.updates], divergences)  # before the filter's updates
@@ -170,20 +182,12 @@ def env_step(
 
 
 @njit(cache=True, nogil=True)
-def _env_step_range(
-    lo: int,
-    hi: int,
-    limit: int,
-    batch: Packed,
-    env_arrays: Packed,
-    shared: Packed,
-    filter_arrays: Packed,
-) -> int:
+def _env_step_range(lo: int, hi: int, limit: int, arrays: StepArrays) -> int:
     """Environments ``lo ≤ i < hi`` of :func:`env_step_batch` (their actions checked): step the
     active ones, zero the others' outcome, and write each one's step count, end flags and
     reward; the number of environments whose episode ended."""
-    b, envs, settings = BatchArrays(*batch), EnvArrays(*env_arrays), EnvSettings(*shared)
-    filters = named(filter_arrays)
+    b, envs = BatchArrays(*arrays.batch), EnvArrays(*arrays.envs)
+    settings, filters = EnvSettings(*arrays.settings), named(arrays.filters)
     ended = 0
     for i in range(lo, hi):
         out = envs.outcome[i]
@@ -208,10 +212,11 @@ NOT_FINITE, NOT_RESET = 0, 1
 
 
 @njit(cache=True, nogil=True)
-def _refused(batch: Packed, actions: np.ndarray) -> int:
+def _refused(arrays: StepArrays) -> int:
     """0, or the refusal code of :func:`env_step_batch`: an active environment i that ended and
-    was not reset (−1 − N − i; checked first), a row i of ``actions`` not finite (−1 − i)."""
-    b = BatchArrays(*batch)
+    was not reset (−1 − N − i; checked first), an environment i whose action is not finite
+    (−1 − i)."""
+    b, actions = BatchArrays(*arrays.batch), EnvArrays(*arrays.envs).action
     n = b.active.shape[0]
     for i in range(n):
         if b.active[i] and b.ended[i]:
@@ -231,49 +236,38 @@ def refusal(code: int, n: int) -> tuple[int, int]:
 
 
 @njit(cache=True, nogil=True)
-def _env_step_all(
-    limit: int, batch: Packed, env_arrays: Packed, shared: Packed, filter_arrays: Packed
-) -> int:
+def _env_step_all(limit: int, arrays: StepArrays) -> int:
     """:func:`env_step_batch` in one compiled call: the refusals first, then the step."""
-    code = _refused(batch, EnvArrays(*env_arrays).action)
+    code = _refused(arrays)
     if code < 0:
         return code
-    n = BatchArrays(*batch).active.shape[0]
-    return _env_step_range(0, n, limit, batch, env_arrays, shared, filter_arrays)
+    n = BatchArrays(*arrays.batch).active.shape[0]
+    return _env_step_range(0, n, limit, arrays)
 
 
-def env_step_batch(
-    limit: int,
-    batch: BatchArrays | Packed,
-    envs: EnvArrays | Packed,
-    settings: EnvSettings | Packed,
-    filters: FilterArrays | Packed,
-) -> int:
-    """One step of N environments: :func:`env_step` for every environment i with
+@njit(cache=True)
+def _count_ended(arrays: StepArrays) -> int:
+    return int(np.count_nonzero(BatchArrays(*arrays.batch).ended))
+
+
+def env_step_batch(arrays: StepArrays, num_envs: int, limit: int = 0) -> int:
+    """One step of N = ``num_envs`` environments: :func:`env_step` for every environment i with
     ``batch.active[i]``, the others' outcome zeroed, and the step's bookkeeping of every one
     (:class:`~aeromag_env.environment.layout.BatchArrays`: step count, end flags, reward; the
     step count reaching ``limit`` > 0 truncates, as a ``TimeLimit``).
 
-    ``batch`` and the arrays of ``envs`` and ``filters`` have a leading environment axis (the
-    actions (N, 2 or 3) float64); ``settings`` are shared. Each group as a NamedTuple or already
-    :func:`~aeromag_env.compensation.arrays.packed` (a caller stepping the same arrays again and
-    again packs them once). Returns the number of environments whose episode ended; or, before
-    any environment moved, a negative code (:func:`refusal`) when an active environment's
-    episode ended on an earlier step and it was not reset (``batch.ended`` still set), or when
-    an action is not finite. A few environments are one compiled call; many are spread over the
-    cores (:func:`aeromag_env.threads.run_chunks`).
+    ``arrays`` (:func:`~aeromag_env.environment.step_arrays.step_arrays`) holds the groups:
+    ``batch`` and the arrays of ``envs`` and ``filters`` with a leading environment axis (the
+    actions (N, 2 or 3) float64), the shared ``settings``. Returns the number of environments
+    whose episode ended; or, before any environment moved, a negative code (:func:`refusal`)
+    when an active environment's episode ended on an earlier step and it was not reset
+    (``batch.ended`` still set), or when an action is not finite. A few environments are one
+    compiled call; many are spread over the cores (:func:`aeromag_env.threads.run_chunks`).
     """
-    args = (limit, _packed(batch), _packed(envs), _packed(settings), _packed(filters))
-    n = int(args[1][0].shape[0])
-    if n < 2 * MIN_CHUNK:  # one chunk anyway (run_chunks would run it here, in this thread)
-        return int(_env_step_all(*args))
-    code = int(_refused(args[1], EnvArrays(*args[2]).action))
+    if num_envs < 2 * MIN_CHUNK:  # one chunk anyway (run_chunks would run it in this thread)
+        return int(_env_step_all(limit, arrays))
+    code = int(_refused(arrays))
     if code < 0:
         return code
-    run_chunks(_env_step_range, n, *args)
-    return int(np.count_nonzero(BatchArrays(*args[1]).ended))
-
-
-def _packed(arrays: tuple) -> Packed:
-    """``arrays`` packed, unless they already are (a plain tuple, not a NamedTuple)."""
-    return arrays if type(arrays) is tuple else packed(arrays)
+    run_chunks(_env_step_range, num_envs, limit, arrays)
+    return int(_count_ended(arrays))

@@ -27,8 +27,7 @@ from aeromag_env.environment.statistics import (
     whiteness_running,
     window_power,
 )
-from aeromag_env.environment.window_sums import put_updates, slide_samples, take_leaving
-from aeromag_env.numba_cache import njit
+from aeromag_env.environment.window_sums import per_step, put_updates, slide_samples, take_leaving
 
 # Each observation's registry id (an unknown name fails here, at import).
 LOG_ROR = observation_id("log_ror")
@@ -46,41 +45,41 @@ LOG_TURN_RATE = observation_id("log_turn_rate")
 LOG_INNOVATION_BIAS = observation_id("log_innovation_bias")
 
 
-@njit(cache=True)
+@per_step
 def _log_ror(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> float:
     return log10_or_zero(f.outputs.ror[k1 - 1])
 
 
-@njit(cache=True)
+@per_step
 def _log_qoq(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> float:
     return log10_or_zero(f.outputs.qoq[k1 - 1])
 
 
-@njit(cache=True)
+@per_step
 def _log_q_scale(
     k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
 ) -> float:
     return env.run[RUN.log_q] / LN10
 
 
-@njit(cache=True)
+@per_step
 def _log_r_scale(
     k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
 ) -> float:
     return env.run[RUN.log_r] / LN10
 
 
-@njit(cache=True)
+@per_step
 def _whiteness(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> float:
     return whiteness_running(k1, f.state.ints[INTS.window], f.outputs.innov, env.run)
 
 
-@njit(cache=True)
+@per_step
 def _progress(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> float:
     return k1 / n
 
 
-@njit(cache=True)
+@per_step
 def _log_recent_ror(
     k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
 ) -> float:
@@ -88,14 +87,14 @@ def _log_recent_ror(
     return log10_or_zero(max(short, 1e-8)) if short > 0.0 else 0.0
 
 
-@njit(cache=True)
+@per_step
 def _log_qp_scale(
     k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
 ) -> float:
     return env.run[RUN.log_qp] / LN10
 
 
-@njit(cache=True)
+@per_step
 def _log_innovation_power(
     k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
 ) -> float:
@@ -105,7 +104,7 @@ def _log_innovation_power(
     return log10_or_zero(power / (r0[0, 0] + r0[1, 1] + r0[2, 2]))
 
 
-@njit(cache=True)
+@per_step
 def _log_mean_innovation_power(
     k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
 ) -> float:
@@ -115,7 +114,7 @@ def _log_mean_innovation_power(
     return log10_or_zero(mean_power / (r0[0, 0] + r0[1, 1] + r0[2, 2]))
 
 
-@njit(cache=True)
+@per_step
 def _log_step_statistic(
     k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
 ) -> float:
@@ -123,7 +122,7 @@ def _log_step_statistic(
     return log10_or_zero(step_statistic_running(m, f.state.ints, f.window.rbuf, env.run))
 
 
-@njit(cache=True)
+@per_step
 def _log_turn_rate(
     k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
 ) -> float:
@@ -133,20 +132,20 @@ def _log_turn_rate(
     return math.log10(rate) if rate > 0.0 else -OBS_LIMIT
 
 
-@njit(cache=True)
+@per_step
 def _log_innovation_bias(
     k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
 ) -> float:
     return log10_or_zero(innovation_bias_running(f.state.ints, f.window.rbuf, env.run))
 
 
-@njit(cache=True)
+@per_step
 def _update_sums_read(s: EnvSettings) -> bool:
     """An observation reads the running sums over the window's updates."""
     return s.obs_at[LOG_STEP_STATISTIC] >= 0 or s.obs_at[LOG_INNOVATION_BIAS] >= 0
 
 
-@njit(cache=True)
+@per_step
 def take_leaving_updates(k0: int, k1: int, env: EnvArrays, s: EnvSettings, f: FilterArrays):
     """Before the filter advances over ``k0 ≤ k < k1``: what
     :func:`aeromag_env.environment.window_sums.take_leaving` takes out of the running sums over
@@ -156,7 +155,7 @@ def take_leaving_updates(k0: int, k1: int, env: EnvArrays, s: EnvSettings, f: Fi
     return take_leaving(k1 - k0, f.state.ints, f.window.rbuf, env.run)
 
 
-@njit(cache=True)
+@per_step
 def keep_sums(
     k0: int,
     k1: int,
@@ -176,7 +175,7 @@ def keep_sums(
         slide_samples(k0, k1, ints[INTS.window], f.outputs.innov, env.run)
 
 
-@njit(cache=True)
+@per_step
 def observe(k0: int, k1: int, n: int, env: EnvArrays, s: EnvSettings, f: FilterArrays) -> None:
     """Write the observation at the end of the window ``k0 ≤ k < k1`` (float32, clipped to the
     bounds): each chosen registry entry at its column ``s.obs_at[id]``."""

@@ -26,6 +26,7 @@ import numpy as np
 from aeromag_env.compensation.kernel_layout import ACC, INTS
 from aeromag_env.environment.layout import RUN
 from aeromag_env.environment.window_sums import finite_row as _finite_row
+from aeromag_env.environment.window_sums import per_step
 from aeromag_env.numba_cache import njit
 
 #: A centred sum ``Σ |r|² − n |mean|²`` is taken from the running sums when ``Σ |r|²`` is at
@@ -36,7 +37,7 @@ from aeromag_env.numba_cache import njit
 CENTRED_RATIO = 1e4
 
 
-@njit(cache=True)
+@per_step
 def whiteness(k1: int, window: int, innov: np.ndarray) -> float:
     """Lag-1 autocorrelation of the innovations of the last ``window`` samples (finite rows,
     per-axis mean removed, pooled over axes); 0 with fewer than 3 rows or no variance."""
@@ -63,7 +64,7 @@ def whiteness(k1: int, window: int, innov: np.ndarray) -> float:
     return num / den if den > 0.0 else 0.0
 
 
-@njit(cache=True)
+@per_step
 def whiteness_with_gaps(lo: int, k1: int, rows: int, innov: np.ndarray) -> float:
     """:func:`whiteness` over samples ``lo ≤ k < k1`` of which ``rows`` are finite rows."""
     num, den = 0.0, 0.0
@@ -91,7 +92,7 @@ def _previous(w: int, size: int) -> int:
     return w - 1 if w > 0 else size - 1
 
 
-@njit(cache=True)
+@per_step
 def recent_ratio(m: int, ints: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray) -> float:
     """ROR over the last ``m`` updates only: ``Σ|r|² / Σ tr S`` (NaN before any update)."""
     m = min(m, ints[INTS.updates])
@@ -103,7 +104,7 @@ def recent_ratio(m: int, ints: np.ndarray, rbuf: np.ndarray, sbuf: np.ndarray) -
     return num / den if den > 0.0 else np.nan
 
 
-@njit(cache=True)
+@per_step
 def window_power(ints: np.ndarray, acc: np.ndarray) -> float:
     """The mean innovation power ``mean |r|²`` over the updates in the window [nT²] (NaN
     before any update), from the filter's running sum of ``|r|²`` (``acc[ACC.rr]``)."""
@@ -111,7 +112,7 @@ def window_power(ints: np.ndarray, acc: np.ndarray) -> float:
     return acc[ACC.rr] / count if count > 0 else np.nan
 
 
-@njit(cache=True)
+@per_step
 def power_of_mean(m: int, ints: np.ndarray, rbuf: np.ndarray) -> float:
     """The power of the mean innovation ``|mean r|²`` over the last ``m`` updates [nT²] (NaN
     before any update): noise averages out of it, a step does not."""
@@ -125,7 +126,7 @@ def power_of_mean(m: int, ints: np.ndarray, rbuf: np.ndarray) -> float:
     return (s0 * s0 + s1 * s1 + s2 * s2) / (m * m)
 
 
-@njit(cache=True)
+@per_step
 def step_statistic(m: int, ints: np.ndarray, rbuf: np.ndarray) -> float:
     """Two-window change statistic ``m |mean₁ r − mean₀ r|² / tr C₀``: the mean innovation of
     the last ``m`` updates against that of the earlier updates in the statistics window, over
@@ -166,12 +167,12 @@ def step_statistic(m: int, ints: np.ndarray, rbuf: np.ndarray) -> float:
     return m * change / tr_c
 
 
-@njit(cache=True)
+@per_step
 def log10_or_zero(v: float) -> float:
     return math.log10(v) if v > 0.0 and np.isfinite(v) else 0.0
 
 
-@njit(cache=True)
+@per_step
 def turn_rate(k0: int, k1: int, t: np.ndarray, td: np.ndarray, valid: np.ndarray) -> float:
     """RMS of ``|Ṫ| / |T|`` over the samples ``k0 ≤ k < k1`` with valid inputs [rad/s]: the rate
     at which the Earth field turns in body axes, i.e. the aircraft's angular rate across the
@@ -186,7 +187,7 @@ def turn_rate(k0: int, k1: int, t: np.ndarray, td: np.ndarray, valid: np.ndarray
     return math.sqrt(total / rows) if rows > 0 else 0.0
 
 
-@njit(cache=True)
+@per_step
 def innovation_bias(ints: np.ndarray, rbuf: np.ndarray) -> float:
     """Bias statistic ``M |mean r|² / tr C`` over the ``M`` updates of the statistics window:
     the mean innovation against zero, over the innovations' covariance trace. About 1 for a
@@ -211,7 +212,7 @@ def innovation_bias(ints: np.ndarray, rbuf: np.ndarray) -> float:
     return count * (m0 * m0 + m1 * m1 + m2 * m2) / tr_c
 
 
-@njit(cache=True)
+@per_step
 def _centred(total: float, square_of_sum: float, count: float) -> float:
     """``Σ |r|² − |Σ r|² / n`` from ``total = Σ |r|²``, ``square_of_sum = |Σ r|²`` and
     ``count = n``; NaN when that would lose more than :data:`CENTRED_RATIO` of the digits (or is
@@ -220,7 +221,7 @@ def _centred(total: float, square_of_sum: float, count: float) -> float:
     return centred if centred * CENTRED_RATIO >= total and centred > 0.0 else np.nan
 
 
-@njit(cache=True)
+@per_step
 def whiteness_running(k1: int, window: int, innov: np.ndarray, run: np.ndarray) -> float:
     """:func:`whiteness` from the running sums over the samples ``max(0, k1 − window) ≤ k < k1``
     (:func:`aeromag_env.environment.window_sums.slide_samples`): with ``c = r − mean``, the sum
@@ -247,7 +248,7 @@ def whiteness_running(k1: int, window: int, innov: np.ndarray, run: np.ndarray) 
     return num / den
 
 
-@njit(cache=True)
+@per_step
 def innovation_bias_running(ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray) -> float:
     """:func:`innovation_bias` from the running sums of ``r`` and ``|r|²`` over the window
     (:func:`aeromag_env.environment.window_sums.put_updates`)."""
@@ -262,7 +263,7 @@ def innovation_bias_running(ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray)
     return square_of_sum / count / (sq / (count - 1))
 
 
-@njit(cache=True)
+@per_step
 def step_statistic_running(m: int, ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray) -> float:
     """:func:`step_statistic` with the earlier updates' sums taken as the window's running sums
     minus those of the last ``m`` updates (summed here: O(m))."""

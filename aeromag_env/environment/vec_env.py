@@ -12,7 +12,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from aeromag_env.compensation.arrays import Packed, packed
+from aeromag_env.compensation.arrays import packed
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kernel_layout import INTS
@@ -23,6 +23,7 @@ from aeromag_env.environment.info import info, info_rows, put_infos
 from aeromag_env.environment.layout import N_OUT, N_RUN, BatchArrays, EnvArrays
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
 from aeromag_env.environment.spaces import action_size, check_actions, non_finite_actions
+from aeromag_env.environment.step_arrays import StepArrays, step_arrays
 
 #: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
 VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS)
@@ -159,8 +160,9 @@ class AeroMagCompensationVecEnv(VectorEnv):
             self._obs, np.zeros(n), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool)
         )
         self._ended = self.results.ended
-        # the kernel's arrays, packed once (rebuilt after a reset, which may reallocate them)
-        self._step_arrays: tuple[Packed, Packed, Packed, Packed] | None = None
+        # the compiled step's arrays in one object (rebuilt after a reset, which may reallocate
+        # them)
+        self._step_arrays: StepArrays | None = None
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self._prefetcher = FlightPrefetcher() if prefetch else None
         if not (isinstance(flight_cache, int | np.integer) and flight_cache >= 0):
@@ -259,16 +261,15 @@ class AeroMagCompensationVecEnv(VectorEnv):
                 *(r.reward, r.terminated, r.truncated, r.ended),
             )
             envs = EnvArrays(self._actions, self._run, self._truth, self._obs, self._out)
-            self._step_arrays = (
-                packed(batch),
-                packed(envs),
-                packed(self._settings),
-                packed(filters.arrays()),
+            self._step_arrays = step_arrays(
+                packed(batch), packed(envs), packed(self._settings), packed(filters.arrays())
             )
         if stepped is not None:
             np.copyto(self._active, stepped)
         try:
-            ended = kernels.env_step_batch(self.max_episode_steps or 0, *self._step_arrays)
+            ended = kernels.env_step_batch(
+                self._step_arrays, self.num_envs, self.max_episode_steps or 0
+            )
         finally:
             if stepped is not None:
                 self._active.fill(True)

@@ -31,6 +31,16 @@ from aeromag_env.compensation.kernel_layout import INTS
 from aeromag_env.environment.layout import RUN
 from aeromag_env.numba_cache import njit
 
+#: How the environment's helpers that run at every step are compiled: they neither allocate
+#: nor copy arrays, so without numba's runtime (``_nrt=False``, an option numba's type stubs do
+#: not list), as the filter's per-sample helpers (:data:`aeromag_env.compensation.kernels
+#: .per_sample`): with the runtime every call pays two atomic operations per array passed, and
+#: a writer of the observation is passed the ~35 arrays of the environment and the filter
+#: (measured: the observation's ten writers and the sums' two calls cost 2–4 µs a step more
+#: with the runtime, as much as the statistics). A helper that needed the runtime would fail
+#: to compile, loudly; dropping the option changes the speed, not the results.
+per_step = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+
 #: A running sum is summed afresh when a term leaving it carried more than SUM_RATIO times what
 #: is left (4 of 16 digits lost to the subtraction, at most). Clean runs rarely get there (the
 #: innovations' squares within a window span less than 1e4 but after an interference step).
@@ -43,7 +53,7 @@ def _wrapped(w: int, size: int) -> int:
     return w - size if w >= size else w
 
 
-@njit(cache=True)
+@per_step
 def _add_update(run: np.ndarray, rbuf: np.ndarray, w: int, sign: float) -> float:
     """Add (``sign`` 1) or take out (−1) the update in slot ``w`` of the window sums; its
     ``|r|²``."""
@@ -54,7 +64,7 @@ def _add_update(run: np.ndarray, rbuf: np.ndarray, w: int, sign: float) -> float
     return rr
 
 
-@njit(cache=True)
+@per_step
 def update_sums(ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray) -> None:
     """``Σ r`` and ``Σ |r|²`` over the updates in the window, afresh (oldest first)."""
     size, count = ints[INTS.window], ints[INTS.updates]
@@ -67,7 +77,7 @@ def update_sums(ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray) -> None:
         w = _wrapped(w + 1, size)
 
 
-@njit(cache=True)
+@per_step
 def take_leaving(
     samples: int, ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray
 ) -> tuple[int, float]:
@@ -86,7 +96,7 @@ def take_leaving(
     return candidates, largest
 
 
-@njit(cache=True)
+@per_step
 def put_updates(
     taken: tuple[int, float],
     pos0: int,
@@ -126,12 +136,12 @@ def finite_row(x: np.ndarray, k: int) -> bool:
     return np.isfinite(x[k, 0]) and np.isfinite(x[k, 1]) and np.isfinite(x[k, 2])
 
 
-@njit(cache=True)
+@per_step
 def _dot(x: np.ndarray, a: int, b: int) -> float:
     return x[a, 0] * x[b, 0] + x[a, 1] * x[b, 1] + x[a, 2] * x[b, 2]
 
 
-@njit(cache=True)
+@per_step
 def _add_sample(run: np.ndarray, innov: np.ndarray, k: int, sign: float) -> float:
     """Add (``sign`` 1) or take out (−1) the finite row k of ``innov`` from the row count and
     the sums of ``r`` and ``|r|²``; its ``|r|²``."""
@@ -143,7 +153,7 @@ def _add_sample(run: np.ndarray, innov: np.ndarray, k: int, sign: float) -> floa
     return rr
 
 
-@njit(cache=True)
+@per_step
 def sample_sums(lo: int, k1: int, innov: np.ndarray, run: np.ndarray) -> None:
     """The whiteness sums over the samples ``lo ≤ k < k1``, afresh."""
     run[RUN.white_rows] = 0.0
@@ -161,7 +171,7 @@ def sample_sums(lo: int, k1: int, innov: np.ndarray, run: np.ndarray) -> None:
     run[RUN.white_last] = last + 1
 
 
-@njit(cache=True)
+@per_step
 def slide_samples(k0: int, k1: int, size: int, innov: np.ndarray, run: np.ndarray) -> None:
     """Move the whiteness sums from the samples ``max(0, k0 − size) ≤ k < k0`` to
     ``max(0, k1 − size) ≤ k < k1``: take out the rows that left (and the link from each to the

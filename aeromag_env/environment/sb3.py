@@ -94,6 +94,7 @@ class AeroMagSB3VecEnv(VecEnv):
             [next(s) for s in self._seed_streams] if self._seed_streams else [None] * num_envs
         )
         self._actions = np.zeros((num_envs, action_size(self.venv.config)))
+        self._results = self.venv.results  # the arrays every step leaves its results in
         super().__init__(
             num_envs, self.venv.single_observation_space, self.venv.single_action_space
         )
@@ -115,7 +116,7 @@ class AeroMagSB3VecEnv(VecEnv):
 
     def step_wait(self) -> VecEnvStepReturn:
         ended = self.venv.step_in_place(self._actions)  # one compiled call does the step
-        results = self.venv.results
+        results = self._results
         obs, dones = results.obs.copy(), results.ended.copy()
         rewards = results.reward.astype(np.float32)
         if self._every_info:

@@ -22,7 +22,12 @@ from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig, step_
 from aeromag_env.environment.info import info, info_rows, put_infos
 from aeromag_env.environment.layout import N_OUT, N_RUN, BatchArrays, EnvArrays
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
-from aeromag_env.environment.spaces import action_size, check_actions, non_finite_actions
+from aeromag_env.environment.spaces import (
+    REAL_KINDS,
+    action_size,
+    check_actions,
+    non_finite_actions,
+)
 from aeromag_env.environment.step_arrays import StepArrays, step_arrays
 
 #: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
@@ -239,7 +244,12 @@ class AeroMagCompensationVecEnv(VectorEnv):
         environment that ended and was not reset is refused (``ResetNeeded``)."""
         if self.autoreset_mode != AutoresetMode.DISABLED:
             raise ValueError("step_in_place needs autoreset_mode=AutoresetMode.DISABLED")
-        return self._advance(actions, None)
+        self._take_actions(actions)
+        arrays = self._step_arrays or self._pack()
+        ended = kernels.env_step_batch(arrays, self.num_envs, self.max_episode_steps or 0)
+        if ended < 0:
+            self._refuse(ended)
+        return ended
 
     def info_rows(self, indices: np.ndarray | None = None) -> list[dict[str, Any]]:
         """The single env's info of each environment after the last step (of ``indices`` only,
@@ -249,27 +259,40 @@ class AeroMagCompensationVecEnv(VectorEnv):
             return info_rows(self._out, ints, self.flight_seeds)
         return info_rows(self._out[indices], ints[indices], self.flight_seeds[indices])
 
+    def _take_actions(self, actions: np.ndarray) -> None:
+        """``actions`` into the step's actions, checked as :func:`check_actions` checks them
+        (whether they are finite: by the compiled step); an array of real numbers of the right
+        shape (every step of a trainer) is copied without more ado."""
+        a = self._actions
+        usual = type(actions) is np.ndarray and actions.shape == a.shape
+        if usual and actions.dtype.kind in REAL_KINDS:
+            np.copyto(a, actions)
+        else:
+            check_actions(actions, *a.shape, out=a, finite=False)
+
+    def _pack(self) -> StepArrays:
+        """The compiled step's arrays in one object, built once per allocation (a reset may
+        reallocate the filters' and the truth's arrays)."""
+        filters, r = self._need_filters(), self.results
+        batch = BatchArrays(
+            *(self._active, filters.mode, filters.n, self._score_start, self._steps),
+            *(r.reward, r.terminated, r.truncated, r.ended),
+        )
+        envs = EnvArrays(self._actions, self._run, self._truth, self._obs, self._out)
+        self._step_arrays = step_arrays(
+            packed(batch), packed(envs), packed(self._settings), packed(filters.arrays())
+        )
+        return self._step_arrays
+
     def _advance(self, actions: np.ndarray, stepped: np.ndarray | None) -> int:
         """Step the environments of ``stepped`` (None: all; the others' outcome rows zeroed) in
         one compiled call, the results in :attr:`results`; the number whose episode ended."""
-        filters = self._need_filters()
-        check_actions(actions, *self._actions.shape, out=self._actions, finite=False)
-        if self._step_arrays is None:
-            r = self.results
-            batch = BatchArrays(
-                *(self._active, filters.mode, filters.n, self._score_start, self._steps),
-                *(r.reward, r.terminated, r.truncated, r.ended),
-            )
-            envs = EnvArrays(self._actions, self._run, self._truth, self._obs, self._out)
-            self._step_arrays = step_arrays(
-                packed(batch), packed(envs), packed(self._settings), packed(filters.arrays())
-            )
+        self._take_actions(actions)
+        arrays = self._step_arrays or self._pack()
         if stepped is not None:
             np.copyto(self._active, stepped)
         try:
-            ended = kernels.env_step_batch(
-                self._step_arrays, self.num_envs, self.max_episode_steps or 0
-            )
+            ended = kernels.env_step_batch(arrays, self.num_envs, self.max_episode_steps or 0)
         finally:
             if stepped is not None:
                 self._active.fill(True)

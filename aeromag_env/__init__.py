@@ -9,6 +9,10 @@ light; see the README, "How the code is laid out")::
     result.metrics, result.warnings, result.report                  # numbers, warnings, report
     found = am.discover("flight.h5").report["missing_effects"]      # = aeromag discover
     rows = am.fleet("flights/", "out", method="kf").rows            # = aeromag compensate DIR
+    model = am.calibrate("cal.h5", method="tl", out="cal").model    # fit once on a box
+    result = am.compensate("survey.h5", model="cal/model.json")     # apply to other flights
+    model = am.load_model("cal/model.json"); model.apply(flight)    # the model object
+    live = model.stream(); live.update({"tt": 0.0, ...})            # one sample at a time
     flight = am.read_flight("flight.h5", needs=("tt", "flux_a_x"))  # read a flight file
     am.write_flight(flight, "copy.h5")                              # write one (atomically)
     flight = am.simulate_flight(am.preset("nominal"), rng=7)        # simulate one
@@ -61,6 +65,10 @@ _PUBLIC = {
     "SCENARIOS": "aeromag_env.environment.ids",
     "Discovery": "aeromag_env.discovery.workflow",
     "compensate": "aeromag_env.jobs.compensate",
+    "calibrate": "aeromag_env.jobs.calibrate",
+    "CalibrationResult": "aeromag_env.jobs.calibrate",
+    "CalibrationModel": "aeromag_env.compensation.calibration_model",
+    "load_model": "aeromag_env.compensation.calibration_model",
     "CompensationResult": "aeromag_env.jobs.compensate",
     "discover": "aeromag_env.jobs.discover",
     "DiscoverResult": "aeromag_env.jobs.discover",
@@ -77,6 +85,8 @@ __all__ = [
     "AeroMagCompensationVecEnv",
     "AeromagError",
     "AeromagWarning",
+    "CalibrationModel",
+    "CalibrationResult",
     "Compensation",
     "CompensationResult",
     "DiscoverResult",
@@ -88,11 +98,13 @@ __all__ = [
     "SimulationConfig",
     "TollesLawson",
     "__version__",
+    "calibrate",
     "compensate",
     "compensate_scalar",
     "compensate_vector",
     "discover",
     "fleet",
+    "load_model",
     "preset",
     "read_flight",
     "score",
@@ -101,6 +113,7 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # what the lazy names are, for type checkers and IDEs
+    from aeromag_env.compensation.calibration_model import CalibrationModel, load_model
     from aeromag_env.compensation.compensate import (
         Compensation,
         compensate_scalar,
@@ -116,6 +129,7 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers and IDEs
     from aeromag_env.errors import AeromagError, AeromagWarning
     from aeromag_env.flight.data import Flight
     from aeromag_env.flight.files import read_flight, write_flight
+    from aeromag_env.jobs.calibrate import CalibrationResult, calibrate
     from aeromag_env.jobs.compensate import CompensationResult, compensate
     from aeromag_env.jobs.discover import DiscoverResult, discover
     from aeromag_env.jobs.fleet import FleetResult, fleet

@@ -29,6 +29,41 @@ class HyperparameterError(AeromagError, ValueError):
     """A hyperparameter file is unreadable or invalid; the message names the file and field."""
 
 
+class ArgumentError(AeromagError, ValueError):
+    """An argument of a job outside its range, named as the library spells it (``r_std_nt``);
+    the command line says the same with its option's name (``--r-std-nt``).
+
+    Parameters
+    ----------
+    argument : str
+        The argument's name in the library (a job's keyword or its request's field).
+    requirement : str
+        What it must be, e.g. ``"must be in [0.001, 100000] nT (...)"``.
+    got : object, optional
+        The value given, appended as ``, got VALUE``.
+    """
+
+    def __init__(self, argument: str, requirement: str, got: object = None) -> None:
+        self.argument = argument
+        self.requirement = requirement + ("" if got is None else f", got {_shown(got)}")
+        super().__init__(self.spelled(argument))
+
+    def spelled(self, name: str) -> str:
+        """The message with the argument called ``name`` (an option of the command line)."""
+        return f"{name} {self.requirement}"
+
+
+def _shown(value: object) -> str:
+    """A value as a message shows it: numbers in ``g`` format, text quoted."""
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, tuple | list):
+        return " ".join(_shown(v) for v in value)
+    return str(value)
+
+
 class AeromagWarning(UserWarning):
     """Something the user should know about a run that still completes: a channel chosen for
     them, a fluxgate mount estimated or doubted, a caveat of a result. The message is one line."""

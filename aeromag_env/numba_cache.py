@@ -5,9 +5,9 @@ and inline, compiled functions of other files (``environment.kernels.env_step`` 
 ``compensation.kernels.advance``, which runs ``window``, ``consistency``, ``adaptive_rules``…),
 and that code is compiled into the caller's cache entry. Edit one of those files, or check out a
 commit that changes only it, and the caller's entry still matches its own file: numba loads the
-old machine code and the change silently does not run. (Seen 2026-11-27: after an edit of
-``compensation/kernels.py`` the batched filter, ``kalman_batch._advance_range``, went on with
-the old update while the single-flight filter ran the new one.)
+old machine code and the change silently does not run (after an edit of
+``compensation/kernels.py`` the batched filter, ``kalman_batch._advance_range``, would go on
+with the old update while the single-flight filter ran the new one).
 
 Importing :func:`njit` from here instead of from numba puts :class:`PackageLocator` in front
 of numba's cache locators: for a function defined in this package it keeps numba's own choice

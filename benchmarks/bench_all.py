@@ -1,16 +1,30 @@
 """All benchmarks with the table of ratios: what ``aeromag bench`` runs.
 
-Run: ``.venv/bin/python benchmarks/bench_all.py [--quick] [--out DIR]``
+Run: ``python benchmarks/bench_all.py [--quick] [--out results/bench]`` (from anywhere: the
+checkout's packages are used); writes ``OUT/bench.json``.
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
-from aeromag_env.cli.bench import run_benchmarks
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from aeromag_env.jobs.bench import bench
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small sizes (about a minute)")
+    parser.add_argument("--out", type=Path, default=Path("results/bench"), help="output folder")
+    args = parser.parse_args(argv)
+    print(bench(args.out, quick=args.quick).table)
+    return 0
+
 
 if __name__ == "__main__":
-    args = sys.argv[1:]
-    out = Path(args[args.index("--out") + 1]) if "--out" in args else Path("results/bench")
-    run_benchmarks(out, quick="--quick" in args)
+    raise SystemExit(main())

@@ -1,15 +1,30 @@
 """Benchmark: environment steps per second, one env and 64 batched, K = 10 (same code as
 ``aeromag bench``).
 
-Run: ``.venv/bin/python benchmarks/bench_envs.py [--quick]``
+Run: ``python benchmarks/bench_envs.py [--quick]``
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
+from collections.abc import Sequence
+from pathlib import Path
 
-from aeromag_env.cli.bench_envs import bench_env
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from aeromag_env.jobs.bench.envs import bench_env
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="3 repeats instead of 7")
+    args = parser.parse_args(argv)
+    print(json.dumps(bench_env(3 if args.quick else 7), indent=2))
+    return 0
+
 
 if __name__ == "__main__":
-    print(json.dumps(bench_env(3 if "--quick" in sys.argv[1:] else 7), indent=2))
+    raise SystemExit(main())

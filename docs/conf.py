@@ -63,8 +63,9 @@ nitpicky = True
 # standard library…) in signatures and docstrings are not links; everything else must resolve.
 _EXTERNAL = (
     r"(np|numpy|gym|gymnasium|spaces|torch|ray|h5py|scipy|matplotlib|plt|sb3|"
-    r"stable_baselines3|optuna|pathlib|os|collections|typing|typing_extensions|"
-    r"dataclasses|argparse|concurrent|json|enum|re|io|datetime|numba|threading)"
+    r"stable_baselines3|optuna|pydantic|pydantic_core|pathlib|os|collections|typing|"
+    r"typing_extensions|dataclasses|argparse|concurrent|json|enum|re|io|datetime|numba|"
+    r"threading)"
 )
 nitpick_ignore_regex = [
     (r"py:.*", _EXTERNAL + r"\..*"),

@@ -19,7 +19,7 @@ import numpy as np
 
 import aeromag_env  # noqa: F401  (registers the ids)
 from aeromag_env.environment.spaces import observation_names
-from agents import make_policy
+from agents.policies import make_policy
 
 env = gym.make(
     "AeroMag/Nonstationary-v0",

@@ -18,8 +18,9 @@ import gymnasium as gym
 import matplotlib.pyplot as plt
 
 import aeromag_env  # noqa: F401  (registers the ids)
-from agents import make_policy, policy_env_kwargs
-from agents.evaluate import TEST_SEED_START, run_episode
+from agents.evaluation.episodes import run_episode
+from agents.evaluation.seeds import TEST_SEED_START
+from agents.policies import make_policy, policy_env_kwargs
 
 ENV_ID = "AeroMag/Nonstationary-v0"
 SEEDS = [TEST_SEED_START + i for i in range(2)]  # test flights: never seen in training

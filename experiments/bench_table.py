@@ -12,11 +12,15 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from aeromag_env.cli.bench import _rows
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from aeromag_env.jobs.bench.table import rows as table_rows
 
 #: A number in a cell (sign, thousands separators, decimals), or a range of two ("1.11–1.33",
 #: "-5.5–59.2": a paired difference may come out negative on a noisy machine).
@@ -52,7 +56,7 @@ def join_cells(cells: Sequence[str]) -> str:
 
 def table(runs: Sequence[dict[str, Any]]) -> str:
     """A Markdown table: benchmark, the runs' medians, their ratios, target (met in k of n)."""
-    per_run = [{r[0]: r for r in _rows(run["figures"])} for run in runs]
+    per_run = [{r[0]: r for r in table_rows(run["figures"])} for run in runs]
     names = [name for name in per_run[0] if all(name in rows for rows in per_run)]
     lines = [
         "| benchmark | median, "

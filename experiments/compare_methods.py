@@ -16,6 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from aeromag_env.atomic import write_text
 from aeromag_env.compensation.compensate import (
     FILTER_METHODS,
@@ -28,7 +31,7 @@ from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
-from agents.quick import QUICK
+from agents.training.quick import QUICK
 
 METRICS = ("compensation_rmse_nt", "improvement_ratio", "fom_nt", "residual_std_nt", "divergences")
 

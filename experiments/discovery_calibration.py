@@ -1,4 +1,4 @@
-"""The calibration of discovery's joint-test penalty (``evidence.JOINT_PENALTY``, issue 22).
+"""The calibration of discovery's joint-test penalty (``evidence.JOINT_PENALTY``).
 
 Runs ``discover`` on development flights (seeds the hidden-effect suite and the plain-flight
 experiment never use) and prints, for every slow group the joint noise-model test re-tested, its
@@ -7,15 +7,21 @@ coloured noises) for the spurious groups that passed Holm, and on flights with a
 (a temperature drift at SNR 0.5 and 1, an external field at SNR 1, the nominal preset's own
 external variation) for the true group. The penalty goes between the two.
 
-Run: ``.venv/bin/python -m experiments.discovery_calibration [--jobs 2]`` (about 2 minutes on
-these 2-core machines).
+Run: ``python experiments/discovery_calibration.py [--jobs 2] [--quick]`` (68 flights, about
+2 minutes on these 2-core machines; ``--quick``: 3 of them). It prints; it writes nothing.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+from collections.abc import Sequence
 from multiprocessing import Pool
+from pathlib import Path
 from typing import Any
+
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.discovery.suite import COLOURED_NOISE, Case, build_case
 from aeromag_env.discovery.workflow import discover
@@ -61,12 +67,19 @@ def run(spec: tuple[str, int, str | None, float | None]) -> dict[str, Any]:
     return {"kind": kind, "seed": seed, "effect": effect, "snr": snr, "joint": joint}
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--jobs", type=int, default=2)
-    args = ap.parse_args()
+#: ``--quick``'s flights: the first null, coloured-noise and weak-effect flights.
+QUICK = (FLIGHTS[0], FLIGHTS[30], FLIGHTS[46])
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--jobs", type=int, default=2, help="processes")
+    ap.add_argument("--quick", action="store_true", help=f"{len(QUICK)} flights")
+    args = ap.parse_args(argv)
     with Pool(args.jobs) as pool:
-        rows = pool.map(run, FLIGHTS, chunksize=1)
+        rows = pool.map(run, QUICK if args.quick else FLIGHTS, chunksize=1)
     spurious = sorted(
         t["lr_per_dof"]
         for r in rows
@@ -85,7 +98,8 @@ def main() -> None:
         if r["kind"] in ("single", "nominal")
     ]
     print(f"weak true effects: {len(true)}; their LR/dof: {min(true):.1f}–{max(true):.1f}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -8,13 +8,22 @@ Flies the hidden-effect suite's 30-min calibration-then-survey flight (box at 30
   named, the held-out gap, and whether the report's slow-residual caveat is raised;
 * each single effect of the suite at SNR 2 (seeds 92000+) over 50 nT of ground: found or not.
 
-Run: ``python -m experiments.discovery_geology`` (about 2 minutes); prints Markdown tables.
+Run: ``python experiments/discovery_geology.py [--quick]`` (25 flights, about 2 minutes on
+these 2-core machines; ``--quick``: one plain flight over 0 and 50 nT and one effect, 3
+flights); prints Markdown tables, writes nothing.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
+import sys
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
+
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.discovery.suite import SINGLE, Case, base_config, build_case
 from aeromag_env.discovery.workflow import discover
@@ -34,10 +43,16 @@ def _named(report: dict[str, Any]) -> str:
     return ", ".join(found) or "–"
 
 
-def plain_flights() -> list[str]:
+GROUND_NT = (0.0, 10.0, 50.0)
+SEEDS = range(91_000, 91_006)
+
+
+def plain_flights(
+    ground_nt: Sequence[float] = GROUND_NT, seeds: Sequence[int] = SEEDS
+) -> list[str]:
     rows = ["| ground [nT] | seed | named | held-out gap [nT] | caveat |", "|---|---|---|---|---|"]
-    for rms in (0.0, 10.0, 50.0):
-        for seed in range(91_000, 91_006):
+    for rms in ground_nt:
+        for seed in seeds:
             rep = discover(simulate_flight(_with_ground(base_config(1800.0), rms), seed)).report
             gap, caveat = rep["gap"], "yes" if rep["caveats"] else "no"
             rows.append(
@@ -47,9 +62,11 @@ def plain_flights() -> list[str]:
     return rows
 
 
-def single_effects(rms_nt: float = 50.0, snr: float = 2.0) -> list[str]:
+def single_effects(
+    rms_nt: float = 50.0, snr: float = 2.0, effects: Sequence[str] = SINGLE
+) -> list[str]:
     rows = ["| effect (SNR 2, 50 nT ground) | named | caveat |", "|---|---|---|"]
-    for k, name in enumerate(SINGLE):
+    for k, name in enumerate(effects):
         case = Case("single", 92_000 + k, (name,), snr)
         cfg, _ = build_case(case)
         rep = discover(simulate_flight(_with_ground(cfg, rms_nt), case.seed)).report
@@ -57,9 +74,19 @@ def single_effects(rms_nt: float = 50.0, snr: float = 2.0) -> list[str]:
     return rows
 
 
-def main() -> None:
-    print("\n".join([*plain_flights(), "", *single_effects()]))
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--quick", action="store_true", help="3 flights")
+    args = parser.parse_args(argv)
+    if args.quick:
+        tables = [*plain_flights((0.0, 50.0), SEEDS[:1]), "", *single_effects(effects=SINGLE[:1])]
+    else:
+        tables = [*plain_flights(), "", *single_effects()]
+    print("\n".join(tables))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -14,19 +14,28 @@ seed), with seeds no choice of the ground separation was made on (96000+, 97000+
 flights and 4 each with ``eddy_time_constant`` and ``induced_second_order`` at SNR 2, per
 ground level (50, 200 nT at 400 m), ``separate`` only.
 
-Run: ``python -m experiments.discovery_ground`` (about 10 minutes on 2 cores; ``--low`` 1
-minute); prints Markdown.
+Run: ``python experiments/discovery_ground.py [--low] [--quick]`` (about 10 minutes on these
+2-core machines; ``--low`` 1 minute; ``--quick``: one plain flight over 0 and 50 nT and one
+effect over 50 nT, or with ``--low`` one plain and one effect flight); prints Markdown, writes
+nothing.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import sys
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
 from statistics import median
 from typing import Any
 
 from scipy.stats import beta
+
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.discovery.suite import SINGLE, Case, base_config, build_case
 from aeromag_env.discovery.workflow import discover
@@ -68,12 +77,13 @@ def _run_low(job: tuple[str, int, float]) -> list[str]:
     return [name, str(seed), f"{rms_nt:g}", named, f"{rep['gap']['rms_before_nt']:.2f}"]
 
 
-def low_table() -> list[str]:
+def low_table(
+    ground_nt: Sequence[float] = EFFECT_GROUND_NT,
+    effects: Sequence[str] = LOW_EFFECTS,
+    flights: int = 4,
+) -> list[str]:
     jobs = [
-        (name, 98_000 + k, rms)
-        for rms in EFFECT_GROUND_NT
-        for name in LOW_EFFECTS
-        for k in range(4)
+        (name, 98_000 + k, rms) for rms in ground_nt for name in effects for k in range(flights)
     ]
     with ProcessPoolExecutor(2) as pool:
         rows = list(pool.map(_run_low, jobs))
@@ -115,13 +125,13 @@ def _interval(k: int, n: int) -> str:
     return f"{k}/{n} ({100 * lo:.0f}–{100 * hi:.0f} %)"
 
 
-def plain_table(rows: list[dict[str, Any]]) -> list[str]:
+def plain_table(rows: list[dict[str, Any]], ground_nt: Sequence[float]) -> list[str]:
     out = [
         "| ground [nT] | flights naming anything: ignore | separate | median held-out gap "
         "[nT]: ignore | separate |",
         "|---|---|---|---|---|",
     ]
-    for rms in PLAIN_GROUND_NT:
+    for rms in ground_nt:
         sub = [r for r in rows if r["name"] == "plain" and r["ground_nt"] == rms]
         cells = [_interval(sum(bool(r[m]["named"]) for r in sub), len(sub)) for m in MODES]
         gaps = [f"{median(r[m]['gap'] for r in sub):.2f}" for m in MODES]
@@ -129,14 +139,16 @@ def plain_table(rows: list[dict[str, Any]]) -> list[str]:
     return out
 
 
-def effect_table(rows: list[dict[str, Any]]) -> list[str]:
+def effect_table(
+    rows: list[dict[str, Any]], effects: Sequence[str], ground_nt: Sequence[float]
+) -> list[str]:
     out = [
         "| effect (SNR 2) | ground [nT] | found: ignore | separate | separate: absorbed by "
         "the ground (said so) |",
         "|---|---|---|---|---|",
     ]
-    for name in SINGLE:
-        for rms in EFFECT_GROUND_NT:
+    for name in effects:
+        for rms in ground_nt:
             sub = [r for r in rows if r["name"] == name and r["ground_nt"] == rms]
             found = [sum(name in r[m]["named"] for r in sub) for m in MODES]
             said = sum(name in r["separate"]["absorbed"] for r in sub)
@@ -147,29 +159,58 @@ def effect_table(rows: list[dict[str, Any]]) -> list[str]:
     return out
 
 
-def jobs() -> list[tuple[str, int, float, float]]:
+@dataclass(frozen=True, kw_only=True)
+class Sizes:
+    """Flights per ground level (plain) and per effect and ground level, and which."""
+
+    plain: int = N_PLAIN
+    per_effect: int = N_EFFECT
+    plain_ground_nt: tuple[float, ...] = PLAIN_GROUND_NT
+    effect_ground_nt: tuple[float, ...] = EFFECT_GROUND_NT
+    effects: tuple[str, ...] = SINGLE
+
+
+#: ``--quick``'s flights: one plain over 0 and 50 nT, one of the first effect over 50 nT.
+QUICK = Sizes(
+    plain=1, per_effect=1, plain_ground_nt=(0.0, 50.0), effect_ground_nt=(50.0,), effects=SINGLE[:1]
+)
+
+
+def jobs(sizes: Sizes) -> list[tuple[str, int, float, float]]:
+    """The flights ``(effect or "plain", seed, ground RMS [nT], SNR)`` of ``sizes``; a flight's
+    seed depends only on its ground level's and effect's places in the full lists."""
     plain = [
-        ("plain", 96_000 + 100 * k + i, rms, 0.0)
-        for k, rms in enumerate(PLAIN_GROUND_NT)
-        for i in range(N_PLAIN)
+        ("plain", 96_000 + 100 * PLAIN_GROUND_NT.index(rms) + i, rms, 0.0)
+        for rms in sizes.plain_ground_nt
+        for i in range(sizes.plain)
     ]
     effects = [
-        (name, 97_000 + 1000 * g + 10 * e + i, rms, 2.0)
-        for g, rms in enumerate(EFFECT_GROUND_NT)
-        for e, name in enumerate(SINGLE)
-        for i in range(N_EFFECT)
+        (name, 97_000 + 1000 * EFFECT_GROUND_NT.index(rms) + 10 * SINGLE.index(name) + i, rms, 2.0)
+        for rms in sizes.effect_ground_nt
+        for name in sizes.effects
+        for i in range(sizes.per_effect)
     ]
     return plain + effects
 
 
-def main() -> None:
-    if "--low" in sys.argv[1:]:
-        print("\n".join(low_table()))
-        return
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--low", action="store_true", help="lines at 150 m, separate only")
+    parser.add_argument("--quick", action="store_true", help="3 flights (2 with --low)")
+    args = parser.parse_args(argv)
+    if args.low:
+        low = low_table((50.0,), LOW_EFFECTS[:2], 1) if args.quick else low_table()
+        print("\n".join(low))
+        return 0
+    sizes = QUICK if args.quick else Sizes()
     with ProcessPoolExecutor(2) as pool:
-        rows = list(pool.map(_run, jobs()))
-    print("\n".join([*plain_table(rows), "", *effect_table(rows)]))
+        rows = list(pool.map(_run, jobs(sizes)))
+    plain = plain_table(rows, sizes.plain_ground_nt)
+    print("\n".join([*plain, "", *effect_table(rows, sizes.effects, sizes.effect_ground_nt)]))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -1,4 +1,4 @@
-"""The fault-injection suite of issue 20: bad input of every class through every command.
+"""The fault-injection suite: bad input of every class through every command.
 
 The cases, their runner and checker live with the tests (:mod:`tests.faults`), which run every
 case; this script runs them outside pytest and prints the README table "What bad input gets"
@@ -18,14 +18,15 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository: ``tests.faults``
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout (``tests.faults``)
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.faults.suite import failure_groups, generate, run_case, table
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the cases; print the table and the failures; 1 if any case failed."""
-    parser = argparse.ArgumentParser(description="The fault-injection suite of issue 20.")
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run only the cases whose id contains this")
     parser.add_argument("--list", action="store_true", help="list the cases, run none")
     parser.add_argument("--quick", action="store_true", help="one case per class and command")

@@ -14,8 +14,12 @@ import statistics
 import subprocess
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
-from agents.quick import QUICK
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from agents.training.quick import QUICK
 
 STATEMENTS = {
     "import numpy": "import numpy",

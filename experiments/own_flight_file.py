@@ -22,9 +22,13 @@ import argparse
 import contextlib
 import io
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
+
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.cli.main import main as aeromag
 from aeromag_env.flight.data import Flight, vector_names

@@ -6,17 +6,18 @@ the largest relative change. Cases in only one file are counted, not compared.
 
 Run, after re-running the suite at the committed sizes into a scratch folder::
 
-    python -m experiments.hidden_effects --single 10 --null 40 --coloured 20 --absorbed 5 \\
+    python experiments/hidden_effects.py --single 10 --null 40 --coloured 20 --absorbed 5 \\
         --pairs 5 --durations 4 --out /tmp/rerun
-    python -m experiments.same_verdicts docs/discovery/results.json /tmp/rerun/results.json
+    python experiments/same_verdicts.py docs/discovery/results.json /tmp/rerun/results.json
 
-Exit status 1 when any named list differs.
+Exit status 1 when any named list differs. It measures nothing itself (no ``--quick``: it takes
+a second).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -45,14 +46,11 @@ def compare(old: list[dict[str, Any]], new: list[dict[str, Any]]) -> dict[str, A
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = sys.argv[1:] if argv is None else argv
-    if len(args) != 2:
-        print(
-            "usage: python -m experiments.same_verdicts OLD/results.json NEW/results.json",
-            file=sys.stderr,
-        )
-        return 2
-    old, new = (json.loads(Path(a).read_text()) for a in args)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("old", type=Path, help="the reference run's results.json")
+    parser.add_argument("new", type=Path, help="the new run's results.json")
+    args = parser.parse_args(argv)
+    old, new = (json.loads(p.read_text()) for p in (args.old, args.new))
     out = compare(old, new)
     for d in out["differ"]:
         print(f"{d['kind']} seed {d['seed']}: {d['was']} -> {d['now']}")

@@ -4,11 +4,12 @@
 [--episodes 30] [--out results/seed_table] [--ray [ADDRESS]]`` (the policies of ``aeromag train
 --seeds 0-4 --out DIR`` are ``DIR/seed_*/policy.npz``) evaluates each exported policy (one per
 training seed) beside ``tuned_constant``, ``privileged`` and ``fis`` on the same test flights of
-each scenario (``aeromag evaluate``'s path: :func:`agents.evaluate.evaluate`), and prints per seed
-its mean RMSE and normalized score with their intervals, then the interquartile mean of the
-normalized scores over seeds × scenarios with a stratified-bootstrap interval
-(:func:`agents.evaluate.iqm_interval`); scenarios without headroom are left out of the IQM and
-named. Writes ``table.md`` and ``results.json`` to ``--out``.
+each scenario (``aeromag evaluate``'s path: :func:`agents.evaluation.episodes.evaluate`), and
+prints per seed its mean RMSE and normalized score with their intervals, then the interquartile
+mean of the normalized scores over seeds × scenarios with a stratified-bootstrap interval
+(:func:`agents.evaluation.statistics.iqm_interval`); scenarios without headroom are left out of
+the IQM and named. Writes ``table.md`` and ``results.json`` to ``--out``. ``--quick``: 2 test
+flights per scenario.
 """
 
 from __future__ import annotations
@@ -22,18 +23,15 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-if __package__ in (None, ""):  # run as a script: the checkout's packages first
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.atomic import write_text
 from aeromag_env.parallel import runner
-from agents.evaluate import (
-    BOOTSTRAP_RESAMPLES,
-    TEST_SEED_START,
-    ci95,
-    evaluate_scenarios,
-    iqm_interval,
-)
+from agents.evaluation.episodes import evaluate_scenarios
+from agents.evaluation.seeds import TEST_SEED_START
+from agents.evaluation.statistics import BOOTSTRAP_RESAMPLES, ci95, iqm_interval
+from agents.training.quick import QUICK
 
 BASELINES = ("tuned_constant", "privileged", "fis")
 
@@ -93,11 +91,12 @@ def _bootstrap_low(diff: np.ndarray) -> float:
 
 
 def general_lines(everything: dict, names: list[str]) -> list[str]:
-    """Issue 21's two bars for a policy over several scenarios, per training seed: its mean RMSE
-    over the scenarios against ``fis``'s (at least 20 % lower), and the scenarios where it is
-    worse than ``tuned_constant`` beyond the paired 95 % interval (none allowed; a t interval on
-    the per-flight differences), and besides those the scenarios where only a percentile
-    bootstrap of the same differences says so (heavy-tailed differences: a few bad flights)."""
+    """The general tuner's two bars for a policy over several scenarios, per training seed: its
+    mean RMSE over the scenarios against ``fis``'s (at least 20 % lower), and the scenarios
+    where it is worse than ``tuned_constant`` beyond the paired 95 % interval (none allowed; a t
+    interval on the per-flight differences), and besides those the scenarios where only a
+    percentile bootstrap of the same differences says so (heavy-tailed differences: a few bad
+    flights)."""
     fis = np.mean([r["policies"]["fis"]["rmse_nt_mean"] for r in everything.values()])
     rows = [
         "| training seed | mean RMSE over scenarios [nT] | lower than fis's mean | worse than "
@@ -134,8 +133,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("policies", nargs="+", help="exported policies, one per training seed")
     parser.add_argument("--scenarios", default="nonstationary")
-    parser.add_argument("--episodes", type=int, default=30)
-    parser.add_argument("--out", default="results/seed_table")
+    parser.add_argument("--episodes", type=int, default=30, help="test flights per scenario")
+    parser.add_argument("--out", default="results/seed_table", help="output folder")
+    parser.add_argument("--quick", action="store_true", help="2 test flights per scenario")
     parser.add_argument(
         "--ray",
         nargs="?",
@@ -145,7 +145,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     names = [f"ppo:{p}" for p in args.policies]
-    seeds = list(range(TEST_SEED_START, TEST_SEED_START + args.episodes))
+    episodes = QUICK.episodes if args.quick else args.episodes
+    seeds = list(range(TEST_SEED_START, TEST_SEED_START + episodes))
     lines, scores, skipped = [], [], []
     with runner(args.ray) as tasks:  # every scenario × policy × flights at once
         everything = evaluate_scenarios(

@@ -1,6 +1,6 @@
 """The learners' results page (``docs/results/learners.md``) and the files beside it (two figures
 and the learning curves' table), from ``docs/learners/`` as ``experiments/compare_learners.py
-evaluate`` writes it; the statistics are :mod:`agents.benchmark`'s. Run by
+evaluate`` writes it; the statistics are :mod:`agents.comparison.statistics`'s. Run by
 ``scripts/results_pages.py``."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from results_common import LEARNERS_DATA, num, read, source_line, table
 
-from agents import benchmark as bm
+from agents.comparison import statistics as bm
 
 #: The files written beside the page.
 CURVES_PNG = "learners_curves.png"
@@ -408,7 +408,7 @@ def _selection(docs: Path, d: Learners) -> list[str]:
     lines = [
         "## The policy chosen to ship",
         "",
-        source_line(docs, [("learners/selection.json", sel["command"])]),
+        source_line(docs, [("learners/selection.json", writing_docs(sel["command"]))]),
         "",
         f"Chosen on validation flights only ({sel['validation_flights_per_scenario']} per "
         "scenario, the same for every seed of every learner; the score is the worst scenario's "
@@ -456,23 +456,30 @@ def _selection(docs: Path, d: Learners) -> list[str]:
     ]
 
 
+def writing_docs(command: str) -> str:
+    """A recorded command of ``experiments/compare_learners.py`` as it writes into
+    ``docs/learners/``: with ``--data docs/learners`` when it names no data folder (the
+    script's default folder is under ``results/``)."""
+    return command if "--data" in command.split() else f"{command} --data docs/learners"
+
+
 def learners_page(docs: Path) -> str:
     """``learners.md``: the learners for the general tuner on the same test flights."""
     d = learners(docs)
     test = d.runs["test_flights"]
     first, n = test["first_seed"], test["per_scenario"]
     seeds = ", ".join(f"`{name}` {len(r.seeds)}" for name, r in d.result.learners.items())
-    command = d.runs["command"]
+    command = writing_docs(d.runs["command"])
     lines = [
         "# Learners for the general tuner",
         "",
         source_line(docs, [(name, command) for name in LEARNERS_DATA]),
         "",
         "One policy for every scenario of the suite, trained by each learner of "
-        "`agents/learners.py` over several training seeds; each run keeps its best checkpoint "
-        "on validation flights, and every seed's policy then flies the same fresh test flights "
-        f"beside the reference policies. Evaluated on {d.runs['date']}: {n} test flights per "
-        f"scenario (seeds {first:,}–{first + n - 1:,}, never flown for a choice); training "
+        "`agents/training/learners.py` over several training seeds; each run keeps its best "
+        "checkpoint on validation flights, and every seed's policy then flies the same fresh test "
+        f"flights beside the reference policies. Evaluated on {d.runs['date']}: {n} test flights "
+        f"per scenario (seeds {first:,}–{first + n - 1:,}, never flown for a choice); training "
         f"seeds per learner: {seeds}. How the scores are defined: "
         "[benchmark methodology](../background/benchmark-methodology.md).",
         "",

@@ -208,7 +208,7 @@ def tuners_page(docs: Path) -> str:
             "ppo/training.json",
             "`ppo`: the `nonstationary` tuner",
             "Trained on `nonstationary_dense`, validated on `nonstationary` "
-            "(`agents/trained/ppo_nonstationary.npz`).",
+            "(`agents/policies/trained/ppo_nonstationary.npz`).",
         ),
         "![Learning curve of the nonstationary tuner](../ppo/learning_curve.png)",
         "",
@@ -217,8 +217,8 @@ def tuners_page(docs: Path) -> str:
             "general/training.json",
             "`general`: one policy for the suite",
             "Trained and validated on flights of every scenario of the suite "
-            "(`agents/trained/ppo_general.npz`); the ratios are each scenario's mean validation "
-            "RMSE over the tuned constant's on the same flights.",
+            "(`agents/policies/trained/ppo_general.npz`); the ratios are each scenario's mean "
+            "validation RMSE over the tuned constant's on the same flights.",
         ),
         "## Not on this page",
         "",
@@ -317,9 +317,13 @@ def discovery_page(docs: Path) -> str:
                 (
                     "discovery/summary.json",
                     "python -m experiments.hidden_effects --single 10 --null 40 --coloured 20 "
-                    "--absorbed 5 --pairs 5, then --only duration --durations 4",
+                    "--absorbed 5 --pairs 5 --out docs/discovery (10.3 min on a 2-core machine), "
+                    "then --only duration --durations 4 --out docs/discovery (17.5 min)",
                 ),
-                ("discovery/nominal.json", "python -m experiments.discovery_nominal"),
+                (
+                    "discovery/nominal.json",
+                    "python -m experiments.discovery_nominal --out docs/discovery",
+                ),
             ],
         ),
         "",
@@ -428,7 +432,8 @@ def index_page(docs: Path) -> str:
         lines += [
             "",
             "The comparison of the learners for the general tuner gets its page when its data, "
-            "`docs/learners/` (`python -m experiments.compare_learners evaluate`), are committed.",
+            "`docs/learners/` (`python -m experiments.compare_learners evaluate --data "
+            "docs/learners`), are committed.",
         ]
     return "\n".join(lines) + "\n"
 

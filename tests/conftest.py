@@ -1,4 +1,19 @@
-"""Shared fixtures."""
+"""Shared fixtures, and the hypothesis profiles.
+
+The default run is deterministic: every property test draws the examples that a hash of its
+own source seeds (``derandomize``), nothing is replayed from a database of earlier runs, and
+no timing decides a result (no deadline, no "too slow" health check: two cores shared with
+other work under pytest-xdist make any time limit a matter of chance). So the README's test
+command passes or fails alike on every machine, every time.
+
+``HYPOTHESIS_PROFILE=explore`` (CI's slow step) draws fresh random examples, four times as
+many (:func:`tests._helpers.examples`; 60 instead of 25 for the fault suite's examples of a
+few seconds each), and keeps what fails in hypothesis's database (``.hypothesis/``) to replay
+it first on the next exploring run. A failure found so is fixed and kept as an ``@example`` on
+its test, where the default run tries it every time. The profile is loaded here whatever the
+environment says, so hypothesis's own ``ci`` profile (which it loads when ``CI`` is set) does
+not make CI's run differ from a developer's.
+"""
 
 from __future__ import annotations
 
@@ -6,9 +21,16 @@ import os
 from collections.abc import Iterator
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 from aeromag_env.flight.data import Flight
 from tests._flights import simulated
+from tests._helpers import DETERMINISTIC, EXPLORE, hypothesis_profile
+
+_UNTIMED = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow], "print_blob": True}
+settings.register_profile(DETERMINISTIC, derandomize=True, database=None, **_UNTIMED)
+settings.register_profile(EXPLORE, derandomize=False, **_UNTIMED)
+settings.load_profile(hypothesis_profile())
 
 
 @pytest.fixture(scope="session")

@@ -9,10 +9,10 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from aeromag_env.parallel import Outcome
-from aeromag_env.reports import FLEET_PAGE
+if TYPE_CHECKING:
+    from aeromag_env.parallel import Outcome
 
 
 def note_single_file(command: str, ray: str | None) -> None:
@@ -32,7 +32,7 @@ def run_fleet(
     the flights end), print the summary line; the exit status (0, or 2 when a flight failed)."""
     from tqdm import tqdm
 
-    from aeromag_env.jobs.fleet import fleet
+    from aeromag_env.jobs.fleet import SUMMARY_PAGE, fleet
 
     bars: list[Any] = []
 
@@ -61,7 +61,7 @@ def run_fleet(
     print(
         f"{command}: {result.failed} of {len(result.rows)} flights failed ({result.runner} "
         f"runner); wrote {out}/<flight>/ per flight, {out}/fleet.csv, fleet.png"
-        + (f", {FLEET_PAGE}" if options.get("html", True) else "")
+        + (f", {SUMMARY_PAGE}" if options.get("html", True) else "")
     )
     return 2 if result.failed else 0
 

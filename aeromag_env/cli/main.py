@@ -14,11 +14,11 @@ import os
 import sys
 from collections.abc import Sequence
 
+from aeromag_env.cli.options import option_for
 from aeromag_env.cli.parser import EXIT_STATUS, build_parser
-from aeromag_env.cli.simulate import FLIGHT_SUFFIXES, simulation_summary
-from aeromag_env.errors import AeromagError
+from aeromag_env.jobs import AeromagError, ArgumentError
 
-__all__ = ["EXIT_STATUS", "FLIGHT_SUFFIXES", "build_parser", "main", "simulation_summary"]
+__all__ = ["EXIT_STATUS", "build_parser", "main"]
 
 #: Environment variable that lets an internal error raise with its traceback.
 DEBUG_VARIABLE = "AEROMAG_DEBUG"
@@ -46,10 +46,15 @@ def main(argv: Sequence[str] | None = None) -> int:
           ``AEROMAG_DEBUG=1``, the exception itself with its traceback;
         * 130 — interrupted (Ctrl-C); no output is left half-written.
     """
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     try:
         _check_paths(args)
         return int(args.func(args))
+    except ArgumentError as e:  # the job's argument, spelled as this command's option
+        said = e.spelled(option_for(_subparser(parser, args.command), e.argument))
+        print(f"aeromag {args.command}: error: {said}", file=sys.stderr)
+        return 2
     except AeromagError as e:
         print(f"aeromag {args.command}: error: {e}", file=sys.stderr)
         return 2
@@ -75,7 +80,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 #: The arguments that name files or folders (an empty one would silently mean ``.``).
-PATH_ARGUMENTS = ("file", "input", "output", "out", "config", "replay", "hyperparams", "mount")
+PATH_ARGUMENTS = (
+    "file",
+    "input",
+    "output",
+    "out",
+    "config",
+    "replay",
+    "hyperparams",
+    "mount",
+    "model",
+)
 
 
 def _check_paths(args: argparse.Namespace) -> None:
@@ -85,6 +100,14 @@ def _check_paths(args: argparse.Namespace) -> None:
         if isinstance(value, str) and not value.strip():
             flag = name if name in ("file", "input", "output") else f"--{name}"
             raise AeromagError(f"{flag} is empty; give a path")
+
+
+def _subparser(parser: argparse.ArgumentParser, command: str) -> argparse.ArgumentParser | None:
+    """The parser of subcommand ``command``."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices.get(command)
+    return None
 
 
 def _one_line(exc: BaseException) -> str:

@@ -1,5 +1,6 @@
 """The ``aeromag`` argument parser: one ``_add_*`` per subcommand (its options and ``--help``
-text), each bound to its handler in :mod:`aeromag_env.cli.commands`.
+text), each bound to its handler in :mod:`aeromag_env.cli.commands`; the choices come from
+:mod:`aeromag_env.jobs.choices`.
 """
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from typing import NoReturn
 
 from aeromag_env.cli.commands import (
     cmd_bench,
+    cmd_calibrate,
     cmd_compensate,
     cmd_convert,
     cmd_demo,
@@ -17,11 +19,20 @@ from aeromag_env.cli.commands import (
     cmd_info,
     cmd_reproduce,
     cmd_simulate,
+    cmd_stream,
     cmd_train,
     cmd_tune,
 )
-from aeromag_env.discovery.ground import GROUND_MODES
-from aeromag_env.simulation.config import PATTERNS, PRESETS
+from aeromag_env.jobs.choices import (
+    BENCH_ONLY,
+    FILTER_PRESETS,
+    FIT_METHODS,
+    GROUND_MODES,
+    LEARNERS,
+    METHODS,
+    PATTERNS,
+    PRESETS,
+)
 
 #: The exit statuses of every subcommand (``--help`` epilog; :func:`aeromag_env.cli.main.main`).
 EXIT_STATUS = (
@@ -73,6 +84,30 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="fly this file's time, position, attitude and auxiliary channels instead of the "
         "configured trajectory (e.g. with a model_config.json from aeromag discover)",
+    )
+    p.add_argument(
+        "--aircraft",
+        type=int,
+        metavar="N",
+        help="the aircraft's seed, ≥ 0: it draws the interference coefficients, so flights with "
+        "one --aircraft and different --seed are flights of one aircraft (calibrate on one, "
+        "apply to the others); default: --seed draws them",
+    )
+    p.add_argument(
+        "--permanent-shift-nt",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="maintenance: shift the aircraft's permanent field at the fluxgate by X Y Z [nT] "
+        "(with --aircraft)",
+    )
+    p.add_argument(
+        "--scalar-permanent-shift-nt",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="maintenance: shift the aircraft's permanent field at the scalar magnetometer by "
+        "X Y Z [nT] (with --aircraft)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_simulate)
@@ -203,21 +238,38 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
 
 
 def _add_compensate(sub: argparse._SubParsersAction) -> None:
-    from aeromag_env.compensation.compensate import METHODS
-
     p = sub.add_parser(
         "compensate",
-        help="compensate a flight file with one method",
+        help="compensate a flight file with one method, or with a calibrated model",
         description="Estimate and remove the aircraft's interference; write "
-        "compensated.h5, report.json and compensation.png to --out.",
+        "compensated.h5, report.json and compensation.png to --out. With --model, apply a "
+        "model calibrated on another flight (aeromag calibrate) instead of fitting: a filter "
+        "continues from its calibrated state; a warning says when the model no longer fits.",
     )
     p.add_argument(
         "file", help=f"flight file (HDF5, CSV, Geosoft XYZ or MATLAB .mat); {FLEET_HELP}"
     )
-    p.add_argument("--method", required=True, choices=METHODS, help="compensation method")
+    p.add_argument(
+        "--method",
+        choices=METHODS,
+        help="compensation method (required without --model; with it, the model's)",
+    )
+    p.add_argument(
+        "--model",
+        metavar="MODEL.json",
+        help="apply this calibrated model (aeromag calibrate's model.json): nothing is fitted",
+    )
     p.add_argument("--out", required=True, help="output folder")
     _add_html_option(p)
     _add_ray_option(p)
+    _add_fit_options(p)
+    _add_selection_options(p)
+    p.set_defaults(func=cmd_compensate)
+
+
+def _add_fit_options(p: argparse.ArgumentParser) -> None:
+    """The channel, mount, Tolles–Lawson, calibration-window and filter options (compensate,
+    calibrate)."""
     p.add_argument(
         "--flux",
         default="auto",
@@ -246,15 +298,67 @@ def _add_compensate(sub: argparse._SubParsersAction) -> None:
         metavar=("T0", "T1"),
         help="fit on T0 ≤ tt ≤ T1 [s] only, apply everywhere",
     )
-    _add_selection_options(p)
     p.add_argument(
         "--filter-preset",
-        choices=("default", "paper"),
+        choices=FILTER_PRESETS,
         default="default",
         help="filter settings: package defaults or the paper's §4 Q(0), R(0), x(0)",
     )
     p.add_argument("--r-std-nt", type=float, help="filter measurement-noise std [nT] (default 1.5)")
-    p.set_defaults(func=cmd_compensate)
+
+
+def _add_calibrate(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "calibrate",
+        help="fit a compensation model on a calibration flight, to apply to other flights",
+        description="Fit a model on a calibration flight (the whole file, its calibration "
+        "line or a time window) and write --out/model.json (for aeromag compensate --model and "
+        "aeromag stream --model), report.json and report.html (the figure of merit box by "
+        "box).",
+    )
+    p.add_argument("file", help="the calibration flight's file (HDF5, CSV, Geosoft XYZ, .mat)")
+    p.add_argument(
+        "--method",
+        required=True,
+        choices=FIT_METHODS,
+        help="tl (Tolles–Lawson coefficients) or a recursive filter (its state at the end)",
+    )
+    p.add_argument("--out", required=True, help="output folder")
+    _add_html_option(p)
+    _add_fit_options(p)
+    p.add_argument(
+        "--calibration-line",
+        nargs="?",
+        const="auto",
+        metavar="N",
+        help="fit on flight line N only, or without N the calibration box's line (the one "
+        "with the labelled manoeuvres or, unlabelled, the one flown with roll/pitch swings on "
+        "several headings)",
+    )
+    p.set_defaults(func=cmd_calibrate)
+
+
+def _add_stream(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "stream",
+        help="compensate samples as they arrive (CSV lines on stdin → stdout)",
+        description="Read a header line of channel names and then one CSV line per sample on "
+        "standard input (aeromag convert's CSV is valid input: its # lines are skipped, its "
+        "#@ date read); write a header and one line per sample on standard output (the time "
+        "and the compensated field, named as compensate names it), flushed as each is "
+        "answered: the same values as aeromag compensate --model on the same flight. A bad "
+        "line is reported on stderr and skipped.",
+    )
+    p.add_argument(
+        "--model", required=True, metavar="MODEL.json", help="the calibrated model to apply"
+    )
+    p.add_argument(
+        "--date",
+        metavar="YYYY-MM-DD",
+        help="the flight's date, for a filter's model (default: the input's #@ date, else "
+        "its first sample's year and doy)",
+    )
+    p.set_defaults(func=cmd_stream)
 
 
 def _add_reproduce(sub: argparse._SubParsersAction) -> None:
@@ -302,18 +406,13 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_evaluate)
 
 
-#: The learners of ``aeromag train --learner`` (:data:`agents.learners.LEARNERS`; named here so
-#: that ``aeromag --help`` imports nothing of ``agents``; a test checks the two agree).
-LEARNERS = ("ppo", "recurrent_ppo", "sac", "tqc", "cmaes")
-
-
 def _add_train(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "train",
         help="train a tuner: PPO, or another learner (needs the rl extra)",
         description="Train stable-baselines3 PPO on a scenario (hyperparameters in "
-        "agents/hyperparams/ppo.json; resumes from --out's checkpoint), or with --learner "
-        "another learner on the suite (agents/hyperparams/learners.json; a rerun starts "
+        "agents/training/hyperparams/ppo.json; resumes from --out's checkpoint), or with --learner "
+        "another learner on the suite (agents/training/hyperparams/learners.json; a rerun starts "
         "afresh); keeps the best validated policy as --out/policy.npz.",
     )
     p.add_argument(
@@ -338,10 +437,10 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "--out/seeds.json",
     )
     p.add_argument("--out", default="results/ppo", help="output folder (default results/ppo)")
-    p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
+    p.add_argument("--quick", action="store_true", help="about a minute (agents/training/quick.py)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument(
-        "--hyperparams", help="hyperparameter file (default agents/hyperparams/ppo.json)"
+        "--hyperparams", help="hyperparameter file (default agents/training/hyperparams/ppo.json)"
     )
     _add_html_option(p)
     _add_ray_option(p)
@@ -373,7 +472,7 @@ def _add_tune(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--space",
-        help="search space file (default agents/hyperparams/tune_space.json; other learners: "
+        help="search space file (default agents/search/spaces/tune_space.json; other learners: "
         "tune_space_learners.json)",
     )
     p.add_argument("--samples", type=int, help="trials (configurations; 16, --quick: 2)")
@@ -385,10 +484,11 @@ def _add_tune(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="sampling and training seed (default 0)")
     p.add_argument("--out", default="results/tune", help="output folder (default results/tune)")
-    p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
+    p.add_argument("--quick", action="store_true", help="about a minute (agents/training/quick.py)")
     p.add_argument(
         "--hyperparams",
-        help="base hyperparameter file (default agents/hyperparams/ppo.json; other learners: "
+        help="base hyperparameter file (default agents/training/hyperparams/ppo.json; other "
+        "learners: "
         "learners.json)",
     )
     _add_ray_option(p)
@@ -405,13 +505,14 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
         "a few minutes.",
     )
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
-    p.add_argument("--quick", action="store_true", help="about a minute (agents/quick.py)")
+    p.add_argument("--quick", action="store_true", help="about a minute (agents/training/quick.py)")
     p.add_argument(
         "--only",
-        choices=("ray", "discover", "ppo"),
+        choices=BENCH_ONLY,
         help="ray: only the Ray figures (needs --ray [ADDRESS]); discover: only the discrepancy "
         "workflow's seconds per flight-hour; ppo: only PPO's figures at 8 and 64 environments "
-        "(the speed targets; 5 repeats of a third of a full run's steps each)",
+        "(the speed targets; 5 repeats of a third of a full run's steps each); stream: only "
+        "aeromag stream's latency per sample and memory over a 10-hour stream",
     )
     _add_ray_option(p)
     p.set_defaults(func=cmd_bench)
@@ -451,7 +552,9 @@ def build_parser() -> argparse.ArgumentParser:
     adders = (
         _add_simulate,
         _add_info,
+        _add_calibrate,
         _add_compensate,
+        _add_stream,
         _add_reproduce,
         _add_evaluate,
         _add_train,

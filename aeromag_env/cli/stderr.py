@@ -1,5 +1,5 @@
 """How the command line shows the jobs' warnings: each :class:`~aeromag_env.errors.AeromagWarning`
-as one line ``aeromag: warning: …`` on stderr, as it is issued (other warnings as Python shows
+as one line ``aeromag CMD: warning: …`` on stderr, as it is issued (other warnings as Python shows
 them)."""
 
 from __future__ import annotations
@@ -10,16 +10,16 @@ import warnings
 from collections.abc import Iterator
 from typing import Any, TextIO
 
-from aeromag_env.errors import AeromagWarning
+from aeromag_env.jobs import AeromagWarning
 
 
-def warn_stderr(message: str) -> None:
-    """Print one warning line on stderr."""
-    print(f"aeromag: warning: {message}", file=sys.stderr, flush=True)
+def warn_stderr(command: str, message: str) -> None:
+    """Print one warning line of ``aeromag command`` on stderr."""
+    print(f"aeromag {command}: warning: {message}", file=sys.stderr, flush=True)
 
 
 @contextlib.contextmanager
-def warnings_on_stderr() -> Iterator[None]:
+def warnings_on_stderr(command: str) -> Iterator[None]:
     """Within the block, every :class:`AeromagWarning` is printed by :func:`warn_stderr`, each
     time it is issued (not once per place, as Python's default filter would)."""
     shown = warnings.showwarning
@@ -33,7 +33,7 @@ def warnings_on_stderr() -> Iterator[None]:
         line: str | None = None,
     ) -> Any:
         if issubclass(category, AeromagWarning):
-            warn_stderr(str(message))
+            warn_stderr(command, str(message))
         else:
             shown(message, category, filename, lineno, file, line)
 

@@ -1,6 +1,7 @@
 """Compensate a flight with one method and score it (the library side of ``aeromag compensate``).
 
-Vector methods (``kf``, ``fakf``, ``rls``, ``sage-husa``, ``ding``, ``lsq``) estimate the
+Vector methods (the recursive filters of :data:`FILTER_METHODS` — ``kf``, ``fakf``, ``rls``,
+``sage-husa``, ``ding``, ``vbakf``, ``vbakf-pr``, ``imm`` — and ``lsq``) estimate the
 interference at the fluxgate from ``y = T_m − T``, with ``T`` the model Earth field: IGRF-14 at
 the file's positions and date, plus the ``diurnal`` channel along the main-field direction when
 present, rotated into body axes with the file's attitude. The scalar method ``tl`` fits the
@@ -28,6 +29,7 @@ import numpy as np
 from aeromag_env.compensation import metrics
 from aeromag_env.compensation.kalman import run_filter
 from aeromag_env.compensation.least_squares import fit_vector_lsq
+from aeromag_env.compensation.model import METHODS as RECURSIVE_METHODS
 from aeromag_env.compensation.model import FilterConfig, interference_from_states
 from aeromag_env.compensation.samples import Samples, flight_samples, vector_inputs, within
 from aeromag_env.compensation.tolles_lawson import TollesLawson
@@ -38,7 +40,8 @@ from aeromag_env.flight.earth_model import earth_model, earth_model_ned
 from aeromag_env.flight.mounting import Mount, mount_warning, solve_wahba
 from aeromag_env.simulation.interference import VectorCoefficients
 
-FILTER_METHODS = ("kf", "fakf", "rls", "sage-husa", "ding")
+#: The recursive filters (:data:`aeromag_env.compensation.model.METHODS`).
+FILTER_METHODS = RECURSIVE_METHODS
 METHODS = (*FILTER_METHODS, "lsq", "tl")
 #: Prefix of every channel a compensator writes [-]: ``aeromag_flux_a_c_x``, ``aeromag_mag_1_c``.
 OUTPUT_PREFIX = "aeromag_"
@@ -72,6 +75,9 @@ class Compensation:
     outliers_rejected : int, samples the recursive filter's outlier gate rejected (predict only)
     nonfinite : int
     samples : the segments and flagged samples the method worked with
+    filter_end : dict[str, ndarray] or None — a recursive filter's ``state`` (21,),
+        ``covariance`` (21, 21), ``process_noise`` (21, Q's diagonal) and ``measurement_noise``
+        (3, 3) after the last sample, physical units (what a calibrated model continues from)
     """
 
     method: str
@@ -86,6 +92,7 @@ class Compensation:
     outliers_rejected: int = 0
     nonfinite: int = 0
     samples: Samples | None = None
+    filter_end: dict[str, np.ndarray] | None = None
 
 
 #: Fewest samples a vector method accepts: 7 coefficients per axis (T_p, a row of A, a row of
@@ -138,7 +145,7 @@ def compensate_vector(
     if mount is None and check_mount:
         check_body_aligned(meas[samples.valid], t_b[samples.valid], flux)
     y = np.where(samples.valid[:, None], meas - t_b, np.nan)  # flagged: predict only / no fit
-    state, est, series, counts, settings = _estimate(method, cfg, y, t_b, tdot_b, calibration)
+    state, est, series, counts, settings, end = _estimate(method, cfg, y, t_b, tdot_b, calibration)
     known = np.all(np.isfinite(t_b) & np.isfinite(tdot_b), axis=1)  # the model field is known
     est = np.where(known[:, None], est, np.nan)
     after = np.where(samples.valid[:, None], meas - est, np.nan)
@@ -161,6 +168,7 @@ def compensate_vector(
         outliers_rejected=counts[1],
         nonfinite=samples.n_nonfinite,
         samples=samples,
+        filter_end=end,
     )
 
 
@@ -207,13 +215,20 @@ def _estimate(
     t_b: np.ndarray,
     tdot_b: np.ndarray,
     calibration: np.ndarray | None,
-) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], tuple[int, int], dict[str, Any]]:
+) -> tuple[
+    np.ndarray,
+    np.ndarray,
+    dict[str, np.ndarray],
+    tuple[int, int],
+    dict[str, Any],
+    dict[str, np.ndarray] | None,
+]:
     """Final state (21,), interference estimate (n, 3) [nT], filter series, (divergences,
-    outliers rejected) and settings of a vector method on ``y = T_m − T`` (NaN rows: skipped /
-    left out)."""
+    outliers rejected), settings and the filter's end (:attr:`Compensation.filter_end`; None
+    for ``lsq``) of a vector method on ``y = T_m − T`` (NaN rows: skipped / left out)."""
     if method == "lsq":
         fit = fit_vector_lsq(y, t_b, tdot_b, mask=calibration)
-        return fit.state, fit.predict(t_b, tdot_b), {}, (0, 0), {"rate_scheme": "central"}
+        return fit.state, fit.predict(t_b, tdot_b), {}, (0, 0), {"rate_scheme": "central"}, None
     assert cfg is not None
     y_fit = y if calibration is None else np.where(calibration[:, None], y, np.nan)
     res = run_filter(cfg, y_fit, t_b, tdot_b, store_states=False)
@@ -224,7 +239,13 @@ def _estimate(
     )
     series = {"ror": res.ror, "qoq": res.qoq, "q_scale": res.q_scale, "r_scale": res.r_scale}
     counts = (res.divergences, res.outliers_rejected)
-    return res.final_state, est, series, counts, to_dict(cfg)
+    end = {
+        "state": res.final_state,
+        "covariance": res.final_covariance,
+        "process_noise": res.final_q,
+        "measurement_noise": res.final_r,
+    }
+    return res.final_state, est, series, counts, to_dict(cfg), end
 
 
 def compensate_scalar(

@@ -1,4 +1,5 @@
-"""Recursive compensators (KF, fuzzy adaptive KF, RLS, Sage–Husa, Ding) as a stateful filter.
+"""Recursive compensators (KF, fuzzy adaptive KF, RLS, Sage–Husa, Ding, the variational KFs, the
+bank of models) as a stateful filter.
 
 :class:`FilterState` holds everything the compiled loop
 (:func:`aeromag_env.compensation.kernels.advance`) updates — the arrays of
@@ -17,7 +18,8 @@ import numpy as np
 from aeromag_env.compensation.arrays import FilterArrays, filter_arrays, packed
 from aeromag_env.compensation.kernel_layout import INTS, N_ACC, N_INT, N_PAR, PAR
 from aeromag_env.compensation.kernels import advance
-from aeromag_env.compensation.model import MODE, STATE_SCALE, FilterConfig
+from aeromag_env.compensation.model import MODE, STATE_SCALE, FilterConfig, FilterMode
+from aeromag_env.compensation.variational import M_MEAS
 from aeromag_env.errors import ConfigError
 from aeromag_env.simulation.interference import N_STATES
 
@@ -31,12 +33,14 @@ class FilterResult:
     interference : (n, 3) a-priori interference estimate ``H(k) x(k|k−1)`` [nT] (causal)
     innovations : (n, 3) ``r_k`` [nT] (NaN where the sample was skipped)
     ror, qoq : (n,) windowed consistency ratios (eq. 22; NaN until the window has data)
-    q_scale, r_scale : (n,) tr Q / tr Q(0), tr R / tr R(0)
+    q_scale, r_scale : (n,) tr Q / tr Q(0), tr R / tr R(0) (imm: of the bank's
+        probability-weighted Q and R)
     states : (n, 21) posterior states [physical units] (empty when not stored)
     final_state : (21,) ``x`` after the last sample
     final_covariance : (21, 21) ``P`` after the last sample [physical units]
-    final_r : (3, 3) ``R`` after the last sample [nT²] (adapted by fakf and sage-husa)
-    final_q : (21,) diagonal of ``Q`` after the last sample [physical units²]
+    final_r : (3, 3) ``R`` after the last sample [nT²] (adapted by fakf, sage-husa and the
+        variational filters; for imm the base the models' scales multiply)
+    final_q : (21,) diagonal of ``Q`` after the last sample [physical units²] (imm: the base)
     divergences : restarts: a non-finite or absurd state, a non-finite or non-positive-definite
         covariance, an adaptive filter's runaway, or a whole window of outliers that shift the data
         (:mod:`aeromag_env.compensation.consistency`)
@@ -112,6 +116,9 @@ class FilterState:
         self.ints = np.zeros(N_INT, dtype=np.int64)
         self.ints[INTS.window], self.ints[INTS.interval] = cfg.window, cfg.adapt_interval
         self.par = _parameters(cfg)
+        self.vb_shape = np.zeros(M_MEAS)
+        self._variational(cfg)
+        self._bank(cfg)
         self.est = np.full((n, 3), np.nan)
         self.innov = np.full((n, 3), np.nan)
         self.ror, self.qoq = np.full(n, np.nan), np.full(n, np.nan)
@@ -119,6 +126,28 @@ class FilterState:
         self.states = np.full((n if store_states else 0, N_STATES), np.nan)
         self._arrays = filter_arrays(self)
         self._packed = packed(self._arrays)
+
+    def _variational(self, cfg: FilterConfig) -> None:
+        """R's prior shape and the iterations of ``vbakf`` and ``vbakf-pr``."""
+        if self.mode == FilterMode.VBAKF:
+            self.ints[INTS.iterations] = cfg.vbakf.iterations
+            self.vb_shape[:] = cfg.vbakf.prior_shape  # α₀ per axis
+        elif self.mode == FilterMode.VBAKF_PR:
+            self.ints[INTS.iterations] = cfg.vbakf_pr.iterations
+            self.vb_shape[0] = cfg.vbakf_pr.prior_dof  # û₀ − m − 1
+
+    def _bank(self, cfg: FilterConfig) -> None:
+        """The bank of ``imm`` (zero models for the other methods): every model at x(0), P(0),
+        equally probable."""
+        bank = cfg.imm
+        m = bank.size if self.mode == FilterMode.IMM else 0
+        self.ints[INTS.models] = m
+        self.bank_z = np.repeat(self.z[None, :], m, axis=0)
+        self.bank_p = np.repeat(self.p0[None, :, :], m, axis=0)
+        self.bank_scale = bank.scales()[:m]
+        self.bank_follow = bank.follows()[:m]
+        self.bank_mu = np.full(m, 1.0 / max(m, 1))
+        self.bank_pi = bank.matrix()[:m, :m].copy()
 
     @property
     def n(self) -> int:
@@ -210,6 +239,12 @@ def _parameters(cfg: FilterConfig) -> np.ndarray:
     par[PAR.lo], par[PAR.hi] = cfg.scale_bounds
     par[PAR.sh_q] = float(cfg.sage_husa_q)
     par[PAR.sh_innov] = float(cfg.sage_husa_form == "innovation")
+    if cfg.method == "vbakf-pr":
+        par[PAR.vb_rho], par[PAR.vb_prior] = cfg.vbakf_pr.rho, cfg.vbakf_pr.prior_dof
+    else:
+        par[PAR.vb_rho], par[PAR.vb_prior] = cfg.vbakf.rho, cfg.vbakf.prior_shape
+    par[PAR.vb_tau] = cfg.vbakf_pr.tau
+    par[PAR.mmae] = float(cfg.imm.mixing == "mmae")
     return par
 
 

@@ -8,7 +8,9 @@ cores (:mod:`aeromag_env.threads`). Each flight goes through exactly the code a 
 goes through, so the results are bitwise those of N separate filters (tested).
 
 Flights may differ in length: the time axis is padded to the longest flight, a flight never
-advances past its own length ``n[i]``, and the padding is never read. A flight slot can be
+advances past its own length ``n[i]``, and the padding is never read. Banks of models (``imm``)
+are padded alike to the largest bank; a flight's loop reads only its own models
+(``ints[INTS.models]``). A flight slot can be
 refilled with a new flight (an environment's reset) without touching the others.
 """
 
@@ -20,6 +22,7 @@ import numpy as np
 
 from aeromag_env.compensation.arrays import (
     CORE_ARRAYS,
+    MODEL_AXES,
     TIME_ARRAYS,
     WINDOW_ARRAYS,
     FilterArrays,
@@ -75,7 +78,7 @@ class BatchFilterState:
     n : (N,) int64 flight lengths [samples]
     every name of :data:`aeromag_env.compensation.arrays.CORE_ARRAYS` : that array with a
         leading axis N; time arrays are padded to ``n.max()`` samples, window buffers to the
-        longest window.
+        longest window, the bank's model axes to the largest bank.
     """
 
     y: np.ndarray
@@ -103,6 +106,13 @@ class BatchFilterState:
     q_scale: np.ndarray
     r_scale: np.ndarray
     states: np.ndarray
+    vb_shape: np.ndarray
+    bank_z: np.ndarray
+    bank_p: np.ndarray
+    bank_scale: np.ndarray
+    bank_follow: np.ndarray
+    bank_mu: np.ndarray
+    bank_pi: np.ndarray
 
     def __init__(self, states: Sequence[FilterState]) -> None:
         if not states:
@@ -118,6 +128,9 @@ class BatchFilterState:
                 shape[0] = int(self.n.max())
             if name in WINDOW_ARRAYS:
                 shape[0] = max(s.cfg.window for s in states)
+            if name in MODEL_AXES:
+                models = max(getattr(s, name).shape[0] for s in states)
+                shape[: MODEL_AXES[name]] = [models] * MODEL_AXES[name]
             stacked = np.empty((len(states), *shape), dtype=getattr(first, name).dtype)
             setattr(self, name, stacked)
         for i, s in enumerate(states):
@@ -165,6 +178,8 @@ class BatchFilterState:
             self._grow(state.n)
         if state.cfg.window > self.rbuf.shape[1]:
             self._grow_window(state.cfg.window)
+        if state.bank_z.shape[0] > self.bank_z.shape[1]:
+            self._grow_bank(state.bank_z.shape[0])
         self.mode[i], self.n[i], self.cfgs[i] = state.mode, state.n, state.cfg
         for name in CORE_ARRAYS:
             src, dst = getattr(state, name), getattr(self, name)[i]
@@ -172,6 +187,9 @@ class BatchFilterState:
                 m = min(src.shape[0], dst.shape[0])  # a state history kept on one side only
                 dst[:m] = src[:m]
                 dst[m:] = _PAD[dst.dtype.kind]
+            elif name in MODEL_AXES:  # the flight's models in the leading corner
+                dst[...] = _PAD[dst.dtype.kind]
+                dst[tuple(slice(0, size) for size in src.shape)] = src
             else:
                 dst[...] = src
 
@@ -256,6 +274,14 @@ class BatchFilterState:
             old = getattr(self, name)
             new = np.zeros((old.shape[0], m, *old.shape[2:]), old.dtype)
             new[:, : old.shape[1]] = old
+            setattr(self, name, new)
+        self._arrays = None
+
+    def _grow_bank(self, m: int) -> None:
+        for name, axes in MODEL_AXES.items():
+            old = getattr(self, name)
+            new = np.full((old.shape[0], *[m] * axes, *old.shape[1 + axes :]), _PAD[old.dtype.kind])
+            new[tuple(slice(0, size) for size in old.shape)] = old
             setattr(self, name, new)
         self._arrays = None
 

@@ -4,7 +4,10 @@ It mirrors :mod:`aeromag_env.compensation.kernels` (and
 :mod:`aeromag_env.compensation.adaptive_rules`, :mod:`aeromag_env.compensation.consistency`)
 equation by equation with dense matrices and the factored Joseph form, so the compiled loop is
 tested against an independent transcription.
-Pure functions (``kf_predict``, ``kf_update``) follow filterpy's procedural style.
+The Kalman steps and the consistency checks it shares with the transcriptions of the
+variational filters and the bank (:mod:`aeromag_env.compensation.adaptive_reference`, which
+:func:`run_reference` runs for those methods) are in
+:mod:`aeromag_env.compensation.reference_steps`.
 """
 
 from __future__ import annotations
@@ -13,94 +16,15 @@ from dataclasses import replace
 
 import numpy as np
 
+from aeromag_env.compensation.adaptive_reference import ADAPTIVE_METHODS, run_adaptive_reference
 from aeromag_env.compensation.fuzzy import fis_scale_reference
 from aeromag_env.compensation.kalman import FilterResult
-from aeromag_env.compensation.kernel_layout import (
-    GATE_NIS,
-    GATE_POWER,
-    GATE_POWER_AFTER,
-    RUNAWAY_POWER,
-    SHIFT_FRACTION,
-)
 from aeromag_env.compensation.model import STATE_SCALE, FilterConfig, measurement_rows
+from aeromag_env.compensation.reference_steps import Consistency, kf_predict, kf_update, runaway
 from aeromag_env.simulation.interference import N_STATES
 
 #: The methods whose own rules move Q and R: a runaway makes them the plain KF.
 ADAPTIVE = ("fakf", "ding", "sage-husa")
-
-
-def kf_predict(x: np.ndarray, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eqs. 17–18 with ``Φ = I``: ``x⁻ = x``, ``P⁻ = P + Q``."""
-    return x.copy(), p + q  # P⁻ = Φ P Φᵀ + Q
-
-
-def kf_update(
-    x: np.ndarray, p: np.ndarray, y: np.ndarray, h: np.ndarray, r: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Eqs. 19–20, Joseph form. Returns ``x⁺, P⁺, innovation, S, K``.
-
-    Shapes: x (21,), p (21, 21), y (3,), h (3, 21), r (3, 3).
-    """
-    innov = y - h @ x  # r = y − H x⁻
-    s = h @ p @ h.T + r  # S = H P⁻ Hᵀ + R
-    k = p @ h.T @ np.linalg.inv(s)  # K = P⁻ Hᵀ S⁻¹
-    i_kh = np.eye(x.size) - k @ h
-    p_new = i_kh @ p @ i_kh.T + k @ r @ k.T  # Joseph: (I − KH) P⁻ (I − KH)ᵀ + K R Kᵀ
-    return x + k @ innov, 0.5 * (p_new + p_new.T), innov, s, k
-
-
-class _Consistency:
-    """The checks of :mod:`aeromag_env.compensation.consistency`, written out: the outlier gate
-    (its lap reference, the run of rejections and the calm samples since the last) and the
-    runaway test."""
-
-    def __init__(self, window: int) -> None:
-        self.m = window
-        self.clear()
-
-    def clear(self) -> None:
-        self.ref, self.adds, self.calm, self.run = 0.0, 0, 0, 0
-        self.run_sum, self.run_power = np.zeros(3), 0.0
-
-    def outlier(self, innov: np.ndarray, s: np.ndarray, window: list) -> bool:
-        power = float(innov @ innov)
-        out = False
-        if self.ref > 0 and np.isfinite(power):
-            if self.calm < self.m:  # within a window after a rejection: the last lap's mean
-                out = power > GATE_POWER_AFTER * self.ref
-            else:  # |r|² against the last lap's and the window's mean, and rᵀ S⁻¹ r
-                recent = max(self.ref, float(np.mean([v @ v for v, _ in window])))
-                nis = innov @ np.linalg.inv(s) @ innov
-                out = power > GATE_POWER * recent and nis > GATE_NIS
-        if not out:
-            self.calm, self.run = self.calm + 1, 0
-        return bool(out)
-
-    def reject(self, innov: np.ndarray) -> bool:
-        """Count a rejection; True for a whole window of them that shifts the data."""
-        if self.run == 0:
-            self.run_sum, self.run_power = np.zeros(3), 0.0
-        self.run, self.calm = self.run + 1, 0
-        self.run_sum = self.run_sum + innov
-        self.run_power += float(innov @ innov)
-        mean_power = float(self.run_sum @ self.run_sum) / self.run  # |Σr|²/n² against Σ|r|²/n
-        return self.run >= self.m and mean_power > SHIFT_FRACTION * self.run_power
-
-    def added(self, window: list) -> bool:
-        """An innovation entered the window; True at the end of a lap (a new reference)."""
-        self.adds += 1
-        if self.adds % self.m:
-            return False
-        self.ref = float(np.mean([v @ v for v, _ in window]))
-        return True
-
-
-def _runaway(k: int, m: int, y: np.ndarray, est: np.ndarray, valid: np.ndarray) -> bool:
-    """Over the valid samples among the last m up to k: Σ|y − H z⁻|² > RUNAWAY_POWER Σ|y|²."""
-    rows = slice(max(0, k + 1 - m), k + 1)
-    ok = valid[rows]
-    num, den = np.sum((y[rows] - est[rows])[ok] ** 2), np.sum(y[rows][ok] ** 2)
-    return bool(den > 0 and num > RUNAWAY_POWER * den)
 
 
 def run_reference(
@@ -108,7 +32,10 @@ def run_reference(
 ) -> FilterResult:
     """Same contract as :func:`aeromag_env.compensation.kalman.run_filter`; of the divergence
     restarts only those of the consistency checks (a sustained shift, an adaptive filter's
-    runaway), not those of a non-finite or indefinite covariance."""
+    runaway), not those of a non-finite or indefinite covariance. The variational filters and
+    the bank are transcribed in :mod:`aeromag_env.compensation.adaptive_reference`."""
+    if cfg.method in ADAPTIVE_METHODS:
+        return run_adaptive_reference(cfg, y, t_b, tdot_b)
     n, d = y.shape[0], STATE_SCALE
     h_all = measurement_rows(t_b, tdot_b) * d  # H_s = H diag(d)
     valid = np.all(np.isfinite(y), axis=1) & np.all(np.isfinite(h_all), axis=(1, 2))
@@ -121,7 +48,7 @@ def run_reference(
     est, innovations = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
     states = np.zeros((n, N_STATES))
     counts = {"skipped": 0, "divergences": 0, "outliers": 0}
-    since, gate = 0, _Consistency(cfg.window)
+    since, gate = 0, Consistency(cfg.window)
     for k in range(n):
         if cfg.method == "rls":
             p = p / cfg.forgetting  # RLS with forgetting: P⁻ = P / λ
@@ -196,7 +123,7 @@ def _accept(cfg, k, filt, q0, data, window, gate):
         post_fit = y[k] - h_all[k] @ z  # e = y − H x⁺
         hph_post = h_all[k] @ p @ h_all[k].T  # H P⁺ Hᵀ
         r, q = _sage_husa(cfg, k, innov, s, gain, r, q, q0, post_fit, hph_post)
-    restart = cfg.method in ADAPTIVE and lap and _runaway(k, cfg.window, y, est, valid)
+    restart = cfg.method in ADAPTIVE and lap and runaway(k, cfg.window, y, est, valid)
     return (z_prior if restart else z), p, q, r, window, gain, restart
 
 

@@ -28,6 +28,10 @@ class Par(NamedTuple):
     hi: int  #: upper bound of a per-step scale factor
     sh_q: int  #: 1.0 when Sage–Husa also estimates Q
     sh_innov: int  #: 1.0 for Sage–Husa's innovation form
+    vb_rho: int  #: forgetting factor ρ of the variational filters
+    vb_prior: int  #: their prior's weight: α₀ (vbakf) or û₀ − m − 1 (vbakf-pr)
+    vb_tau: int  #: τ, the weight of the nominal P⁻ in vbakf-pr's prior
+    mmae: int  #: 1.0 when the bank of imm runs as MMAE (no mixing)
 
 
 class Ints(NamedTuple):
@@ -45,6 +49,9 @@ class Ints(NamedTuple):
     run: int  #: the current run of consecutive rejections
     calm: int  #: samples accepted since the last rejection
     fell_back: int  #: 1 once an adaptive filter ran away and went on as the plain KF
+    base: int  #: samples processed before row 0 of the arrays (a continued or streamed filter)
+    iterations: int  #: fixed-point iterations per sample of the variational filters
+    models: int  #: m, the models of imm's bank (0 for the other methods)
 
 
 class Acc(NamedTuple):
@@ -86,9 +93,10 @@ GATE_POWER_AFTER = 1e2
 #: A whole window of consecutive rejections is a shift of the data (restart) when the power of
 #: their mean is above SHIFT_FRACTION of their mean power (a step: ~1; zero-mean noise: ~1/M).
 SHIFT_FRACTION = 0.5
-#: An adaptive filter (fakf, ding, sage-husa) whose innovations' power exceeds RUNAWAY_POWER
-#: times the measurements' over a window (its estimate 2× farther from the data than zero is)
-#: has run away: it restarts and goes on as the plain KF. Clean runs stay below 0.3, and at the
-#: start (a zero estimate) the ratio is 1. Measured: under 1e3 nT RMS noise over a flight fakf
-#: reaches 6.6 (2.5e3 nT off) and Sage–Husa more; ding and kf stay below 1 (the noise level).
+#: An adaptive filter (fakf, ding, sage-husa, vbakf, vbakf-pr) whose innovations' power exceeds
+#: RUNAWAY_POWER times the measurements' over a window (its estimate 2× farther from the data
+#: than zero is) has run away: it restarts and goes on as the plain KF. Clean runs stay below
+#: 0.3, and at the start (a zero estimate) the ratio is 1. Measured: under 1e3 nT RMS noise over
+#: a flight fakf reaches 6.6 (2.5e3 nT off) and Sage–Husa more; ding and kf stay below 1 (the
+#: noise level).
 RUNAWAY_POWER = 4.0

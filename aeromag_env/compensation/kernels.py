@@ -33,65 +33,41 @@ Per sample k (normalised state ``z``, ``H_s = H diag(d)``):
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from aeromag_env.compensation.adaptive_rules import adapt, clamp_scales, sage_husa
 from aeromag_env.compensation.arrays import FilterArrays, Packed, named
 from aeromag_env.compensation.consistency import clear_window, outlier, reject, runaway
+from aeromag_env.compensation.kalman_steps import (
+    H_NNZ,
+    GainWork,
+    SparseH,
+    gain,
+    gain_terms,
+    h_row,
+    h_times,
+    inv3,
+    kalman_update,
+    per_sample,
+)
 from aeromag_env.compensation.kernel_layout import ACC, INTS, MAX_STATE, PAR
 from aeromag_env.compensation.model import FilterMode
+from aeromag_env.compensation.multiple_model import (
+    bank_noise,
+    imm_predict,
+    imm_restart,
+    imm_update,
+)
+from aeromag_env.compensation.variational import (
+    VbWork,
+    vb_prior,
+    vbakf_pr_update,
+    vbakf_update,
+)
 from aeromag_env.compensation.window import window_add
 from aeromag_env.numba_cache import njit
-from aeromag_env.simulation.interference import EDDY_START, INDUCED_START, PERMANENT_START
-
-#: The non-zeros of row i of ``H_s`` in the order they are stored: ``T_p,i`` at 0, ``A_i·`` from
-#: 1, ``B_i·`` from 4; 7 in all.
-NZ_PERMANENT, NZ_INDUCED, NZ_EDDY, H_NNZ = 0, 1, 4, 7
-
-#: How the helpers the loop calls for every sample are compiled: they neither allocate nor copy
-#: arrays, so without numba's runtime (its reference counting): ``_nrt=False``, an option numba's
-#: type stubs do not list; a helper that needed the runtime would fail to compile, loudly. With
-#: the runtime every call pays two atomic operations per array passed, and the loop split into
-#: these helpers ran ~25% slower than the same code as one function (1.0 against 1.36 M samples/s
-#: on one flight); without, within ~5%. Dropping the option changes the speed, not the results.
-per_sample = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
-
-
-@per_sample
-def _h_row(
-    t: np.ndarray, td: np.ndarray, k: int, d: np.ndarray, col: np.ndarray, hv: np.ndarray
-) -> None:
-    """Non-zeros of the 3 rows of ``H_s(k)``: columns ``col`` (3, 7), values ``hv`` (3, 7)."""
-    for i in range(3):
-        col[i, NZ_PERMANENT] = PERMANENT_START + i
-        hv[i, NZ_PERMANENT] = d[PERMANENT_START + i]
-        for j in range(3):
-            ca = INDUCED_START + 3 * i + j
-            cb = EDDY_START + 3 * i + j
-            col[i, NZ_INDUCED + j] = ca
-            hv[i, NZ_INDUCED + j] = t[k, j] * d[ca]
-            col[i, NZ_EDDY + j] = cb
-            hv[i, NZ_EDDY + j] = td[k, j] * d[cb]
-
-
-@per_sample
-def _inv3(s: np.ndarray, out: np.ndarray) -> bool:
-    """Inverse of a symmetric 3×3 matrix by cofactors; False if not positive definite."""
-    a, b, c = s[0, 0], s[0, 1], s[0, 2]
-    e, f, i = s[1, 1], s[1, 2], s[2, 2]
-    c00 = e * i - f * f
-    c01 = c * f - b * i
-    c02 = b * f - c * e
-    det = a * c00 + b * c01 + c * c02
-    if not (det > 0.0 and a > 0.0 and a * e - b * b > 0.0):
-        return False
-    out[0, 0] = c00 / det
-    out[0, 1] = out[1, 0] = c01 / det
-    out[0, 2] = out[2, 0] = c02 / det
-    out[1, 1] = (a * i - c * c) / det
-    out[1, 2] = out[2, 1] = (b * c - a * f) / det
-    out[2, 2] = (a * e - b * b) / det
-    return True
 
 
 @per_sample
@@ -152,12 +128,9 @@ def _estimate(
     est: np.ndarray,
 ) -> None:
     """``H_s(k)`` into ``col``, ``hv`` and the a-priori interference ``H_s z⁻`` into ``est[k]``."""
-    _h_row(t, td, k, d, col, hv)
+    h_row(t, td, k, d, col, hv)
     for i in range(3):
-        yhat = 0.0
-        for m in range(H_NNZ):
-            yhat += hv[i, m] * z[col[i, m]]
-        est[k, i] = yhat
+        est[k, i] = h_times(col, hv, z, i)
 
 
 @per_sample
@@ -174,59 +147,9 @@ def _innovation(
     r: np.ndarray,
 ) -> None:
     """``Gᵀ`` (``gt``), ``S = H_s G + R`` (``s``) and ``r = y − H_s z⁻`` (``r``) of sample k."""
-    n_state = p.shape[0]
-    # Gᵀ[i, a] = Σ_m P⁻[a, c_im] h_im, read as P⁻[c_im, a] (P is kept exactly symmetric)
-    gt[:, :] = 0.0
+    gain_terms(p, rm, col, hv, gt, s)
     for i in range(3):
-        for m in range(H_NNZ):
-            c, h = col[i, m], hv[i, m]
-            for a in range(n_state):
-                gt[i, a] += p[c, a] * h
-    for i in range(3):  # S = H_s G + R
-        for j in range(3):
-            acc_s = rm[i, j]
-            for m in range(H_NNZ):
-                acc_s += hv[i, m] * gt[j, col[i, m]]
-            s[i, j] = acc_s
         r[i] = y[k, i] - est[k, i]
-
-
-@per_sample
-def _update(
-    z: np.ndarray,
-    p: np.ndarray,
-    gt: np.ndarray,
-    kt: np.ndarray,
-    kst: np.ndarray,
-    s: np.ndarray,
-    sinv: np.ndarray,
-    r: np.ndarray,
-) -> None:
-    """``K = G S⁻¹`` (eq. 19, into ``kt``), ``z = z⁻ + K r`` and the Joseph form, expanded:
-    ``P = P⁻ − K Gᵀ − G Kᵀ + K S Kᵀ`` on the lower triangle, then mirrored (P exactly
-    symmetric)."""
-    n_state = z.shape[0]
-    for j in range(3):
-        for a in range(n_state):
-            kt[j, a] = gt[0, a] * sinv[0, j] + gt[1, a] * sinv[1, j] + gt[2, a] * sinv[2, j]
-    for a in range(n_state):
-        z[a] += kt[0, a] * r[0] + kt[1, a] * r[1] + kt[2, a] * r[2]
-    for j in range(3):
-        for a in range(n_state):
-            kst[j, a] = kt[0, a] * s[0, j] + kt[1, a] * s[1, j] + kt[2, a] * s[2, j]
-    for a in range(n_state):
-        ka0, ka1, ka2 = kt[0, a], kt[1, a], kt[2, a]
-        g0, g1, g2 = gt[0, a], gt[1, a], gt[2, a]
-        s0, s1, s2 = kst[0, a], kst[1, a], kst[2, a]
-        for b in range(a + 1):
-            v = 0.0
-            v += -ka0 * gt[0, b] - g0 * kt[0, b] + s0 * kt[0, b]
-            v += -ka1 * gt[1, b] - g1 * kt[1, b] + s1 * kt[1, b]
-            v += -ka2 * gt[2, b] - g2 * kt[2, b] + s2 * kt[2, b]
-            p[a, b] += v
-    for a in range(n_state):
-        for b in range(a):
-            p[b, a] = p[a, b]
 
 
 @per_sample
@@ -257,23 +180,19 @@ def _copy(src: np.ndarray, dst: np.ndarray) -> None:
 
 
 @njit(cache=True)  # on a divergence only; copies arrays: needs the runtime
-def _restart(
-    z: np.ndarray,
-    z_good: np.ndarray,
-    p: np.ndarray,
-    p0: np.ndarray,
-    qd: np.ndarray,
-    q0: np.ndarray,
-    rm: np.ndarray,
-    r0: np.ndarray,
-    ints: np.ndarray,
-) -> None:
-    """Divergence: count it and restart from the last good state with P(0), Q(0), R(0)."""
+def _restart(mode: int, f: FilterArrays) -> None:
+    """Divergence: count it and restart from the last good state with P(0), Q(0), R(0) (the
+    variational filters with R's prior shape, the bank with every model there)."""
+    z, p, qd, rm, ints = f.state.z, f.state.p, f.state.qd, f.state.rm, f.state.ints
     ints[INTS.div] += 1
-    z[:] = z_good
-    p[:, :] = p0
-    qd[:] = q0
-    rm[:, :] = r0
+    z[:] = f.state.z_good
+    p[:, :] = f.state.p0
+    qd[:] = f.state.q0
+    rm[:, :] = f.state.r0
+    if mode == FilterMode.VBAKF or mode == FilterMode.VBAKF_PR:
+        vb_prior(mode, f.state.vb_shape, f.state.par)
+    elif mode == FilterMode.IMM:
+        imm_restart(f.bank, ints[INTS.models], f.state.z_good, f.state.p0)
 
 
 @per_sample
@@ -307,8 +226,8 @@ def _adapt(
     r0: np.ndarray,
 ) -> None:
     """``fakf``, ``ding``: adapt Q and R from the window statistics ``ror``, ``qoq`` once the
-    window is full, every ``adapt_interval`` samples; then (and after every Sage–Husa sample)
-    clamp their scales."""
+    window is full, every ``adapt_interval`` samples; then (and after every Sage–Husa or
+    variational sample) clamp their scales."""
     ints[INTS.since] += 1
     if (
         (mode == FilterMode.FAKF or mode == FilterMode.DING)
@@ -318,7 +237,7 @@ def _adapt(
         adapt(mode, ror, qoq, acc, ints, qd, rm, par)
         clamp_scales(qd, q0, rm, r0, par[PAR.lo], par[PAR.hi])
         ints[INTS.since] = 0
-    elif mode == FilterMode.SAGE_HUSA:
+    elif mode == FilterMode.SAGE_HUSA or mode == FilterMode.VBAKF or mode == FilterMode.VBAKF_PR:
         clamp_scales(qd, q0, rm, r0, par[PAR.lo], par[PAR.hi])
 
 
@@ -343,53 +262,137 @@ def _record(
             states[k, a] = z[a] * d[a]
 
 
+class Scratch(NamedTuple):
+    """Work arrays of one :func:`advance` call (allocated once per call, sized 0 where a method
+    does not use them)."""
+
+    col: np.ndarray  #: (3, 7) int64 columns of the non-zeros of ``H_s(k)``
+    hv: np.ndarray  #: (3, 7) their values
+    gt: np.ndarray  #: (3, n) ``Gᵀ = (P⁻ H_sᵀ)ᵀ``
+    kt: np.ndarray  #: (3, n) ``Kᵀ`` (kept: QOQ reads the last gain)
+    kst: np.ndarray  #: (3, n) ``(K S)ᵀ``
+    s: np.ndarray  #: (3, 3) ``S``
+    sinv: np.ndarray  #: (3, 3) ``S⁻¹``
+    r: np.ndarray  #: (3,) the innovation
+    work: np.ndarray  #: (n, n) the Cholesky test's
+    m33: np.ndarray  #: (5, 3, 3) the variational and bank updates' 3×3 matrices
+    v3: np.ndarray  #: (3, 3) their 3-vectors
+    p_nominal: np.ndarray  #: (n, n) vbakf-pr's nominal ``P⁻`` ((0, 0) otherwise)
+    z_prior: np.ndarray  #: (n,) vbakf-pr's ``x⁻`` ((0,) otherwise)
+    t3n: np.ndarray  #: (3, 3, n) a bank model's ``Gᵀ``, ``Kᵀ``, ``(K S)ᵀ`` (imm; else (3, 3, 0))
+    mix_w: np.ndarray  #: the mixing weights ``μ_i|j`` (the shape of ``Bank.bank_pi``)
+    mix_z: np.ndarray  #: the bank's mixed states (the shape of ``Bank.bank_z``)
+    mix_p: np.ndarray  #: the bank's mixed covariances (the shape of ``Bank.bank_p``)
+    cbar: np.ndarray  #: (m,) the models' predicted probabilities ``c̄``
+    q_mix: np.ndarray  #: (n,) the bank's probability-weighted Q (imm)
+    r_mix: np.ndarray  #: (3, 3) its probability-weighted R [nT²] (imm)
+
+
+@njit(cache=True)
+def _scratch(mode: int, f: FilterArrays) -> Scratch:
+    """The work arrays of :func:`advance` for ``mode`` and the filter ``f`` (those of the
+    variational and bank updates empty for the other methods)."""
+    n = f.state.z.shape[0]
+    pr = n if mode == FilterMode.VBAKF_PR else 0
+    bk = n if mode == FilterMode.IMM else 0
+    small = 3 if mode == FilterMode.VBAKF or pr > 0 or bk > 0 else 0
+    mixed = 3 if bk > 0 else 0
+    m = f.bank.bank_mu.shape[0]
+    return Scratch(
+        np.empty((3, H_NNZ), np.int64),
+        np.empty((3, H_NNZ)),
+        np.empty((3, n)),
+        np.zeros((3, n)),  # QOQ may read the gain before a first update
+        np.empty((3, n)),
+        np.empty((3, 3)),
+        np.empty((3, 3)),
+        np.empty(3),
+        np.empty((n, n)),
+        np.empty((5, small, small)),
+        np.empty((3, small)),
+        np.empty((pr, pr)),
+        np.empty(pr),
+        np.empty((3, 3, bk)),
+        np.empty((m, m)),
+        np.empty((m, n)),
+        np.empty((m, n, n)),
+        np.empty(m),
+        np.empty(bk),
+        np.empty((mixed, mixed)),
+    )
+
+
 @njit(cache=True)
 def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
     """Advance the filter over samples ``k0 ≤ k < k1`` (see the module docstring).
 
     ``mode`` is a :class:`~aeromag_env.compensation.model.FilterMode`; of the filter's
     ``arrays`` (:class:`~aeromag_env.compensation.arrays.FilterArrays`, or packed) the signals
-    are read, the state and window updated in place and the outputs written at rows k.
+    are read, the state, window and bank updated in place and the outputs written at rows k.
     """
     f = named(arrays)
     y, t, td, valid = f.signals
-    d, z, p, qd, rm, z_good, p0, q0, r0, ints, par = f.state
+    d, z, p, qd, rm, z_good, _, q0, r0, ints, par, vb_shape = f.state
     rbuf, sbuf, acc = f.window
     est, innov, ror, qoq, q_scale, r_scale, states = f.outputs
-    n_state = z.shape[0]
-    col, hv = np.empty((3, H_NNZ), np.int64), np.empty((3, H_NNZ))
-    # G = P⁻ H_sᵀ, K and K S stored transposed (3, n): the state index is contiguous, so the
-    # loops over it vectorise; every sum keeps the order of the equations as written
-    gt, kt, kst = np.empty((3, n_state)), np.zeros((3, n_state)), np.empty((3, n_state))
-    s, sinv, r = np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
-    work = np.empty_like(p)
-    lam = par[PAR.forget]
+    w = _scratch(mode, f)
+    col, hv, gt, kt, kst, s, sinv, r = w.col, w.hv, w.gt, w.kt, w.kst, w.s, w.sinv, w.r
+    m33, v3 = w.m33, w.v3
+    # the groups the variational and bank updates take (built once per call)
+    h, g = SparseH(col, hv), GainWork(gt, kt, kst)
+    g_model = GainWork(w.t3n[0], w.t3n[1], w.t3n[2])
+    vb_work = VbWork(m33, v3, w.p_nominal, w.z_prior)
+    lam, rho, tau = par[PAR.forget], par[PAR.vb_rho], par[PAR.vb_tau]
+    iterations, models = ints[INTS.iterations], ints[INTS.models]
     trq0 = q0.sum()
     trr0 = r0[0, 0] + r0[1, 1] + r0[2, 2]
     if ints[INTS.fell_back]:  # an adaptive filter that ran away goes on as the plain KF
         mode = FilterMode.KF
-    adaptive = mode == FilterMode.FAKF or mode == FilterMode.DING or mode == FilterMode.SAGE_HUSA
+    variational = mode == FilterMode.VBAKF or mode == FilterMode.VBAKF_PR
+    adaptive = (
+        mode == FilterMode.FAKF
+        or mode == FilterMode.DING
+        or mode == FilterMode.SAGE_HUSA
+        or variational
+    )
+    imm, bank = mode == FilterMode.IMM, f.bank
+    # the noise the prediction carries: the filter's own, or the bank's probability-weighted
+    qn, rn = (w.q_mix, w.r_mix) if imm else (qd, rm)
     for k in range(k0, k1):
-        _predict(mode, lam, p, qd)
+        if imm:
+            imm_predict(bank, ints, par, z, p, qd, q0, w.mix_w, w.mix_z, w.mix_p, w.cbar)
+            bank_noise(bank, models, qd, rm, q0, r0, qn, rn, m33[0])
+        else:
+            _predict(mode, lam, p, qd)
         _estimate(k, t, td, d, z, col, hv, est)
         rejected = False
         if not valid[k]:
             _store_row(innov, k, np.nan, np.nan, np.nan)
             ints[INTS.skip] += 1
         else:
-            _innovation(k, y, est, p, rm, col, hv, gt, s, r)
+            _innovation(k, y, est, p, rn, col, hv, gt, s, r)
             _store_row(innov, k, r[0], r[1], r[2])
-            ok = _inv3(s, sinv)
+            ok = inv3(s, sinv)
             rejected = ok and outlier(r, sinv, acc, ints)
             inconsistent = rejected and reject(r, acc, ints)  # a window of shifted outliers
             if not rejected:
-                if ok:
-                    _update(z, p, gt, kt, kst, s, sinv, r)
+                if ok:  # the update (eqs. 19–20), or the one that replaces it
+                    if mode == FilterMode.VBAKF:
+                        ok = vbakf_update(z, p, r, rm, vb_shape, iterations, rho, h, g, vb_work)
+                    elif mode == FilterMode.VBAKF_PR:
+                        ok = vbakf_pr_update(
+                            z, p, r, rm, vb_shape, iterations, rho, tau, h, g, vb_work
+                        )
+                    elif imm:
+                        gain(gt, sinv, kt)  # the combined prediction's gain, which QOQ reads
+                        ok = imm_update(k, y, bank, models, h, rm, r0, z, p, g_model, m33, v3)
+                    else:
+                        kalman_update(z, p, gt, kt, kst, s, sinv, r)
                     window_add(r, s[0, 0] + s[1, 1] + s[2, 2], rbuf, sbuf, acc, ints)
                     if mode == FilterMode.SAGE_HUSA:
-                        sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INTS.k], par)
-                if not _healthy(ok, z, p, ints, work):
-                    _restart(z, z_good, p, p0, qd, q0, rm, r0, ints)
+                        sage_husa(r, s, sinv, kt, rm, qd, q0, ints[INTS.base] + ints[INTS.k], par)
+                if not _healthy(ok, z, p, ints, w.work):
+                    _restart(mode, f)
                 else:
                     inconsistent = adaptive and runaway(k, y, est, valid, ints)
                     if inconsistent:  # restarted below; no more adaptation
@@ -397,10 +400,12 @@ def advance(mode: int, k0: int, k1: int, arrays: FilterArrays | Packed) -> None:
                     else:
                         _copy(z, z_good)
             if inconsistent:  # restart, and the window starts again at the new level
-                _restart(z, z_good, p, p0, qd, q0, rm, r0, ints)
+                _restart(mode, f)
                 clear_window(acc, ints)
-        _statistics(k, valid[k] and not rejected, ints, acc, kt, qd, ror, qoq)
+        if imm:  # Q and R of the bank after the update (its posterior probabilities)
+            bank_noise(bank, models, qd, rm, q0, r0, qn, rn, m33[0])
+        _statistics(k, valid[k] and not rejected, ints, acc, kt, qn, ror, qoq)
         if not rejected:  # a rejected sample leaves the window as it was: nothing to adapt to
             _adapt(mode, ror[k], qoq[k], ints, par, acc, qd, q0, rm, r0)
-        _record(k, trq0, trr0, qd, rm, z, d, q_scale, r_scale, states)
+        _record(k, trq0, trr0, qn, rn, z, d, q_scale, r_scale, states)
         ints[INTS.k] += 1

@@ -14,11 +14,12 @@ invariant to such a reparametrisation, so the estimates are those of the unscale
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
 
+from aeromag_env.compensation.adaptive_settings import ModelBank, VbakfPrSettings, VbakfSettings
 from aeromag_env.configs import check, require_nonnegative, require_positive
 from aeromag_env.simulation.interference import (
     BLOCK_SIZES,
@@ -34,7 +35,7 @@ BLOCK_SCALE = (100.0, 1e-3, 1e-4)
 #: Per-state normalisation ``d`` (21,).
 STATE_SCALE = np.repeat(BLOCK_SCALE, BLOCK_SIZES).astype(float)
 
-METHODS = ("kf", "fakf", "rls", "sage-husa", "ding")
+METHODS = ("kf", "fakf", "rls", "sage-husa", "ding", "vbakf", "vbakf-pr", "imm")
 
 
 class FilterMode(IntEnum):
@@ -46,6 +47,9 @@ class FilterMode(IntEnum):
     RLS = 2
     SAGE_HUSA = 3
     DING = 4
+    VBAKF = 5
+    VBAKF_PR = 6
+    IMM = 7
 
 
 #: Method name → its :class:`FilterMode`.
@@ -92,7 +96,10 @@ class FilterConfig:
     Attributes
     ----------
     method : ``kf`` (eqs. 17–20), ``fakf`` (fuzzy adaptive, eq. 21), ``rls`` (recursive least
-        squares with forgetting), ``sage-husa``, ``ding`` (Ding et al. 2007 trace-ratio Q scaling).
+        squares with forgetting), ``sage-husa``, ``ding`` (Ding et al. 2007 trace-ratio Q
+        scaling), ``vbakf`` (variational Bayes, R estimated: Särkkä & Nummenmaa 2009),
+        ``vbakf-pr`` (variational Bayes, P⁻ and R estimated: Huang et al. 2018), ``imm`` (a
+        bank of filters over Q and R scales: interacting multiple models, or MMAE).
     p0_std : prior std per block (T_p [nT], A [-], B [s]); ``P(0)`` is diagonal. Defaults are
         loose priors around zero (2.5× the ``nominal`` simulator's coefficient spread).
     q_std : process-noise std per block per sample (random walk of the coefficients); the
@@ -117,6 +124,12 @@ class FilterConfig:
         R(0) = 2e-3 nT², but an interference step can make it run away.
     scale_bounds : limits of the adapted Q and R relative to Q(0), R(0) (runaway guard).
     rate_scheme : ``backward`` (causal) or ``central`` (offline) derivative for ``Ṫ``.
+    vbakf : the settings of ``vbakf`` (:class:`~aeromag_env.compensation.adaptive_settings.
+        VbakfSettings`: ρ, iterations, prior).
+    vbakf_pr : the settings of ``vbakf-pr`` (:class:`~aeromag_env.compensation.
+        adaptive_settings.VbakfPrSettings`: τ, ρ, iterations, prior).
+    imm : the bank of ``imm`` (:class:`~aeromag_env.compensation.adaptive_settings.ModelBank`:
+        the models' Q and R scales around Q(0) and R(0), the switching matrix, IMM or MMAE).
     """
 
     method: str = "kf"
@@ -136,6 +149,9 @@ class FilterConfig:
     sage_husa_form: str = "post_fit"
     scale_bounds: tuple[float, ...] = (1e-8, 1e8)
     rate_scheme: str = "backward"
+    vbakf: VbakfSettings = field(default_factory=VbakfSettings)
+    vbakf_pr: VbakfPrSettings = field(default_factory=VbakfPrSettings)
+    imm: ModelBank = field(default_factory=ModelBank)
 
     def __post_init__(self) -> None:
         check(
@@ -166,6 +182,16 @@ class FilterConfig:
             self.sage_husa_form in ("post_fit", "innovation"),
             f"sage_husa_form must be post_fit or innovation, got {self.sage_husa_form!r}",
         )
+        for name, kind in (
+            ("vbakf", VbakfSettings),
+            ("vbakf_pr", VbakfPrSettings),
+            ("imm", ModelBank),
+        ):
+            value = getattr(self, name)
+            check(
+                isinstance(value, kind),
+                f"FilterConfig.{name} must be a {kind.__name__}, got {type(value).__name__}",
+            )
 
     def initial_state(self) -> np.ndarray:
         """``x(0)`` (21,)."""

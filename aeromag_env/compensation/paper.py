@@ -34,7 +34,7 @@ OUTPUTS = ("flight.h5", "fig3_field.png", "fig4_states.png", "fig5_compensation.
 #: A state has converged once it stays within this fraction of its typical magnitude
 #: (5 nT for T_p, 5e-5 for A, 5e-6 s for B) of its final value.
 CONVERGENCE_TOLERANCE = 0.05
-#: The claims' pass band: ROR and QOQ medians in [0.9, 1.1], noise std within 10 % (issue 3).
+#: The claims' pass band: ROR and QOQ medians in [0.9, 1.1], noise std within 10 %.
 RATIO_BAND, NOISE_TOLERANCE = (0.9, 1.1), 0.10
 
 

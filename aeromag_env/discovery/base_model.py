@@ -9,9 +9,11 @@ would absorb), and how the fitted coefficients read as ``T_p``, ``A`` and ``B``.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
+from aeromag_env.discovery.regressors import is_sparse, rows_of, stacked_rows
 from aeromag_env.simulation.interference import STATE_SLICES
 
 
@@ -136,7 +138,7 @@ class BaseSpan:
         xs = stack(x[self.rows])
         return xs - self.q @ (self.q.T @ xs)
 
-    def identifiable_fraction(self, group: np.ndarray) -> float:
+    def identifiable_fraction(self, group: Any) -> float:
         """Share of the group's centred variance outside the base span, mean over its columns
         (0 when the group does not vary).
 
@@ -145,7 +147,9 @@ class BaseSpan:
         ``‖x‖² − ‖Qᵀx‖²`` free of a large mean (a bus voltage at 28 ± 0.5 V) and needs no
         axis-stacked copy: ``Qᵀx`` is one product per axis on the strided view.
         """
-        g = group[self.rows]
+        if is_sparse(group):
+            return self._compact_fraction(group)
+        g = rows_of(group, self.rows)
         scale = math.sqrt(float(np.einsum("kip,kip->p", g, g).max(initial=0.0)))
         g -= g.mean(axis=0, keepdims=True)
         centred = np.einsum("kip,kip->p", g, g)
@@ -157,6 +161,31 @@ class BaseSpan:
         inside = sum(np.einsum("rp,rp->p", *(2 * [q[i].T @ g[:, i, ok]])) for i in range(3))
         outside = np.maximum(centred[ok] - inside, 0.0)
         return float(np.mean(outside / centred[ok]))
+
+    def _compact_fraction(self, group: Any) -> float:
+        """:meth:`identifiable_fraction` of compact columns, from their sparse axis-stacked rows:
+        the centred sums as ``Σ x² − m μ²`` and ``qᵢᵀ(xᵢ − μᵢ) = qᵢᵀ xᵢ − (qᵢᵀ 1) μᵢ``, the
+        columns never made dense."""
+        rows = np.flatnonzero(self.rows)
+        x = stacked_rows(group, rows)
+        m = rows.size
+        total = np.zeros(x.shape[1])
+        centred = np.zeros(x.shape[1])
+        inside = np.zeros(x.shape[1])
+        squares, sums = x.squares(), x.sums()  # (p, 3)
+        q_full = self.q.reshape(3, m, -1)
+        for i in range(3):
+            mean = sums[:, i] / m
+            total += squares[:, i]
+            centred += squares[:, i] - m * mean**2
+            # qᵢᵀ xᵢ: axis i's runs against the basis's rows of axis i
+            proj = x.axis(i).t_dot(self.q).T - np.outer(q_full[i].sum(axis=0), mean)
+            inside += np.einsum("rp,rp->p", proj, proj)
+        scale = math.sqrt(float(total.max(initial=0.0)))
+        ok = np.sqrt(np.maximum(centred, 0.0)) > 1e-9 * max(scale, 1e-300)
+        if not ok.any():
+            return 0.0
+        return float(np.mean(np.maximum(centred[ok] - inside[ok], 0.0) / centred[ok]))
 
 
 def base_dict(state: np.ndarray) -> dict[str, list[float]]:

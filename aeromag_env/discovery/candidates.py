@@ -20,6 +20,7 @@ from typing import Any
 
 from aeromag_env.discovery.base_model import BaseSpan
 from aeromag_env.discovery.ground import SEPARABLE_FRACTION, GroundReference
+from aeromag_env.discovery.regressors import compact_group, spline_group
 from aeromag_env.simulation.effects import EFFECTS, EffectContext, Group
 
 #: A group with less of its variance outside the base span than this is absorbed.
@@ -76,7 +77,7 @@ def candidate_groups(
     """
     out = Candidates()
     for name, eff in EFFECTS.items():
-        found, why = eff.groups(ctx)
+        found, why = _groups(name, ctx, ground)
         if why:
             out.skipped.append({"name": name, "reason": why})
         for g in found:
@@ -103,3 +104,17 @@ def candidate_groups(
             out.groups.append(g)
             out.fractions.append(frac)
     return out
+
+
+def _groups(
+    name: str, ctx: EffectContext, ground: GroundReference | None
+) -> tuple[list[Group], str | None]:
+    """Effect ``name``'s candidate groups from the channels present, and why none (or None), held
+    compact (:mod:`~aeromag_env.discovery.regressors`: the external field's B-splines sparse,
+    one-axis groups by axis) unless the ground is separated (off the ground they are dense)."""
+    if ground is not None:  # off the ground no group keeps a compact form
+        return EFFECTS[name].groups(ctx)
+    if name == "external_field_variation":
+        return [spline_group(ctx)], None
+    found, why = EFFECTS[name].groups(ctx)
+    return [compact_group(g) for g in found], why

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.discovery.preparation import PreparedFlight
+from aeromag_env.discovery.regressors import predict, predict_all
 from aeromag_env.discovery.selection import Selection
 from aeromag_env.simulation.effects import Group
 
@@ -101,7 +102,7 @@ def held_out_gap(
     tuple of (dict, numpy.ndarray, numpy.ndarray)
         As :func:`gap_record`.
     """
-    pred_before = np.einsum("kip,p->ki", base, sel.beta_base)
+    pred_before = predict(base, sel.beta_base)
     return gap_record(data, pred_before, _predict(base, groups, sel.chosen, sel.beta), _white(sel))
 
 
@@ -123,8 +124,9 @@ def effect_gap(
 def _predict(
     base: np.ndarray, groups: list[Group], chosen: list[int], beta: np.ndarray
 ) -> np.ndarray:
+    """The field (n, 3) [nT] of the model ``chosen`` (base first) with coefficients ``beta``."""
     full = [base] + [g.columns for g in groups]
-    return np.einsum("kip,p->ki", np.concatenate([full[j] for j in chosen], axis=2), beta)
+    return predict_all([full[j] for j in chosen], beta)
 
 
 def _white(sel: Selection) -> float:

@@ -47,6 +47,7 @@ from aeromag_env.discovery.noise_model import (
     log_likelihood,
 )
 from aeromag_env.discovery.preparation import PreparedFlight
+from aeromag_env.discovery.regressors import predict_all
 from aeromag_env.discovery.whitened_problem import WhitenedProblem
 from aeromag_env.simulation.effects import Group
 
@@ -203,8 +204,7 @@ def _held_out_rms(
 ) -> float:
     """Raw RMS of measured − model on the held-out samples, the model GLS-fitted on the rest."""
     beta, _ = prob.fit(chosen)
-    x = np.concatenate([columns[j][data.held_out] for j in chosen], axis=2)
-    r = data.y[data.held_out] - np.einsum("kip,p->ki", x, beta)
+    r = data.y[data.held_out] - predict_all([columns[j] for j in chosen], beta, data.held_out)
     return float(np.sqrt(np.mean(r**2)))
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aeromag_env.discovery.segments import Segments
 from aeromag_env.numba_cache import njit
 from aeromag_env.threads import map_threads
 
@@ -56,33 +57,75 @@ FLUSH = 1e-150
 
 @njit(cache=True, nogil=True)
 def _innovations(
-    x: np.ndarray, gap: np.ndarray, tau: float, fogm_var: float, white_var: float, out: np.ndarray
-) -> float:
-    """Normalised Kalman innovations of columns ``x`` (m, c) under ``y = f + w``: ``f`` a FOGM of
-    variance ``fogm_var`` and correlation time ``tau``, ``w`` white of variance ``white_var``.
+    x: np.ndarray,
+    rows: np.ndarray,
+    axis: int,
+    gap: np.ndarray,
+    tau: float,
+    fogm_var: float,
+    white_var: float,
+    out: np.ndarray,
+) -> None:
+    """Normalised Kalman innovations of the columns ``x[rows, axis, :]`` (m, c) of ``x`` (N, A, c)
+    into ``out`` (m, c), under ``y = f + w``: ``f`` a FOGM of variance ``fogm_var`` and
+    correlation time ``tau``, ``w`` white of variance ``white_var``.
 
     ``gap[k]`` is the time since the previous row [s] (``inf``: independent restart), so rows
     left out (held-out blocks) or lost (time gaps) are bridged exactly: the FOGM state is
     propagated across them. The gains do not depend on the data, so one pass whitens every
-    column; returns the Gaussian log-likelihood of column 0. A state estimate below
-    :data:`FLUSH` is 0 (no subnormal numbers).
+    column, and each column's innovations depend on that column alone (whitened alone or among
+    others, a column gets the same bits). Reading the rows through ``rows`` lets a group's
+    columns on every sample, (N, 3, c), be whitened on the calibration rows without a copy. A
+    state estimate below :data:`FLUSH` is 0 (no subnormal numbers).
     """
-    m, c = x.shape
+    m, c = out.shape
     f = np.zeros(c)
     p = fogm_var
-    ll = 0.0
-    last_gap, a, last_s, log_s = math.nan, 1.0, math.nan, 0.0
+    last_gap, a = math.nan, 1.0
     g, rs, settled = 0.0, 1.0, False
     for k in range(m):
         if gap[k] != last_gap:  # the sampling interval rarely changes: exp once per change
             last_gap = gap[k]
             a = math.exp(-last_gap / tau)
             settled = False
-        f *= a
         if not settled:
             # the variance recursion (a serial chain through a division) reaches its exact
             # floating-point fixed point after enough rows at one sampling interval; from there
             # on p, s, g and rs are the same every row, so skipping it changes no bit
+            p_in = p
+            p = a * a * p + fogm_var * (1.0 - a * a)
+            s = p + white_var
+            g = p / s
+            rs = 1.0 / math.sqrt(s)
+            p = (1.0 - g) * p
+            settled = p == p_in
+        row = rows[k]
+        for j in range(c):
+            fj = f[j] * a
+            v = x[row, axis, j] - fj
+            out[k, j] = v * rs
+            fj = fj + g * v
+            f[j] = fj if abs(fj) >= FLUSH else 0.0
+
+
+@njit(cache=True, nogil=True)
+def _log_likelihood(
+    x: np.ndarray, gap: np.ndarray, tau: float, fogm_var: float, white_var: float
+) -> float:
+    """Gaussian log-likelihood of the series ``x`` (m,) under the noise model of
+    :func:`_innovations` (the same recursion, one column, nothing stored: the noise model's
+    maximum-likelihood search calls it a thousand times per fit)."""
+    f = 0.0
+    p = fogm_var
+    ll = 0.0
+    last_gap, a, last_s, log_s = math.nan, 1.0, math.nan, 0.0
+    g, rs, settled = 0.0, 1.0, False
+    for k in range(x.size):
+        if gap[k] != last_gap:
+            last_gap = gap[k]
+            a = math.exp(-last_gap / tau)
+            settled = False
+        if not settled:
             p_in = p
             p = a * a * p + fogm_var * (1.0 - a * a)
             s = p + white_var
@@ -93,12 +136,11 @@ def _innovations(
             rs = 1.0 / math.sqrt(s)
             p = (1.0 - g) * p
             settled = p == p_in
-        for j in range(c):
-            v = x[k, j] - f[j]
-            out[k, j] = v * rs
-            fj = f[j] + g * v
-            f[j] = fj if abs(fj) >= FLUSH else 0.0
-        v0 = out[k, 0]
+        f *= a
+        v = x[k] - f
+        v0 = v * rs
+        f = f + g * v
+        f = f if abs(f) >= FLUSH else 0.0
         ll -= 0.5 * (log_s + v0 * v0)
     return ll
 
@@ -130,11 +172,13 @@ def fogm_quadratic(q: np.ndarray, gap: np.ndarray, tau: float) -> np.ndarray:
     m, c = q.shape
     a = np.exp(-gap / tau)  # once, not once per column
     out = np.zeros(c)
-    for j in range(c):
-        f = 0.0
-        for k in range(m):
-            f = q[k, j] + a[k] * f
-            out[j] += (2.0 * f - q[k, j]) * q[k, j]
+    f = np.zeros(c)
+    # row by row, the columns side by side: each column's operations in the same order as one
+    # column at a time (the same bits), the recursions of the columns in one vector
+    for k in range(m):
+        for j in range(c):
+            f[j] = q[k, j] + a[k] * f[j]
+            out[j] += (2.0 * f[j] - q[k, j]) * q[k, j]
     return out
 
 
@@ -167,21 +211,147 @@ def whiten(
     """
     if out is None:
         out = np.empty(x.shape)
-    _innovations(np.ascontiguousarray(x), gap, tau, fogm * fogm, white * white, out)
+    x3 = np.ascontiguousarray(x)[:, None, :]
+    _innovations(x3, np.arange(x.shape[0]), 0, gap, tau, fogm * fogm, white * white, out)
     return out
+
+
+def whiten_rows(
+    x: np.ndarray,
+    rows: np.ndarray,
+    axis: int,
+    gap: np.ndarray,
+    white: float,
+    fogm: float,
+    tau: float,
+    out: np.ndarray,
+) -> np.ndarray:
+    """:func:`whiten` of the rows ``rows`` of axis ``axis`` of columns ``x`` (N, 3, c) on every
+    sample, into ``out`` (m, c) (e.g. one axis's rows and one group's columns of an axis-stacked
+    array): no copy of the rows is made. ``x`` must be C-contiguous."""
+    _innovations(x, rows, axis, gap, tau, fogm * fogm, white * white, out)
+    return out
+
+
+#: A whitened sparse column's tail (past its last non-zero input) is cut where it falls below
+#: this share of the largest value of its axis's segment: its part of any product with another
+#: column is then below 1e-19 of that product, under the last bit of a double (1.1e-16). The
+#: dense kernel carries it on to :data:`FLUSH`.
+TAIL_TOL = 1e-20
+
+
+@njit(cache=True, nogil=True)
+def _gains(
+    gap: np.ndarray, tau: float, fogm_var: float, white_var: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The per-row transition ``a``, Kalman gain ``g`` and innovation scale ``rs`` (each (m,))
+    of :func:`_innovations` (the same recursion, so the same bits)."""
+    m = gap.size
+    a_k, g_k, rs_k = np.empty(m), np.empty(m), np.empty(m)
+    p = fogm_var
+    last_gap, a = math.nan, 1.0
+    g, rs, settled = 0.0, 1.0, False
+    for k in range(m):
+        if gap[k] != last_gap:
+            last_gap = gap[k]
+            a = math.exp(-last_gap / tau)
+            settled = False
+        if not settled:
+            p_in = p
+            p = a * a * p + fogm_var * (1.0 - a * a)
+            s = p + white_var
+            g = p / s
+            rs = 1.0 / math.sqrt(s)
+            p = (1.0 - g) * p
+            settled = p == p_in
+        a_k[k], g_k[k], rs_k[k] = a, g, rs
+    return a_k, g_k, rs_k
+
+
+@njit(cache=True, nogil=True)
+def _whiten_runs(
+    start: np.ndarray,
+    length: np.ndarray,
+    offset: np.ndarray,
+    values: np.ndarray,
+    m: int,
+    gains: np.ndarray,
+    out_length: np.ndarray,
+    out_offset: np.ndarray,
+    out_values: np.ndarray,
+) -> None:
+    """Whiten columns held as runs (:class:`~aeromag_env.discovery.segments.Segments`, rows 3m)
+    axis by axis, into runs that start where the input's do.
+
+    ``gains`` (3, 3, m) holds each axis's ``a``, ``g`` and ``rs`` (:func:`_gains`). A run starts
+    with a zero state (the dense kernel's state is exactly 0 before a column's first non-zero
+    row) and goes on past the input's run until the innovations fall below :data:`TAIL_TOL` of
+    the run's largest, the state is flushed (:data:`FLUSH`) or the axis ends. With
+    ``out_values`` empty only the lengths are counted (into ``out_length``).
+    """
+    count = out_values.size == 0
+    p = start.shape[0]
+    for j in range(p):
+        for i in range(3):
+            n_in = length[j, i]
+            if n_in == 0:
+                if count:
+                    out_length[j, i] = 0
+                continue
+            a, g, rs = gains[i, 0], gains[i, 1], gains[i, 2]
+            k0 = start[j, i] - i * m
+            o_in = offset[j, i]
+            o_out = out_offset[j, i]
+            f, biggest, n = 0.0, 0.0, 0
+            for k in range(k0, m):
+                r = k - k0
+                inside = r < n_in
+                x = values[o_in + r] if inside else 0.0
+                fj = f * a[k]
+                v = x - fj
+                w = v * rs[k]
+                fj = fj + g[k] * v
+                f = fj if abs(fj) >= FLUSH else 0.0
+                biggest = max(biggest, abs(w))
+                if not inside and abs(w) < TAIL_TOL * biggest:
+                    break  # the tail is below the last bit of any product with it
+                if not count:
+                    out_values[o_out + n] = w
+                n += 1
+                if not inside and f == 0.0:
+                    break  # flushed: the dense kernel's innovations are exactly 0 from here
+            if count:
+                out_length[j, i] = n
+
+
+def whiten_segments(x: Segments, gap: np.ndarray, noise: NoiseModel) -> Segments:
+    """:func:`whiten` of axis-stacked columns held as runs (:class:`~aeromag_env.discovery.
+    segments.Segments`, rows 3m) under ``noise``: runs from each input run's first row to where
+    its tail falls below :data:`TAIL_TOL` (the values kept are the dense kernel's, bit for bit)."""
+    m = gap.size
+    gains = np.empty((3, 3, m))
+    for i in range(3):
+        gains[i] = _gains(
+            gap, noise.fogm_tau_s[i], noise.fogm_std_nt[i] ** 2, noise.white_std_nt[i] ** 2
+        )
+    args = (x.start, x.length, x.offset, x.values, m, gains)
+    length = np.zeros_like(x.length)
+    _whiten_runs(*args, length, np.zeros_like(x.length), np.empty(0))
+    offset = (np.cumsum(length.ravel()) - length.ravel()).reshape(length.shape)
+    values = np.empty(int(length.sum()))
+    _whiten_runs(*args, length, offset, values)
+    return Segments(x.rows, x.start, length, offset, values)
 
 
 def log_likelihood(r: np.ndarray, gap: np.ndarray, noise: NoiseModel) -> float:
     """Gaussian log-likelihood of the residual ``r`` (m, 3) under ``noise`` (axes independent)."""
-    buf = np.empty((r.shape[0], 1))
     return sum(
-        _innovations(
-            np.ascontiguousarray(r[:, i : i + 1]),
+        _log_likelihood(
+            np.ascontiguousarray(r[:, i]),
             gap,
             noise.fogm_tau_s[i],
             noise.fogm_std_nt[i] ** 2,
             noise.white_std_nt[i] ** 2,
-            buf,
         )
         for i in range(3)
     )
@@ -226,7 +396,7 @@ def _fit_one(
     in log parameters from ``start``, or else from a 60-s and a 600-s start, the better kept."""
     from scipy.optimize import minimize
 
-    buf = np.empty_like(col)
+    series = col[:, 0]
     sd = float(np.std(col)) or 1.0
     w0 = max(float(np.std(np.diff(col[:, 0]))) / math.sqrt(2.0), 1e-3 * sd)  # from differences
     f0 = max(math.sqrt(max(sd * sd - w0 * w0, 0.0)), 1e-2 * sd)
@@ -236,7 +406,7 @@ def _fit_one(
             w, f, t = np.exp(z)
         if t == 0.0 or w * w + f * f == 0.0:  # underflow: on a white residual the search may
             return math.inf  # drive τ to 0 (the FOGM becomes white noise too)
-        return -_innovations(col, gap, t, f * f, w * w, buf)
+        return -_log_likelihood(series, gap, t, f * f, w * w)
 
     opts = {"xatol": 1e-2, "fatol": 1e-2, "maxiter": 200}
     points = [(w0, f0, 60.0), (w0, f0, 600.0)] if start is None else [start]

@@ -20,6 +20,7 @@ from aeromag_env.discovery.gap import effect_gap, rms
 from aeromag_env.discovery.ground import SEPARABLE_FRACTION, as_fitted
 from aeromag_env.discovery.joint import SCREEN_P
 from aeromag_env.discovery.preparation import PreparedFlight
+from aeromag_env.discovery.regressors import predict
 from aeromag_env.discovery.selection import Selection
 from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.effects import Group
@@ -91,7 +92,7 @@ def build_report(
 #: the final noise model (std, on any axis) or the held-out gap with the named effects. Of the
 #: 716 suite flights it flagged one, a pair whose temperature drift went unnamed; over
 #: simulated crustal geology (``GeologyConfig``) of 10 nT at 400 m the held-out gap was
-#: 5.6–7.8 nT, of 50 nT 27–38 nT (``python -m experiments.discovery_geology``, 2026-11-26).
+#: 5.6–7.8 nT, of 50 nT 27–38 nT (``python -m experiments.discovery_geology``).
 SLOW_RESIDUAL_NT = 5.0
 
 
@@ -201,7 +202,7 @@ def missing_effects(
         p = g.columns.shape[2]
         b, se = sel.beta[offset : offset + p], np.sqrt(np.diag(sel.cov)[offset : offset + p])
         offset += p
-        effect_field = np.einsum("kip,p->ki", g.columns, b)
+        effect_field = predict(g.columns, b)
         missing.append(
             {
                 "name": g.effect,

@@ -36,6 +36,7 @@ from aeromag_env.discovery.evidence import (
 from aeromag_env.discovery.joint import held_out_veto, retest, step_tests
 from aeromag_env.discovery.noise_model import NoiseModel, fit_noise, ljung_box, ratchet
 from aeromag_env.discovery.preparation import PreparedFlight
+from aeromag_env.discovery.regressors import predict_all, width
 from aeromag_env.discovery.whitened_problem import WhitenedProblem, ols
 from aeromag_env.simulation.effects import EFFECTS, EffectContext, Group, SensorLag
 
@@ -126,13 +127,12 @@ def lag_on_signal(
         evidence[lag]["lag_model"] = "modelled signal shifted (S(t − τ) − S(t))"
 
 
-def _modelled(columns: list[np.ndarray], beta: np.ndarray, skip: int) -> np.ndarray:
+def _modelled(columns: list[Any], beta: np.ndarray, skip: int) -> np.ndarray:
     """The modelled field (n, 3) of every group of ``columns`` but ``skip``; ``beta`` holds the
     coefficients of all of them, concatenated."""
-    parts = np.split(beta, np.cumsum([c.shape[2] for c in columns])[:-1])
+    parts = np.split(beta, np.cumsum([width(c) for c in columns])[:-1])
     keep = [k for k in range(len(columns)) if k != skip]
-    x = np.concatenate([columns[k] for k in keep], axis=2)
-    return np.einsum("kip,p->ki", x, np.concatenate([parts[k] for k in keep]))
+    return predict_all([columns[k] for k in keep], np.concatenate([parts[k] for k in keep]))
 
 
 def refine(
@@ -275,7 +275,7 @@ def forward(
     chosen = [0]
     steps: list[dict[str, Any]] = []
     evidence: dict[int, dict[str, Any]] = {}
-    remaining = list(range(1, len(prob.columns)))
+    remaining = list(range(1, len(prob)))
     while remaining and len(chosen) - 1 < MAX_EFFECTS:
         say(f"testing {len(remaining)} candidate groups")
         live = step_tests(prob, groups, chosen, remaining)

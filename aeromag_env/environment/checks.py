@@ -24,7 +24,7 @@ from aeromag_env.errors import ConfigError
 
 #: Largest decision window [samples] (a day of flight at 10 Hz is 864 000).
 MAX_DECISION_WINDOW = 10**6
-#: Range of ``reward_scale_nt`` [nT]: beyond it the squared reward of a large window error
+#: Range of ``reward.scale_nt`` [nT]: beyond it the squared reward of a large window error
 #: (the state is bounded by the divergence check, the error to about 1e15 nT) could overflow.
 REWARD_SCALE_RANGE_NT = (1e-3, 1e6)
 #: Largest ``|divergence_penalty|`` (a reward): summed over episodes and normalised
@@ -57,7 +57,7 @@ def check_action(spec: Any) -> None:
     """Check an :class:`~aeromag_env.environment.config.ActionSpec` (its ``__post_init__``)."""
     check(
         isinstance(spec.mode, str) and spec.mode in ACTION_MODES,
-        f"action.mode (action_mode): relative or absolute, got {_shown(spec.mode)}",
+        f"action.mode: relative or absolute, got {_shown(spec.mode)}",
     )
     check(
         isinstance(spec.permanent, str) and spec.permanent in PERMANENT_MODES,
@@ -65,16 +65,20 @@ def check_action(spec: Any) -> None:
     )
     check(
         spec.permanent != "gate" or spec.mode == "absolute",
-        "action.permanent='gate' (qp_gate) needs action.mode='absolute'",
+        "action.permanent='gate' needs action.mode='absolute'",
     )
-    require_number(spec, "s_max", 1.0, math.inf, "(a factor per step)", low_open=True)
-    require_number(spec, "scale_limit", 1.0, MAX_SCALE, "(a factor)", low_open=True)
+    require_number(
+        spec, "s_max", 1.0, math.inf, "(a factor per step)", low_open=True, label="action.s_max"
+    )
+    require_number(
+        spec, "scale_limit", 1.0, MAX_SCALE, "(a factor)", low_open=True, label="action.scale_limit"
+    )
     for name in LOG10_RANGES:
         lo_hi = getattr(spec, name)
         ok = isinstance(lo_hi, tuple | list) and len(lo_hi) == 2 and all(map(is_real, lo_hi))
         require(
             ok and -MAX_DECADES <= lo_hi[0] < lo_hi[1] <= MAX_DECADES,
-            f"action.{name} (absolute_{name})",
+            f"action.{name}",
             f"(lo, hi) with lo < hi, each in [{-MAX_DECADES:g}, {MAX_DECADES:g}] [decades]",
             lo_hi,
         )
@@ -84,10 +88,17 @@ def check_reward(spec: Any) -> None:
     """Check a :class:`~aeromag_env.environment.config.RewardSpec` (its ``__post_init__``)."""
     check(
         isinstance(spec.form, str) and spec.form in REWARD_FORMS,
-        f"reward.form (reward_form): one of {', '.join(REWARD_FORMS)}",
+        f"reward.form: one of {', '.join(REWARD_FORMS)}",
     )
-    require_number(spec, "scale_nt", *REWARD_SCALE_RANGE_NT, "[nT]", label="reward_scale_nt")
-    require_number(spec, "divergence_penalty", -MAX_PENALTY, 0.0, "(a reward)")
+    require_number(spec, "scale_nt", *REWARD_SCALE_RANGE_NT, "[nT]", label="reward.scale_nt")
+    require_number(
+        spec,
+        "divergence_penalty",
+        -MAX_PENALTY,
+        0.0,
+        "(a reward)",
+        label="reward.divergence_penalty",
+    )
 
 
 def check_config(cfg: Any) -> None:

@@ -7,16 +7,15 @@ presets (:data:`PRESETS`); :func:`env_config` builds a configuration from
 a preset name, a config or a dict, and keyword changes, as ``gym.make`` passes them.
 
 Dicts may be partial (``{"preset": "general", "decision_window": 5}``, ``{"action": {"s_max":
-3.0}}``) and may use the flat keys of the environment's first version (``extras=True``,
-``split_q=True``, ``action_mode="absolute"``, ``absolute_q_log10=…``, ``reward_form=…``…),
-which the policy and hyperparameter files written by it carry; :data:`LEGACY_KEYS` says what
-each becomes. Every refusal is a one-line :class:`~aeromag_env.errors.ConfigError`.
+3.0}}``). The flat keys of the environment's first version (``extras=True``, ``split_q=True``,
+``action_mode="absolute"``…) are refused here: the readers of the files written then translate
+them (:mod:`aeromag_env.environment.legacy`). Every refusal is a one-line
+:class:`~aeromag_env.errors.ConfigError`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -132,88 +131,31 @@ class EnvConfig:
 
     @staticmethod
     def canonical_dict(data: Mapping[str, Any]) -> dict[str, Any]:
-        """``data`` (a preset name under ``"preset"``, partial specs, flat keys of the first
-        version) as the full dict of an EnvConfig; :func:`aeromag_env.configs.from_dict` reads
+        """``data`` (a preset name under ``"preset"``, fields, partial specs) as the full dict
+        of an EnvConfig; :func:`aeromag_env.configs.from_dict` reads
         an EnvConfig's dicts through it."""
         data = dict(data)
         return _changed(_preset_dict(data.pop("preset", None)), data)
 
-    # Read-only views under the flat names of the first version, derived from the specs, for
-    # callers that still read them (agents.policies).
-    @property
-    def s_max(self) -> float:
-        return self.action.s_max
 
-    @property
-    def action_mode(self) -> str:
-        return self.action.mode
-
-    @property
-    def absolute_q_log10(self) -> tuple[float, ...]:
-        return self.action.q_log10
-
-    @property
-    def absolute_r_log10(self) -> tuple[float, ...]:
-        return self.action.r_log10
-
-    @property
-    def absolute_qp_log10(self) -> tuple[float, ...]:
-        return self.action.qp_log10
-
-    @property
-    def split_q(self) -> bool:
-        return self.action.permanent != "joint"
-
-    @property
-    def qp_gate(self) -> bool:
-        return self.action.permanent == "gate"
-
-    @property
-    def extras(self) -> bool:
-        return "log_q_scale" in self.observations
-
-    @property
-    def innovation_power(self) -> bool:
-        return "log_innovation_power" in self.observations
-
-
-#: The five observations the first version's ``extras=True`` added.
-EXTRAS = ("log_q_scale", "log_r_scale", "whiteness", "progress", "log_recent_ror")
-#: The first version's observation switches (with ``extras``), in the order of their columns,
-#: and the observations each added.
-LEGACY_OBSERVATIONS = {
-    "innovation_power": ("log_innovation_power", "log_mean_innovation_power"),
-    "step_statistic": ("log_step_statistic",),
-    "turn_rate": ("log_turn_rate",),
-    "innovation_bias": ("log_innovation_bias",),
-}
-#: Flat keys of the first version and the field each sets (``split_q``, ``qp_gate`` and the
-#: observation switches are translated as a group: :func:`_legacy_switches`).
-LEGACY_KEYS = {
-    "action_mode": ("action", "mode"),
-    "s_max": ("action", "s_max"),
-    "scale_limit": ("action", "scale_limit"),
-    "absolute_q_log10": ("action", "q_log10"),
-    "absolute_r_log10": ("action", "r_log10"),
-    "absolute_qp_log10": ("action", "qp_log10"),
-    "reward_form": ("reward", "form"),
-    "reward_scale_nt": ("reward", "scale_nt"),
-    "divergence_penalty": ("reward", "divergence_penalty"),
-}
-LEGACY_SWITCHES = ("extras", "split_q", "qp_gate", *LEGACY_OBSERVATIONS)
 _FIELDS = tuple(f.name for f in dataclasses.fields(EnvConfig))
 
 # The presets: ``paper`` is the paper's setting (its two observations, relative actions
 # ``s = 2 ** a``, the log reward), the default of every registered id
 # (:mod:`aeromag_env.environment.ids`); ``nonstationary`` and ``general`` are the settings the
-# shipped PPO policies were trained with (``agents/trained/ppo_nonstationary.npz``,
+# shipped PPO policies were trained with (``agents/policies/trained/ppo_nonstationary.npz``,
 # ``ppo_general.npz``, whose metadata names them). A preset's scenario is ``nominal``; the id or a
 # keyword chooses the scenario.
-#: The observations both shipped policies read: the paper's two, the five of the first
-#: version's ``extras``, the T_p Q scale and the two innovation powers.
+#: The observations both shipped policies read: the paper's two, the current Q and R scales,
+#: the innovation whiteness, the flight's progress, the recent ROR, the T_p Q scale and the two
+#: innovation powers.
 _DETECTOR_OBSERVATIONS = (
     *PAPER_OBSERVATIONS,
-    *EXTRAS,
+    "log_q_scale",
+    "log_r_scale",
+    "whiteness",
+    "progress",
+    "log_recent_ror",
     "log_qp_scale",
     "log_innovation_power",
     "log_mean_innovation_power",
@@ -269,8 +211,8 @@ def env_config(config: EnvConfig | Mapping[str, Any] | None = None, **changes: A
     ----------
     config : an EnvConfig, a dict (partial; may name a ``"preset"``) or None (the preset named
         by ``changes["preset"]``, or ``paper``)
-    changes : fields of EnvConfig, partial ``action`` / ``reward`` dicts, ``preset`` (the base
-        when ``config`` is not a complete EnvConfig) or flat keys of the first version
+    changes : fields of EnvConfig, partial ``action`` / ``reward`` dicts, or ``preset`` (the
+        base when ``config`` is not a complete EnvConfig)
 
     Raises
     ------
@@ -295,14 +237,12 @@ def _preset_dict(name: object) -> dict[str, Any]:
 
 
 def _changed(base: dict[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]:
-    """``base`` (a full EnvConfig dict) with ``changes`` (fields, partial specs, flat keys of
-    the first version) applied."""
+    """``base`` (a full EnvConfig dict) with ``changes`` (fields, partial specs) applied."""
     out = {
         **base,
         "action": dict(_spec_dict(base["action"])),
         "reward": dict(_spec_dict(base["reward"])),
     }
-    switches, given = {}, {}
     for key, value in changes.items():
         if key in ("action", "reward"):
             value = _spec_dict(value)
@@ -311,67 +251,25 @@ def _changed(base: dict[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]
                     f"{key} must be an {key.capitalize()}Spec or a dict, got {value!r}"
                 )
             out[key].update(value)
-        elif key in LEGACY_KEYS:
-            spec, name = LEGACY_KEYS[key]
-            out[spec][name] = value
-            given[name] = key
-        elif key in LEGACY_SWITCHES:
-            require(isinstance(value, bool), key, "true or false", value)
-            switches[key] = value
         elif key in _FIELDS:
             out[key] = value
         else:
-            valid = ", ".join((*_FIELDS, "preset", *LEGACY_KEYS, *LEGACY_SWITCHES))
-            raise ConfigError(f"EnvConfig: unknown field {key!r}; valid: {valid}")
-    if switches:
-        _legacy_switches(out, switches)
+            raise ConfigError(_unknown(key))
     for key, cls in (("action", ActionSpec), ("reward", RewardSpec)):
-        try:
-            out[key] = from_dict(cls, out[key])
-        except ConfigError as e:
-            raise ConfigError(_as_given(str(e), given)) from None
+        out[key] = from_dict(cls, out[key])
     return out
+
+
+def _unknown(key: str) -> str:
+    """The error for ``key``, no field of EnvConfig; it says where the flat keys of the
+    environment's first version (``extras``, ``split_q``…) are read: from old files only."""
+    valid = ", ".join((*_FIELDS, "preset"))
+    return (
+        f"EnvConfig: unknown field {key!r}; valid: {valid} (the first version's flat keys are "
+        "read from old files only, by aeromag_env.environment.legacy.upgrade)"
+    )
 
 
 def _spec_dict(value: Any) -> Any:
     """A spec as its dict (anything else unchanged)."""
     return to_dict(value) if isinstance(value, ActionSpec | RewardSpec) else value
-
-
-def _as_given(message: str, given: dict[str, str]) -> str:
-    """``message`` about a spec's field, naming the flat key the caller gave it under."""
-    for name, key in given.items():
-        if re.search(rf"\b{name}\b", message) and key not in message:
-            message += f" (given as {key})"
-    return message
-
-
-def _legacy_switches(out: dict[str, Any], switches: dict[str, bool]) -> None:
-    """Apply the first version's switches to the full dict ``out``: ``split_q`` and ``qp_gate``
-    set the T_p action, and the observation is rebuilt from ``extras`` and the observation
-    switches (each as given, or as ``out`` has it)."""
-    names = out["observations"]
-    names = tuple(names) if isinstance(names, list | tuple) else ()
-    permanent = out["action"].get("permanent", "joint")
-    flags = {
-        "extras": EXTRAS[0] in names,
-        "split_q": permanent != "joint",
-        "qp_gate": permanent == "gate",
-        **{k: obs[0] in names for k, obs in LEGACY_OBSERVATIONS.items()},
-        **switches,
-    }
-    if flags["qp_gate"] and not (flags["split_q"] and out["action"].get("mode") == "absolute"):
-        raise ConfigError("qp_gate needs split_q=True and action_mode='absolute'")
-    if "split_q" in switches or "qp_gate" in switches:
-        out["action"]["permanent"] = (
-            "gate" if flags["qp_gate"] else "graded" if flags["split_q"] else "joint"
-        )
-    for name in LEGACY_OBSERVATIONS:
-        if flags[name] and not flags["extras"]:
-            raise ConfigError(f"{name} needs extras=True")
-    if not flags["extras"]:
-        out["observations"] = PAPER_OBSERVATIONS
-        return
-    chosen = [obs for k, obs in LEGACY_OBSERVATIONS.items() if flags[k]]
-    qp = ("log_qp_scale",) if flags["split_q"] else ()
-    out["observations"] = PAPER_OBSERVATIONS + EXTRAS + qp + sum(chosen, ())

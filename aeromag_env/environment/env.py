@@ -75,7 +75,7 @@ class AeroMagCompensationEnv(gym.Env):
     ``reset``; each ``step`` rescales the filter's process noise Q and measurement noise R (the
     paper's eq. 21, ``Q ← s_a Q``, ``R ← s_r R``) and advances the filter over one decision window
     of K samples. The paper's fuzzy rules are one policy for this task
-    (:class:`agents.policies.FisPolicy`); others are learned. The step is compiled
+    (:class:`agents.policies.baselines.FisPolicy`); others are learned. The step is compiled
     (:func:`aeromag_env.environment.kernels.env_step`) and is the same code that
     ``gym.make_vec("AeroMagCompensation-v0", num_envs=N)`` runs for N environments at once
     (:class:`aeromag_env.environment.vec_env.AeroMagCompensationVecEnv`).
@@ -142,8 +142,9 @@ class AeroMagCompensationEnv(gym.Env):
     ``gym.make("AeroMagCompensation-v0", config=EnvConfig(...) or dict, preset=name,
     render_mode=None | "rgb_array")``; a complete ``EnvConfig`` replaces the preset (``paper``
     unless named), a dict or keywords (``scenario=``, ``decision_window=``, ``observations=``,
-    ``action={...}``, and the flat keys of the first version such as ``extras=True``) change it
-    (:func:`~aeromag_env.environment.config.env_config`). ``info``
+    ``action={...}``) change it (:func:`~aeromag_env.environment.config.env_config`; the flat
+    keys of the first version, ``extras=True``…, are read from old files only:
+    :mod:`aeromag_env.environment.legacy`). ``info``
     (:data:`aeromag_env.environment.info.INFO`) holds ``rmse_window_nt``, ``ror``, ``qoq``,
     ``q_scale``, ``r_scale``, ``q_permanent_scale`` (1 without a T_p action), ``sample``,
     ``flight_seed``, and the episode's totals so far — at every step, so that the step on which

@@ -58,7 +58,7 @@ class AeroMagSB3VecEnv(VecEnv):
         ``DummyVecEnv`` does; ``"episode_end"``: only the environments whose episode ended on the
         step get theirs (with ``terminal_observation`` and ``TimeLimit.truncated``), the others
         an empty dict. SB3's trainers read a step's infos only at episode ends, so training is
-        unchanged (tested) and skips building N dicts a step (``agents.ppo`` trains so).
+        unchanged (tested) and skips building N dicts a step (``agents.training.ppo`` trains so).
 
     Attributes
     ----------

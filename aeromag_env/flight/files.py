@@ -25,21 +25,18 @@ from __future__ import annotations
 
 import os
 import warnings
-import zlib
 from collections.abc import Callable, Iterable
 from pathlib import Path
-
-from scipy.io.matlab import MatReadError
 
 from aeromag_env.atomic import atomic_path, check_output_file
 from aeromag_env.errors import FlightFileError
 from aeromag_env.flight.aliases import apply_aliases
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.formats import mat, xyz
-from aeromag_env.flight.formats.common import RawFile, reason
+from aeromag_env.flight.formats.common import LABELS, RawFile, reason
 from aeromag_env.flight.formats.csvfile import read_csv
 from aeromag_env.flight.formats.csvfile import write_csv as _write_csv
-from aeromag_env.flight.formats.detect import LABELS, SUFFIXES, detect_format
+from aeromag_env.flight.formats.detect import SUFFIXES, detect_format
 from aeromag_env.flight.formats.hdf5 import read_h5
 from aeromag_env.flight.formats.hdf5 import write_h5 as _write_h5
 from aeromag_env.flight.validation import (
@@ -58,17 +55,6 @@ _READERS: dict[str, Callable[[Path], RawFile]] = {
     "csv": read_csv,
     "xyz": xyz.read_xyz,
 }
-#: What the readers of binary formats raise on a damaged file (beyond OSError, ValueError…).
-_READ_ERRORS = (
-    OSError,
-    ValueError,
-    KeyError,
-    TypeError,
-    IndexError,
-    EOFError,
-    zlib.error,
-    MatReadError,
-)
 
 
 def read_flight(path: PathLike, needs: Iterable[str] = ("tt",)) -> Flight:
@@ -128,15 +114,11 @@ def _read_raw(path: Path) -> RawFile:
         raise file_error(path, "permission denied")
     if path.stat().st_size == 0:
         raise file_error(path, "file is empty")
-    kind = detect_format(path)
-    try:
+    try:  # each reader turns what its library raises on a damaged file into FlightFileError
+        kind = detect_format(path)
         fields, attrs, notes = _READERS[kind](path)
-    except FlightFileError:
-        raise
-    except UnicodeDecodeError:
-        raise file_error(path, f"cannot read as {LABELS[kind]}: not UTF-8 text") from None
-    except _READ_ERRORS as exc:
-        raise file_error(path, f"cannot read as {LABELS[kind]}: {reason(exc)}") from None
+    except OSError as exc:  # the file itself cannot be read (an I/O error, gone meanwhile)
+        raise file_error(path, f"cannot read: {exc.strerror or reason(exc)}") from None
     return fields, attrs, _suffix_note(path, kind) + notes
 
 

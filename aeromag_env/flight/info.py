@@ -21,7 +21,8 @@ from aeromag_env.flight.channels import Channels, choose_channels, with_altitude
 from aeromag_env.flight.data import ALTITUDE_NAMES, ATTITUDE_NAMES, AUX_PREFIXES, Flight
 from aeromag_env.flight.earth_model import model_mismatch
 from aeromag_env.flight.files import file_format, load_flight
-from aeromag_env.flight.formats.detect import LABELS, detect_format
+from aeromag_env.flight.formats.common import LABELS
+from aeromag_env.flight.formats.detect import detect_format
 from aeromag_env.flight.mount_choice import choose_mount, estimate_inputs_missing
 from aeromag_env.flight.mounting import Mount
 from aeromag_env.flight.quality import fault_report

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import median_filter
 
-from aeromag_env.errors import AeromagError
+from aeromag_env.errors import AeromagError, ArgumentError
 from aeromag_env.flight.data import Flight
 
 #: A line counts as manoeuvring when the RMS of its roll plus that of its pitch, each with a
@@ -52,41 +52,20 @@ class CalibrationLine:
         return {"line": line, "samples": int(self.mask.sum()), "reason": self.reason}
 
 
-def parse_lines(text: str) -> tuple[float, ...]:
-    """``"1001,1002"`` → ``(1001.0, 1002.0)``; a one-line error otherwise."""
-    try:
-        lines = tuple(float(part) for part in text.split(",") if part.strip())
-    except ValueError:
-        raise AeromagError(f"--line needs line ids separated by commas, got {text!r}") from None
-    if not lines or not all(np.isfinite(lines)):
-        raise AeromagError(f"--line needs finite line ids separated by commas, got {text!r}")
-    return lines
-
-
-def parse_segment(text: str) -> tuple[float, float]:
-    """``"T0:T1"`` [s] → ``(T0, T1)`` with ``T0 < T1``; a one-line error otherwise."""
-    parts = text.split(":")
-    try:
-        t0, t1 = (float(p) for p in parts)
-    except ValueError:
-        raise AeromagError(f"--segment needs T0:T1 in seconds, got {text!r}") from None
-    if not (np.isfinite(t0) and np.isfinite(t1) and t0 < t1):
-        raise AeromagError(f"--segment needs finite T0 < T1 [s], got {text!r}")
-    return t0, t1
-
-
 def line_mask(flight: Flight, lines: tuple[float, ...]) -> np.ndarray:
     """Samples whose ``line`` is one of ``lines``; a one-line error naming the file's lines
     when the flight has no ``line`` field or a requested line is not in it."""
     if "line" not in flight:
-        raise AeromagError("--line: this flight has no 'line' field")
+        raise ArgumentError("lines", "needs a 'line' field, which this flight has not")
     line = flight["line"]
     missing = [v for v in lines if not np.any(line == v)]
     if missing:
         have = _line_ids(line)
-        raise AeromagError(
-            f"--line: no line {', '.join(f'{v:g}' for v in missing)} in this flight "
-            f"(it has {', '.join(f'{v:g}' for v in have[:20])}{' …' if len(have) > 20 else ''})"
+        shown = ", ".join(f"{v:g}" for v in have[:20]) + (" …" if len(have) > 20 else "")
+        raise ArgumentError(
+            "lines",
+            f"names line {', '.join(f'{v:g}' for v in missing)}, not in this flight (it has "
+            f"{shown})",
         )
     return np.isin(line, lines)
 
@@ -119,9 +98,10 @@ def find_calibration_line(flight: Flight, line: float | None = None) -> Calibrat
         mask = line_mask(flight, (line,))
         return CalibrationLine(line, mask, "given with --calibration-line")
     if "line" not in flight:
-        raise AeromagError(
-            "--calibration-line: this flight has no 'line' field; give the calibration part "
-            "with --calibration-window T0 T1"
+        raise ArgumentError(
+            "calibration_line",
+            "needs a 'line' field, which this flight has not; give the calibration part as a "
+            "calibration window T0 T1 [s] instead",
         )
     ids = flight["line"]
     labelled = _labelled_line(flight, ids)
@@ -166,16 +146,17 @@ def _most_active_line(flight: Flight, ids: np.ndarray) -> CalibrationLine:
     """The line with the most attitude activity among those flown on ≥ MIN_HEADINGS headings."""
     needed = ("ins_roll", "ins_pitch", "ins_yaw")
     if not all(name in flight for name in needed):
-        raise AeromagError(
-            "--calibration-line: no labelled manoeuvres and no attitude to find them by; "
-            "give the line with --calibration-line N"
+        raise ArgumentError(
+            "calibration_line",
+            "auto needs labelled manoeuvres or the attitude to find them by, which this flight "
+            "has not; name the line",
         )
     scores = {v: _activity(flight, ids == v) for v in _line_ids(ids)}
     boxes = {v: s for v, s in scores.items() if s is not None}
     if not boxes:
-        raise AeromagError(
-            "--calibration-line: no line is flown with manoeuvres on several headings; "
-            "give the line with --calibration-line N"
+        raise ArgumentError(
+            "calibration_line",
+            "auto found no line flown with manoeuvres on several headings; name the line",
         )
     best = max(boxes, key=lambda v: boxes[v])
     return CalibrationLine(
@@ -241,7 +222,9 @@ def select(
         Both calibration options, or any error of the functions above.
     """
     if calibration_line is not None and calibration_window is not None:
-        raise AeromagError("give --calibration-line or --calibration-window, not both")
+        raise ArgumentError(
+            "calibration_line", "cannot be given with a calibration window: give one, not both"
+        )
     report: dict[str, object] = {}
     what = []  # the selection in words, for the attribute ``selection``
     keep = np.ones(flight.n, dtype=bool)

@@ -332,10 +332,18 @@ def _subsample(mask: np.ndarray, max_points: int = _MAX_POINTS) -> np.ndarray:
 
 def _median_angle(a: np.ndarray, b: np.ndarray) -> float:
     """Median angle [rad] between the rows of two (n, 3) arrays (NaN if none is defined)."""
-    norm = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
-    ok = np.isfinite(norm) & (norm > 0.0)
-    cosine = np.sum(a[ok] * b[ok], axis=1) / norm[ok]
-    return float(np.median(np.arccos(np.clip(cosine, -1.0, 1.0)))) if ok.any() else float("nan")
+    cosine = np.sum(_unit_rows(a) * _unit_rows(b), axis=1)
+    ok = np.isfinite(cosine)
+    return float(np.median(np.arccos(np.clip(cosine[ok], -1.0, 1.0)))) if ok.any() else np.nan
+
+
+def _unit_rows(x: np.ndarray) -> np.ndarray:
+    """The rows of an (n, 3) array scaled to length 1, NaN where a row is zero or not finite.
+    Each row is first divided by its largest magnitude, so that a value near the float64 limit
+    (a damaged sample of 1e307) does not overflow the length."""
+    with np.errstate(divide="ignore", invalid="ignore"):  # a zero or non-finite row: NaN
+        scaled = x / np.abs(x).max(axis=1, keepdims=True)
+        return scaled / np.linalg.norm(scaled, axis=1, keepdims=True)
 
 
 def _decide(errors: dict[str, float], limit: float, what: str) -> tuple[str, str] | None:

@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from aeromag_env import reports
-from aeromag_env.atomic import check_output_set, output_set, write_text
+from aeromag_env.atomic import check_output_set
+from aeromag_env.compensation.calibration_model import CalibrationModel
 from aeromag_env.compensation.compensate import (
     FILTER_METHODS,
     METHODS,
@@ -38,28 +38,59 @@ from aeromag_env.compensation.compensate import (
 from aeromag_env.compensation.model import FilterConfig, paper_filter_config
 from aeromag_env.compensation.real_metrics import headline, span_figures, vendor_comparison
 from aeromag_env.compensation.tolles_lawson import TollesLawson
-from aeromag_env.errors import AeromagError
+from aeromag_env.errors import AeromagError, ArgumentError
 from aeromag_env.flight.data import Flight
-from aeromag_env.flight.files import write_flight
 from aeromag_env.flight.selection import select
 from aeromag_env.flight.validation import PathLike
+from aeromag_env.jobs.apply_model import (
+    check_model_request,
+    model_block,
+    model_needs,
+    model_of,
+    model_warnings,
+)
+from aeromag_env.jobs.choices import FILTER_PRESETS
+from aeromag_env.jobs.compensate_output import (
+    OUTPUTS,
+    REPORT_VERSION,
+    CompensationResult,
+    OutputTarget,
+    check_output_names,
+    nonfinite_policy,
+    outputs,
+    write_compensate_outputs,
+)
+from aeromag_env.jobs.limits import (
+    MAX_TL_TRIM,
+    R_STD_RANGE_NT,
+    check_bandpass,
+    check_calibration_line,
+    check_count,
+    check_lines,
+    check_nonnegative,
+    check_number,
+    check_window,
+)
 from aeromag_env.jobs.provenance import (
     IN_MEMORY,
     Inputs,
     JobWarnings,
     choose_inputs,
+    file_sha256,
+    input_format,
     load_source,
     provenance,
 )
-from aeromag_env.jobs.reports import jsonable, report_json
 
-#: 2: provenance (input_sha256, input_format, channels, mount, segments, flagged_samples,
-#: flight_date, earth_model) and the headline / vendor_comparison blocks.
-REPORT_VERSION = 2
-#: The output set of a compensation, in the folder ``out``.
-OUTPUTS = ("compensated.h5", "report.json", "compensation.png", reports.PAGE)
-#: The filter settings ``filter_preset`` names: the package defaults or the paper's §4 setting.
-FILTER_PRESETS = ("default", "paper")
+__all__ = [
+    "OPTIONS",
+    "OUTPUTS",
+    "REPORT_VERSION",
+    "CompensateRequest",
+    "CompensationResult",
+    "compensate",
+    "run_compensate",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -72,8 +103,9 @@ class CompensateRequest:
         The flight file, or a flight in memory.
     out : Path or None
         The folder of the output set (None: nothing written).
-    method : str
-        One of :data:`~aeromag_env.compensation.compensate.METHODS`.
+    method : str or None
+        One of :data:`~aeromag_env.compensation.compensate.METHODS`; with a ``model``, None or
+        the model's method.
     flux, scalar : str
         The fluxgate and scalar magnetometer ids, or ``auto`` (the first clean one).
     mount : str
@@ -99,11 +131,14 @@ class CompensateRequest:
         The filter's measurement-noise std [nT] (None: the preset's).
     html : bool
         Write ``report.html`` (:mod:`aeromag_env.reports`) with the set.
+    model : Path, CalibrationModel or None
+        Apply this calibrated model (``aeromag calibrate``'s ``model.json``) instead of fitting
+        on the flight (:mod:`aeromag_env.jobs.apply_model`); ``method`` is then the model's.
     """
 
     source: Path | Flight
     out: Path | None
-    method: str
+    method: str | None
     flux: str = "auto"
     scalar: str = "auto"
     mount: str = "auto"
@@ -117,6 +152,7 @@ class CompensateRequest:
     filter_preset: str = "default"
     r_std_nt: float | None = None
     html: bool = True
+    model: Path | CalibrationModel | None = None
 
     @property
     def path(self) -> Path | None:
@@ -124,31 +160,46 @@ class CompensateRequest:
         return None if isinstance(self.source, Flight) else self.source
 
     def check(self) -> None:
-        """One-line errors for unusable options (before any file is read)."""
-        if self.method not in METHODS:
-            raise AeromagError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        if self.filter_preset not in FILTER_PRESETS:
-            raise AeromagError(
-                f"filter_preset must be default or paper, got {self.filter_preset!r}"
+        """One-line errors for unusable options (before any file is read), each naming the
+        argument (:class:`~aeromag_env.errors.ArgumentError`); with a ``model``, its file is
+        read and checked against the options (:func:`~aeromag_env.jobs.apply_model.
+        check_model_request`)."""
+        if self.model is not None:
+            check_model_request(
+                model_of(self.model), self.method, self.calibration_line, self.calibration_window_s
             )
-        if self.tl_bandpass_hz is not None:
-            lo, hi = self.tl_bandpass_hz
-            if not (0 <= lo < hi):
-                raise AeromagError(f"--tl-bandpass needs 0 ≤ LOW < HIGH [Hz], got {lo} {hi}")
-        if self.tl_trim < 0:
-            raise AeromagError(f"--tl-trim must be ≥ 0, got {self.tl_trim}")
-        if self.tl_ridge < 0:
-            raise AeromagError(f"--tl-ridge must be ≥ 0, got {self.tl_ridge}")
-        if self.calibration_window_s is not None and not (
-            self.calibration_window_s[0] < self.calibration_window_s[1]
-        ):
-            raise AeromagError("--calibration-window needs T0 < T1 [s]")
-        if self.r_std_nt is not None and not self.r_std_nt > 0:
-            raise AeromagError(f"--r-std-nt must be > 0, got {self.r_std_nt}")
+        elif self.method not in METHODS:
+            raise ArgumentError("method", f"must be one of {', '.join(METHODS)}", self.method)
+        if self.filter_preset not in FILTER_PRESETS:
+            raise ArgumentError(
+                "filter_preset", f"must be one of {', '.join(FILTER_PRESETS)}", self.filter_preset
+            )
+        check_bandpass("tl_bandpass_hz", self.tl_bandpass_hz)
+        check_count("tl_trim", self.tl_trim, 0, MAX_TL_TRIM, "samples", "trimmed at each end")
+        check_nonnegative("tl_ridge", self.tl_ridge, "(λ, unitless)")
+        check_window("calibration_window_s", self.calibration_window_s)
+        check_lines("lines", self.lines)
+        check_window("segment_s", self.segment_s)
+        check_calibration_line("calibration_line", self.calibration_line)
+        if self.r_std_nt is not None:
+            lo, hi = R_STD_RANGE_NT
+            check_number(
+                "r_std_nt",
+                self.r_std_nt,
+                lo,
+                hi,
+                "nT",
+                "a magnetometer's noise floor to above the Earth's field",
+            )
 
     def outputs(self) -> tuple[str, ...]:
         """The output set: :data:`OUTPUTS`, without the page when ``html`` is off."""
-        return OUTPUTS if self.html else tuple(n for n in OUTPUTS if n != reports.PAGE)
+        return outputs(self.html)
+
+    def target(self) -> OutputTarget:
+        """Where the output set goes (``out`` must be set)."""
+        assert self.out is not None
+        return OutputTarget(out=self.out, html=self.html, inputs=self.input_files())
 
     def needs(self) -> tuple[str, ...]:
         """Fields the method reads besides its magnetometers (chosen after reading: ``tl``
@@ -162,68 +213,33 @@ class CompensateRequest:
         return ("fluxgate", "scalar") if self.method == "tl" else ("fluxgate", "altitude")
 
     def input_files(self) -> list[Path]:
-        """The files the run reads: the flight and a mount file."""
+        """The files the run reads: the flight, a mount file, a model file."""
         mount = [] if self.mount in ("auto", "identity") else [Path(self.mount)]
-        return [*([] if self.path is None else [self.path]), *mount]
+        model = [Path(self.model)] if isinstance(self.model, str | Path) else []
+        return [*([] if self.path is None else [self.path]), *mount, *model]
 
     def filter_config(self) -> FilterConfig:
         """The filter settings: the package defaults or the paper's §4 setting."""
-        cfg = paper_filter_config(self.method) if self.filter_preset == "paper" else FilterConfig()
+        cfg = FilterConfig()
+        if self.filter_preset == "paper" and self.method is not None:
+            cfg = paper_filter_config(self.method)
         if self.r_std_nt is not None:
             cfg = replace(cfg, r_std_nt=self.r_std_nt)
         return cfg
 
 
-#: The options :func:`compensate` takes by keyword (the fields of :class:`CompensateRequest`
-#: beyond the source, the method and the output folder).
-OPTIONS = tuple(f.name for f in dataclasses.fields(CompensateRequest))[3:]
-
-
-@dataclass(frozen=True)
-class CompensationResult:
-    """What :func:`compensate` produced.
-
-    Attributes
-    ----------
-    method : str
-    metrics : dict
-        The report's ``metrics`` block (:func:`~aeromag_env.compensation.compensate.score`).
-    coefficients : dict
-        The report's ``coefficients``: T_p, A, B (vector methods) or the 18 TL terms.
-    report : dict
-        Everything ``report.json`` holds (NaN and infinities as floats here, ``null`` in the
-        file: :func:`aeromag_env.jobs.reports.report_json` gives its text).
-    warnings : tuple of str
-        The warnings the run said, one line each, in order (the command line prints each on
-        stderr as ``aeromag: warning: …``). The input file's problems are in
-        :attr:`input_problems`, not here.
-    paths : tuple of Path
-        The files written (empty without ``out``).
-    compensation : Compensation
-        The method's series: compensated fields, totals before and after [nT], diagnostics.
-    flight : Flight
-        What ``compensated.h5`` holds: the selected samples of the input plus the compensated
-        channels.
-    """
-
-    method: str
-    metrics: dict[str, Any]
-    coefficients: dict[str, Any]
-    report: dict[str, Any]
-    warnings: tuple[str, ...]
-    paths: tuple[Path, ...]
-    compensation: Compensation
-    flight: Flight
-
-    @property
-    def input_problems(self) -> list[str]:
-        """What the reader found in the input (aliases, non-finite samples, gaps, spikes…)."""
-        return list(self.report["input_problems"])
+#: The options :func:`compensate` takes by keyword: the fields of :class:`CompensateRequest`
+#: but the source, the method and the output folder (its positional arguments).
+OPTIONS = tuple(
+    f.name
+    for f in dataclasses.fields(CompensateRequest)
+    if f.name not in ("source", "method", "out")
+)
 
 
 def compensate(
     source: PathLike | Flight,
-    method: str = "tl",
+    method: str | None = None,
     out: PathLike | None = None,
     **options: Any,
 ) -> CompensationResult:
@@ -239,8 +255,9 @@ def compensate(
     source : str, PathLike or Flight
         A flight file (HDF5, CSV, Geosoft XYZ or MATLAB ``.mat``) or a flight in memory (then
         the report has no input hash or format and its ``input`` is null).
-    method : str
-        One of :data:`~aeromag_env.compensation.compensate.METHODS` (default ``tl``).
+    method : str or None
+        One of :data:`~aeromag_env.compensation.compensate.METHODS` (None: ``tl``, or with a
+        ``model`` the model's).
     out : str, PathLike or None
         Folder for ``compensated.h5``, ``report.json`` and ``compensation.png`` (None: nothing
         is written, the plot is not drawn).
@@ -270,6 +287,8 @@ def compensate(
         raise AeromagError(
             f"compensate: unknown option {unknown[0]!r}; options: {', '.join(OPTIONS)}"
         )
+    if method is None and options.get("model") is None:
+        method = "tl"
     request = CompensateRequest(
         source=source if isinstance(source, Flight) else Path(source),
         out=None if out is None else Path(out),
@@ -282,6 +301,8 @@ def compensate(
 def run_compensate(req: CompensateRequest, warn: JobWarnings) -> CompensationResult:
     """Do the work of :func:`compensate` for a request; its warnings go to ``warn``."""
     req.check()
+    if req.model is not None:
+        return _run_with_model(req, warn)
     if req.out is not None:
         check_output_set(req.out, req.outputs(), req.input_files())
     flight, problems, path = load_source(req.source, req.needs())
@@ -302,7 +323,7 @@ def run_compensate(req: CompensateRequest, warn: JobWarnings) -> CompensationRes
     )
     work, calibration = chosen.flight, chosen.calibration
     comp = _compensate(req, work, inputs, calibration)
-    _check_output_names(flight, comp)
+    check_output_names(flight, comp)
     metrics_block = score(work, comp)
     report = {
         "report_version": REPORT_VERSION,
@@ -311,7 +332,7 @@ def run_compensate(req: CompensateRequest, warn: JobWarnings) -> CompensationRes
         "settings": comp.settings,
         "coefficients": comp.coefficients,
         "metrics": metrics_block,
-        "nonfinite_policy": _nonfinite_policy(comp),
+        "nonfinite_policy": nonfinite_policy(comp),
         "input_problems": problems,
         "selection": chosen.report,
         **_provenance_blocks(path, work, inputs, comp, metrics_block),
@@ -321,7 +342,7 @@ def run_compensate(req: CompensateRequest, warn: JobWarnings) -> CompensationRes
     out_flight = Flight({**kept, **comp.fields}, {**flight.attrs, "compensation": comp.method})
     paths: tuple[Path, ...] = ()
     if req.out is not None:
-        paths = write_compensate_outputs(req, out_flight, report, work, comp)
+        paths = write_compensate_outputs(req.target(), out_flight, report, work, comp)
     return CompensationResult(
         method=comp.method,
         metrics=metrics_block,
@@ -334,10 +355,82 @@ def run_compensate(req: CompensateRequest, warn: JobWarnings) -> CompensationRes
     )
 
 
+def _run_with_model(req: CompensateRequest, warn: JobWarnings) -> CompensationResult:
+    """:func:`run_compensate` for a request with a calibrated ``model``: read and check the file
+    as a fit does, select the lines or segment, apply the model (nothing is fitted), say when it
+    no longer fits (:func:`~aeromag_env.jobs.apply_model.model_warnings`), score and write the
+    same output set, with the report's ``model`` block."""
+    assert req.model is not None
+    model = model_of(req.model)
+    if req.out is not None:
+        check_output_set(req.out, req.outputs(), req.input_files())
+    flight, problems, path = load_source(req.source, model_needs(model))
+    chosen = select(flight, req.lines, req.segment_s, None, None)
+    work = chosen.flight
+    comp = model.apply(work)
+    check_output_names(flight, comp)
+    what = str(path) if path is not None else "this flight"
+    drift = comp.settings["drift"]
+    for line in model_warnings(model, work, drift, what):
+        warn(line)
+    metrics_block = score(work, comp)
+    report = {
+        "report_version": REPORT_VERSION,
+        "input": None if path is None else str(path),
+        "input_sha256": None if path is None else file_sha256(path),
+        "input_format": None if path is None else input_format(path),
+        "method": comp.method,
+        "settings": comp.settings,
+        "coefficients": comp.coefficients,
+        "metrics": metrics_block,
+        "nonfinite_policy": nonfinite_policy(comp, applied=True),
+        "input_problems": problems,
+        "selection": chosen.report,
+        "model": model_block(req.model, model, drift),
+        "warnings": list(warn.lines),
+        "held_out": None,
+        **_accuracy_blocks(work, comp, model, metrics_block),
+    }
+    kept = {name: values[chosen.keep] for name, values in flight.fields.items()}
+    out_flight = Flight({**kept, **comp.fields}, {**flight.attrs, "compensation": comp.method})
+    paths: tuple[Path, ...] = ()
+    if req.out is not None:
+        paths = write_compensate_outputs(req.target(), out_flight, report, work, comp)
+    return CompensationResult(
+        method=comp.method,
+        metrics=metrics_block,
+        coefficients=comp.coefficients,
+        report=report,
+        warnings=tuple(warn.lines),
+        paths=paths,
+        compensation=comp,
+        flight=out_flight,
+    )
+
+
+def _accuracy_blocks(
+    flight: Flight, comp: Compensation, model: CalibrationModel, metrics_block: dict[str, Any]
+) -> dict[str, Any]:
+    """The real-data accuracy blocks of a model's application (``headline``, and
+    ``vendor_comparison`` when the file has the vendor's compensated scalar), as a fit's."""
+    scalar: str | None = model.channels.get("scalar")
+    vendor = None
+    if scalar:
+        ours = scalar if comp.method == "tl" else str(model.channels["flux"])
+        vendor = vendor_comparison(flight, scalar, comp.total_before, comp.total_after, ours)
+    return {
+        "headline": headline(
+            flight, comp.total_before, comp.total_after, metrics_block.get("fom_nt")
+        ),
+        "vendor_comparison": vendor,
+    }
+
+
 def _compensate(
     req: CompensateRequest, work: Flight, inputs: Inputs, calibration: np.ndarray | None
 ) -> Compensation:
     """The method on the selected flight, with the chosen channels and mount."""
+    assert req.method is not None  # checked: a request without a model names its method
     flux = inputs.flux_name
     if req.method == "tl":
         tl = TollesLawson(bandpass_hz=req.tl_bandpass_hz, trim=req.tl_trim, ridge=req.tl_ridge)
@@ -350,29 +443,6 @@ def _compensate(
     return compensate_vector(
         work, req.method, flux, cfg, calibration, mount=mount, check_mount=False
     )
-
-
-def write_compensate_outputs(
-    req: CompensateRequest,
-    out_flight: Flight,
-    report: dict[str, Any],
-    work: Flight,
-    comp: Compensation,
-) -> tuple[Path, ...]:
-    """Write the output set (:meth:`CompensateRequest.outputs`) into ``req.out``, all replaced
-    together; the files the run read are never overwritten. Returns the paths written."""
-    from aeromag_env.compensation.plots import plot_compensation
-
-    assert req.out is not None
-    outputs = req.outputs()
-    with output_set(req.out, outputs, req.input_files()) as stage:
-        write_flight(out_flight, stage / "compensated.h5")
-        write_text(stage / "report.json", report_json(report))
-        plot_compensation(work, comp, report["metrics"], stage / "compensation.png")
-        if req.html:
-            page = reports.compensate_page(jsonable(report), reports.compensate_arrays(work, comp))
-            write_text(stage / reports.PAGE, page)
-    return tuple(req.out / name for name in outputs)
 
 
 def _provenance_blocks(
@@ -414,21 +484,3 @@ def _held_out(
         **span_figures(flight, comp.total_before, comp.total_after, rest),
         "compensation_rmse_nt": held_out_rmse(flight, comp, rest),
     }
-
-
-def _check_output_names(flight: Flight, comp: Compensation) -> None:
-    """One-line error when an output channel would replace a field of the input file."""
-    clash = [nm for nm in comp.fields if nm in flight]
-    if clash:
-        raise AeromagError(
-            f"the input already has field(s) {', '.join(clash)}, which compensate writes; "
-            "refusing to replace an input field (rename or drop them in the input first)"
-        )
-
-
-def _nonfinite_policy(comp: Compensation) -> str:
-    flagged = "flagged samples (a non-finite input, or a spike in the magnetometer used) are"
-    rest = "outputs there are NaN; the rate, band-passes and filters restart at each time gap"
-    if comp.method in FILTER_METHODS:
-        return f"{flagged} skipped by the filter (predict only); {rest}"
-    return f"{flagged} left out of the fit; {rest}"

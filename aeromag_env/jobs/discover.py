@@ -22,15 +22,18 @@ from typing import Any
 import numpy as np
 
 from aeromag_env import reports
-from aeromag_env.atomic import atomic_path, check_output_set, output_set, write_text
+from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.configs import to_json
+from aeromag_env.discovery.ground import GROUND_MODES
 from aeromag_env.discovery.workflow import ALPHA, Discovery
 from aeromag_env.discovery.workflow import discover as discover_flight
-from aeromag_env.errors import AeromagError
+from aeromag_env.errors import AeromagError, ArgumentError
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.mount_choice import in_body_axes
 from aeromag_env.flight.selection import select
 from aeromag_env.flight.validation import PathLike
+from aeromag_env.jobs.discover_plot import plot_discovery
+from aeromag_env.jobs.limits import check_calibration_line, check_lines, check_number, check_window
 from aeromag_env.jobs.provenance import (
     IN_MEMORY,
     JobWarnings,
@@ -66,7 +69,7 @@ class DiscoverRequest:
         The folder of the output set (None: nothing written).
     flux : str
         The fluxgate id, or ``auto`` (the first clean one).
-    calibration_window : (float, float) or None
+    calibration_window_s : (float, float) or None
         Fit on T0 ≤ tt ≤ T1 [s], score the rest (None: every third 60-s block held out).
     mount : str
         ``auto``, ``identity`` or a JSON mount file, as for a compensation; an applied mount
@@ -85,7 +88,7 @@ class DiscoverRequest:
     source: Path | Flight
     out: Path | None
     flux: str = "auto"
-    calibration_window: tuple[float, float] | None = None
+    calibration_window_s: tuple[float, float] | None = None
     mount: str = "auto"
     lines: tuple[float, ...] | None = None
     segment_s: tuple[float, float] | None = None
@@ -99,6 +102,23 @@ class DiscoverRequest:
         """The flight file (None for a flight given in memory)."""
         return None if isinstance(self.source, Flight) else self.source
 
+    def check(self) -> None:
+        """One-line errors for unusable options (before any file is read), each naming the
+        argument (:class:`~aeromag_env.errors.ArgumentError`)."""
+        check_window("calibration_window_s", self.calibration_window_s)
+        check_lines("lines", self.lines)
+        check_window("segment_s", self.segment_s)
+        check_calibration_line("calibration_line", self.calibration_line)
+        if self.ground not in GROUND_MODES:
+            raise ArgumentError("ground", f"must be one of {', '.join(GROUND_MODES)}", self.ground)
+        check_number(
+            "alpha",
+            self.alpha,
+            1e-9,
+            0.5,
+            "(the family-wise false-alarm level of the effect tests)",
+        )
+
     def input_files(self) -> list[Path]:
         """The files the run reads: the flight and a mount file."""
         mount = [] if self.mount in ("auto", "identity") else [Path(self.mount)]
@@ -109,9 +129,11 @@ class DiscoverRequest:
         return OUTPUTS if self.html else tuple(n for n in OUTPUTS if n != reports.PAGE)
 
 
-#: The options :func:`discover` takes by keyword (the fields of :class:`DiscoverRequest` beyond
-#: the source and the output folder).
-OPTIONS = tuple(f.name for f in dataclasses.fields(DiscoverRequest))[2:]
+#: The options :func:`discover` takes by keyword: the fields of :class:`DiscoverRequest` but the
+#: source and the output folder (its positional arguments).
+OPTIONS = tuple(
+    f.name for f in dataclasses.fields(DiscoverRequest) if f.name not in ("source", "out")
+)
 
 
 @dataclass(frozen=True)
@@ -178,7 +200,7 @@ def discover(
         Called with a short message at each stage.
     **options
         Any field of :class:`DiscoverRequest` past ``out`` (:data:`OPTIONS`): ``flux``,
-        ``calibration_window``, ``mount``, ``lines``, ``segment_s``, ``calibration_line``,
+        ``calibration_window_s``, ``mount``, ``lines``, ``segment_s``, ``calibration_line``,
         ``ground``, ``alpha``, with the command line's defaults.
 
     Returns
@@ -214,6 +236,7 @@ def run_discover(
     req: DiscoverRequest, warn: JobWarnings, progress: Callable[[str], None] | None = None
 ) -> DiscoverResult:
     """Do the work of :func:`discover` for a request; its warnings go to ``warn``."""
+    req.check()
     if req.out is not None:
         check_output_set(req.out, req.outputs(), req.input_files())
     flight, problems, path = load_source(req.source, ("tt", "position", "attitude", "date"))
@@ -234,9 +257,9 @@ def run_discover(
         req.lines,
         req.segment_s,
         req.calibration_line,
-        req.calibration_window,
+        req.calibration_window_s,
     )
-    calibration_window = req.calibration_window
+    calibration_window = req.calibration_window_s
     if chosen.calibration is not None and "calibration_line" in chosen.report:
         tt = chosen.flight.tt[chosen.calibration]
         calibration_window = (float(tt[0]), float(tt[-1]))
@@ -358,84 +381,6 @@ def _ground_lines(ground: dict[str, Any]) -> list[str]:
         f"{ground['base_model']}.",
         "",
     ]
-
-
-def plot_discovery(result: Discovery, out: Path) -> None:
-    """``residual.png`` (before/after, held-out shaded) and ``diagnostics.png``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from scipy.signal import welch
-
-    s = result.series
-    tt, held = s["tt"], s["held_out"]
-    rows = 3 + len(result.drivers)
-    fig, axes = plt.subplots(rows, 1, figsize=(10, 2.3 * rows), squeeze=False)
-    axes = axes[:, 0]
-    for ax in axes[1:3]:
-        ax.sharex(axes[0])
-    for i, ax in enumerate(axes[:3]):
-        ax.plot(tt, s["residual_before"][:, i], lw=0.4, label="base model")
-        ax.plot(tt, s["residual_after"][:, i], lw=0.4, label="with named effects")
-        ax.fill_between(
-            tt,
-            0,
-            1,
-            where=held,
-            transform=ax.get_xaxis_transform(),
-            color="0.9",
-            label="held out" if i == 0 else None,
-        )
-        ax.set_ylabel(f"{'xyz'[i]} [nT]")
-    axes[0].legend(loc="upper right", fontsize=8)
-    axes[0].set_title(f"Measured − simulated ({result.report['verdict']})")
-    axes[2].set_xlabel("time [s]")
-    for ax, driver in zip(axes[3:], result.drivers, strict=True):
-        _plot_against_driver(ax, s["residual_before"], s["residual_after"], *driver)
-    fig.tight_layout()
-    with atomic_path(out / "residual.png") as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
-
-    d = result.report["diagnostics"]
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
-    dt = result.report["data"]["sample_interval_s"]
-    for key, label in (("residual_before", "base model"), ("residual_after", "with effects")):
-        r = np.nan_to_num(s[key])
-        f, p = welch(r, fs=1.0 / dt, nperseg=min(2048, r.shape[0]), axis=0)
-        axes[0].loglog(f[1:], p[1:].sum(axis=1), lw=0.8, label=label)
-    axes[0].set(xlabel="frequency [Hz]", ylabel="PSD [nT²/Hz]", title="residual spectrum")
-    axes[0].legend(fontsize=8)
-    bins = d["heading_bins_mean_nt"]
-    if bins:
-        centers = [float(k.split("-")[0]) + 15 for k in bins]
-        vals = np.array(list(bins.values()))
-        for i in range(3):
-            axes[1].plot(centers, vals[:, i], "o-", label="xyz"[i])
-        axes[1].legend(fontsize=8)
-    axes[1].set(xlabel="heading [deg]", ylabel="mean residual [nT]", title="heading bins")
-    corr = d["aux_partial_correlation"]
-    if corr:
-        axes[2].barh(list(corr), [v["max_abs"] for v in corr.values()])
-    axes[2].set(xlabel="|partial correlation|", title="auxiliary channels")
-    fig.tight_layout()
-    with atomic_path(out / "diagnostics.png") as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
-
-
-def _plot_against_driver(
-    ax: Any, before: np.ndarray, after: np.ndarray, name: str, driver: str, x: np.ndarray
-) -> None:
-    """The residual before and after against what drives a named effect, on the axis where the
-    effect changed the residual most (at most 4000 points)."""
-    i = int(np.nanargmax(np.nanstd(before - after, axis=0)))
-    step = max(1, x.size // 4000)
-    for r, label in ((before, "base model"), (after, "with named effects")):
-        ax.plot(x[::step], r[::step, i], ".", ms=1.5, alpha=0.5, label=label)
-    ax.set(xlabel=driver, ylabel=f"{'xyz'[i]} [nT]", title=f"{name}: residual against {driver}")
-    ax.legend(loc="upper right", fontsize=8, markerscale=6)
 
 
 def _effects_table(missing: list[dict[str, Any]]) -> list[str]:

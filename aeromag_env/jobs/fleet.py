@@ -37,6 +37,9 @@ from aeromag_env.jobs.provenance import JobWarnings
 from aeromag_env.parallel import Outcome, Task, runner
 from aeromag_env.parallel.tasks import one_line
 
+#: A fleet's summary page in the output folder (the interactive index of the flights).
+SUMMARY_PAGE = reports.FLEET_PAGE
+
 #: The fleet's summary files in ``OUT``.
 OUTPUTS = ("fleet.csv", "fleet.png")
 #: Columns of ``fleet.csv`` for ``compensate``: the band-passed (0.1–0.9 Hz) std of the field
@@ -304,11 +307,14 @@ def _request(job: str, source: Path, out: Path, options: dict[str, Any]) -> Any:
     unknown = sorted(set(options) - set(known))
     if unknown:
         raise AeromagError(f"{job}: unknown option {unknown[0]!r}; options: {', '.join(known)}")
+    request: Any
     if job == "discover":
-        return discover_job.DiscoverRequest(source=source, out=out, **options)
-    request = compensate_job.CompensateRequest(
-        source=source, out=out, **{"method": "tl", **options}
-    )
+        request = discover_job.DiscoverRequest(source=source, out=out, **options)
+    else:
+        method = options.get("method") or (None if options.get("model") else "tl")
+        request = compensate_job.CompensateRequest(
+            source=source, out=out, **{**options, "method": method}
+        )
     request.check()
     return request
 

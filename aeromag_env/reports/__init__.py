@@ -6,6 +6,7 @@ output set. Nothing here imports the compensation, environment or agents layers,
 can call it.
 
 * :func:`compensate_page` (with :func:`compensate_arrays`): one compensated flight.
+* :func:`calibrate_page`: a calibration, its figure of merit box by box.
 * :func:`discover_page`: the discrepancy workflow's residual, gap, candidates and caveats.
 * :func:`evaluate_page`: RMSE per flight per policy, normalized scores, Q/R actions.
 * :func:`train_page`: the learning curve of one or more training runs.
@@ -14,6 +15,7 @@ can call it.
 
 from __future__ import annotations
 
+from aeromag_env.reports.calibrate import calibrate_page
 from aeromag_env.reports.compensate import compensate_arrays, compensate_page
 from aeromag_env.reports.discover import discover_page
 from aeromag_env.reports.evaluate import evaluate_page
@@ -28,6 +30,7 @@ FLEET_PAGE = "index.html"
 __all__ = [
     "FLEET_PAGE",
     "PAGE",
+    "calibrate_page",
     "compensate_arrays",
     "compensate_page",
     "discover_page",

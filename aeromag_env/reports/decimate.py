@@ -95,3 +95,11 @@ def with_breaks(
         xs = np.insert(xs, where, np.asarray(x, dtype=float)[gaps])
         out = [np.insert(y, where, np.nan) for y in out]
     return xs, out
+
+
+def runs(tt: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
+    """The runs of ``mask`` (n,) as time windows ``(t_first, t_last)`` [s] of ``tt`` (n,)."""
+    if not mask.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return [(float(tt[a]), float(tt[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True)]

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.reports import html as h
-from aeromag_env.reports.decimate import extreme_indices_many
+from aeromag_env.reports.decimate import extreme_indices_many, runs
 from aeromag_env.reports.plots import finish_legend, lines, new_figure, shade
 
 HEADLINES = (
@@ -65,7 +65,7 @@ def discover_page(
     if problems:
         blocks += [h.heading("Input warnings"), h.card(h.notes([str(p) for p in problems]))]
     blocks += [h.heading("Measured − simulated, before and after the named effects")]
-    held = _windows(tt, np.asarray(series.get("held_out", np.zeros(tt.size)), dtype=bool))
+    held = runs(tt, np.asarray(series.get("held_out", np.zeros(tt.size)), dtype=bool))
     first = None
     for i, axis in enumerate("xyz"):
         fig = new_figure(
@@ -101,14 +101,6 @@ def discover_page(
     return h.render_page(
         "Discrepancy report", f"{report.get('input', '')} · {tt.size} samples", blocks
     )
-
-
-def _windows(tt: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
-    """Runs of ``mask`` as time windows [s]."""
-    if not mask.any():
-        return []
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
-    return [(float(tt[a]), float(tt[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def _against_driver(series: dict[str, np.ndarray], name: str, channel: str, x: np.ndarray) -> Any:

@@ -15,7 +15,7 @@ from aeromag_env.reports.html import COLOURS, PLOT_HEIGHT, WINDOW_FILL
 
 #: Tools of every plot: pan and zoom (box and wheel), reset, save as PNG, hover off.
 TOOLS = "xpan,xwheel_zoom,box_zoom,reset,save"
-#: Most time windows (gaps, manoeuvres) a plot shades one by one; more are summarised.
+#: Most time windows (gaps, manoeuvres) a plot shades; more are left out.
 MAX_WINDOWS = 300
 
 
@@ -140,21 +140,20 @@ def markers(
 
 
 def shade(fig: Any, windows: Sequence[tuple[float, float]], colour: str = WINDOW_FILL) -> None:
-    """Shade time windows ``[(t0, t1), …]`` [s] behind the lines (at most
-    :data:`MAX_WINDOWS`)."""
-    from bokeh.models import BoxAnnotation
+    """Shade time windows ``[(t0, t1), …]`` [s] behind the lines (at most :data:`MAX_WINDOWS`):
+    one strip glyph for all of them (a model per window would make a long flight's page slow
+    to write)."""
+    from bokeh.models import ColumnDataSource
 
-    for t0, t1 in list(windows)[:MAX_WINDOWS]:
-        fig.add_layout(
-            BoxAnnotation(
-                left=float(t0),
-                right=float(t1),
-                fill_color=colour,
-                fill_alpha=0.25,
-                line_alpha=0,
-                level="underlay",
-            )
-        )
+    shown = list(windows)[:MAX_WINDOWS]
+    if not shown:
+        return
+    t0, t1 = (np.array(v, dtype=float) for v in zip(*shown, strict=True))
+    source = ColumnDataSource({"t0": t0, "t1": t1})
+    renderer = fig.vstrip(
+        x0="t0", x1="t1", source=source, fill_color=colour, fill_alpha=0.25, line_alpha=0
+    )
+    renderer.level = "underlay"
 
 
 def gap_windows(tt: np.ndarray) -> list[tuple[float, float]]:

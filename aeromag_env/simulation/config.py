@@ -321,12 +321,51 @@ class EffectConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class AircraftConfig:
+    """One aircraft of a fleet: its interference drawn from its own seed, not the flight's.
+
+    Without it (``SimulationConfig.aircraft = None``) every flight's coefficients come from the
+    flight's seed, so two flights are two aircraft. With it, the fluxgate's and the scalar
+    magnetometer's coefficients (:class:`InterferenceConfig` draws, or their explicit values)
+    come from ``seed``, and the flight's seed draws only the trajectory, the Earth field's
+    variation and the sensor noise: flights with one ``seed`` and different flight seeds are
+    flights of one aircraft (calibrate on one, apply to the others, with a known truth).
+
+    Maintenance (a part replaced, a magnetised tool left aboard) shifts the permanent field:
+    ``permanent_shift_nt`` [nT] is added to the fluxgate's ``T_p`` and
+    ``scalar_permanent_shift_nt`` [nT] to the scalar magnetometer's, after the draw.
+    """
+
+    seed: int
+    permanent_shift_nt: tuple[float, ...] = (0.0, 0.0, 0.0)
+    scalar_permanent_shift_nt: tuple[float, ...] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        check(
+            isinstance(self.seed, int) and not isinstance(self.seed, bool) and self.seed >= 0,
+            f"AircraftConfig.seed must be an integer ≥ 0, got {self.seed!r}",
+        )
+        for nm in ("permanent_shift_nt", "scalar_permanent_shift_nt"):
+            v = getattr(self, nm)
+            check(
+                len(v) == 3 and all(math.isfinite(float(x)) for x in v),
+                f"AircraftConfig.{nm} needs 3 finite values [nT], got {v!r}",
+            )
+
+    @property
+    def maintained(self) -> bool:
+        """Whether a maintenance shift is set (any component non-zero)."""
+        return any(self.permanent_shift_nt) or any(self.scalar_permanent_shift_nt)
+
+
+@dataclass(frozen=True, kw_only=True)
 class SimulationConfig:
     """Root configuration of one simulated flight.
 
     ``aux_channels`` are simulated auxiliary channels and ``effects`` the extra physical effects
     (effects library, :mod:`aeromag_env.simulation.effects`) added to the fluxgate on top of paper
-    eq. 5; ``geology`` the crustal anomaly (None: none, as in every preset).
+    eq. 5; ``geology`` the crustal anomaly (None: none, as in every preset); ``aircraft`` the
+    aircraft whose interference the flight carries (None: drawn from the flight's seed).
     """
 
     preset: str = "nominal"
@@ -339,6 +378,7 @@ class SimulationConfig:
     aux_channels: tuple[AuxChannelConfig, ...] = ()
     effects: tuple[EffectConfig, ...] = ()
     geology: GeologyConfig | None = None
+    aircraft: AircraftConfig | None = None
 
     def __post_init__(self) -> None:
         check(

@@ -131,11 +131,12 @@ def simulate_flight(
     step(STAGES[1])
     ambient = _earth_field(config, flown, replay, (r_earth, r_geo))
     step(STAGES[2])
-    aircraft = _aircraft_field(config, flown, ambient, r_coef, r_fx)
+    coef, coef_s = _installation(config, r_coef, r_scalar)
+    aircraft = _aircraft_field(config, flown, ambient, coef, r_fx)
     step(STAGES[3])
     fields = _fluxgate_fields(config, flown, ambient, aircraft, r_flux)
     coefficients: dict[str, dict] = {config.fluxgate: aircraft.coef.to_dict()}
-    scalar = _scalar_channel(config, flown, ambient, r_scalar)
+    scalar = _scalar_channel(config, flown, ambient, coef_s, r_scalar)
     if scalar is not None:
         fields[config.scalar.name] = scalar.measured
         coefficients[config.scalar.name] = scalar.coefficients
@@ -216,16 +217,39 @@ def _earth_field(
     )
 
 
+def _installation(
+    config: SimulationConfig, r_coef: np.random.Generator, r_scalar: np.random.Generator
+) -> tuple[VectorCoefficients, VectorCoefficients | None]:
+    """The fluxgate's and the scalar magnetometer's interference coefficients (None without a
+    scalar): drawn from the flight's children ``r_coef`` and ``r_scalar``, or, with
+    ``config.aircraft``, from the aircraft's seed, plus its maintenance shifts."""
+    scalar = config.scalar.interference if config.scalar.enabled else None
+    plane = config.aircraft
+    if plane is None:
+        coef = draw_coefficients(config.interference, r_coef)
+        return coef, None if scalar is None else draw_coefficients(scalar, r_scalar)
+    a_flux, a_scalar = np.random.default_rng(plane.seed).spawn(2)
+    coef = _shifted(draw_coefficients(config.interference, a_flux), plane.permanent_shift_nt)
+    if scalar is None:
+        return coef, None
+    coef_s = draw_coefficients(scalar, a_scalar)
+    return coef, _shifted(coef_s, plane.scalar_permanent_shift_nt)
+
+
+def _shifted(coef: VectorCoefficients, shift_nt: tuple[float, ...]) -> VectorCoefficients:
+    """``coef`` with ``shift_nt`` (3,) [nT] added to its permanent field."""
+    return dataclasses.replace(coef, permanent_nt=coef.permanent_nt + np.asarray(shift_nt, float))
+
+
 def _aircraft_field(
     config: SimulationConfig,
     flown: _Flown,
     ambient: _Ambient,
-    r_coef: np.random.Generator,
+    coef: VectorCoefficients,
     r_fx: np.random.Generator,
 ) -> _Aircraft:
-    """Interference stage: draw the fluxgate's coefficients, their field (paper eq. 5) and the
-    configured effects on top of it."""
-    coef = draw_coefficients(config.interference, r_coef)
+    """Interference stage: the fluxgate's field (paper eq. 5) from its coefficients ``coef``
+    and the configured effects on top of it."""
     interf = vector_interference(coef, ambient.t_b, ambient.tdot_b)
     extra = _effects_field(config, flown, ambient, interf, r_fx) if config.effects else None
     return _Aircraft(coef=coef, interf=interf, extra=extra)
@@ -275,14 +299,17 @@ def _fluxgate_fields(
 
 
 def _scalar_channel(
-    config: SimulationConfig, flown: _Flown, ambient: _Ambient, r_scalar: np.random.Generator
+    config: SimulationConfig,
+    flown: _Flown,
+    ambient: _Ambient,
+    coef_s: VectorCoefficients | None,
+    r_scalar: np.random.Generator,
 ) -> _Scalar | None:
-    """The scalar magnetometer (None if disabled): coefficients first, then noise, from
-    ``r_scalar``."""
+    """The scalar magnetometer (None if disabled): its coefficients ``coef_s``
+    (:func:`_installation`) and noise from ``r_scalar``."""
     scalar = config.scalar
-    if not scalar.enabled:
+    if not scalar.enabled or coef_s is None:
         return None
-    coef_s = draw_coefficients(scalar.interference, r_scalar)
     interf_s = scalar_interference(coef_s, ambient.t_b, ambient.tdot_b)
     noise_s = sensor_noise(flown.traj.tt.size, flown.dt, scalar.noise, r_scalar, dims=1)
     coefficients = {

@@ -33,14 +33,13 @@ STAGES = {
 }
 #: Modules of ``agents`` whose public classes and functions are part of the API.
 AGENT_MODULES = (
-    "agents",
-    "agents.protocol",
     "agents.policies",
-    "agents.numpy_policy",
-    "agents.evaluate",
-    "agents.jobs",
-    "agents.learners",
-    "agents.ppo_hyperparams",
+    "agents.policies.protocol",
+    "agents.policies.baselines",
+    "agents.policies.numpy_policy",
+    "agents.evaluation.episodes",
+    "agents.training.learners",
+    "agents.training.hyperparameters",
 )
 PACKAGES = (aeromag_env, agents)
 
@@ -67,7 +66,7 @@ def agents_public() -> dict[str, list[str]]:
             if name.startswith("_") or inspect.ismodule(value):
                 continue
             defined_here = getattr(value, "__module__", None) == modname
-            constant = modname == "agents" and name.isupper()
+            constant = modname == "agents.policies" and name.isupper()
             if (defined_here and (inspect.isclass(value) or inspect.isfunction(value))) or (
                 constant
             ):

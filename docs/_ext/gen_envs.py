@@ -250,9 +250,7 @@ def _action_section(env: Any) -> str:
     )
     note = (
         "\nWith a separate T_p action (``action={'permanent': 'graded'}``) the action has "
-        f"{len(split)} entries: "
-        + ", ".join(literal(e.name) for e in split)
-        + ".\n\n"
+        f"{len(split)} entries: " + ", ".join(literal(e.name) for e in split) + ".\n\n"
     )
     return (
         f"``{env.action_space}``, one entry per row (``gym.make`` of this id):\n\n" + table + note

@@ -22,9 +22,9 @@ from typing import Any
 from rst import heading, list_table, literal, text, write_if_changed
 
 import aeromag_env
-from aeromag_env.cli import compensate, discover
 from aeromag_env.cli.main import main
 from aeromag_env.compensation import paper
+from aeromag_env.jobs import compensate, discover
 
 #: The runs documented: command, its module (whose docstring is the prose), its arguments
 #: after the flight file and the output folder.

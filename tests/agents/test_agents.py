@@ -11,10 +11,11 @@ from aeromag_env.compensation.kalman import run_filter
 from aeromag_env.compensation.model import MODE
 from aeromag_env.environment.spaces import ACT_Q, ACT_R
 from aeromag_env.errors import AeromagError, ConfigError
-from agents import POLICIES, make_policy
-from agents.evaluate import evaluate, run_episode
-from agents.policies import TunedConstantPolicy
-from agents.protocol import TuningPolicy
+from agents.evaluation.episodes import evaluate, run_episode
+from agents.policies import POLICIES, make_policy
+from agents.policies.baselines import TunedConstantPolicy
+from agents.policies.protocol import TuningPolicy
+from tests._helpers import observations
 
 
 def _env(scenario="paper"):
@@ -114,25 +115,25 @@ def test_evaluate_cli(tmp_path, capsys):
     assert res["seeds"] == [100_000, 100_001]
     assert (tmp_path / "evaluation.png").stat().st_size > 10_000
     assert main([*args[:3], "--policies", "fis,bogus", "--out", str(tmp_path / "x")]) == 2
-    assert "valid policies" in capsys.readouterr().err
+    assert "--policies takes names of constant, fis" in capsys.readouterr().err
     assert main(["evaluate", "--scenario", "windy", "--out", str(tmp_path / "y")]) == 2
     assert main(["evaluate", "--seed-start", "5", "--out", str(tmp_path / "z"), "--quiet"]) == 2
 
 
 def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation():
-    from aeromag_env.environment.config import env_config
+    from aeromag_env.environment.config import PRESETS, env_config
     from aeromag_env.environment.spaces import ACT_QP, observation_index
-    from agents.policies import InnovationDetectorPolicy
+    from agents.policies.baselines import InnovationDetectorPolicy
 
-    kw = {
-        "extras": True,
-        "innovation_power": True,
-        "split_q": True,
-        "action_mode": "absolute",
-        "absolute_q_log10": (-4.0, 4.0),
-        "absolute_r_log10": (-1.0, 3.0),
-        "absolute_qp_log10": (-2.0, 10.0),
+    action = {
+        "mode": "absolute",
+        "permanent": "graded",
+        "q_log10": (-4.0, 4.0),
+        "r_log10": (-1.0, 3.0),
+        "qp_log10": (-2.0, 10.0),
     }
+    powers = ("log_innovation_power", "log_mean_innovation_power")
+    kw = {"observations": observations("log_qp_scale", *powers), "action": action}
     tr_r0 = 3 * 1.5**2  # nT², the default R(0)
     obs = np.zeros((3, 10), np.float32)
     column = observation_index(env_config(**kw), "log_mean_innovation_power")
@@ -141,20 +142,27 @@ def test_innovation_detector_raises_permanent_q_only_on_a_large_mean_innovation(
     np.testing.assert_allclose(actions[:, ACT_Q], 0.0, atol=1e-7)  # Q at 10^0 in (-4, 4)
     np.testing.assert_allclose(actions[:, ACT_R], 0.5, atol=1e-7)  # R at 10^2 in (-1, 3)
     np.testing.assert_allclose(actions[:, ACT_QP], [-2 / 3, 1.0, 1.0], atol=1e-6)  # 10^0, 10^10
-    gated, _ = InnovationDetectorPolicy(env_config(**kw, qp_gate=True)).predict(obs[0])
+    gate = {**action, "permanent": "gate"}
+    gated, _ = InnovationDetectorPolicy(env_config(**{**kw, "action": gate})).predict(obs[0])
     assert gated[ACT_QP] == -1.0
-    with pytest.raises(ConfigError, match="innovation_detector needs"):
-        InnovationDetectorPolicy(env_config(extras=True))
+    assert InnovationDetectorPolicy(PRESETS["nonstationary"]).raise_qp == 1.0  # its preset
+    for refused in (  # without the observation it reads, without a T_p action, relative
+        {**kw, "observations": observations("log_qp_scale")},
+        {"observations": observations(*powers), "action": {"mode": "absolute"}},
+        {**kw, "action": {**action, "mode": "relative"}},
+    ):
+        with pytest.raises(ConfigError, match="innovation_detector needs the observation log_"):
+            InnovationDetectorPolicy(env_config(**refused))
 
 
 def test_the_privileged_policy_acts_on_the_true_noise_and_the_steps():
     """In its own layout (policy_env_kwargs): T_p's Q raised exactly in the decision window
     that holds a step and the one after, R at the true noise variance of the coming window;
     refused elsewhere."""
-    from agents import policy_env_kwargs
-    from agents.policies import PrivilegedPolicy
+    from agents.policies import policy_env_kwargs
+    from agents.policies.baselines import PrivilegedPolicy
 
-    with pytest.raises(ConfigError, match="privileged needs split_q"):
+    with pytest.raises(ConfigError, match=r"privileged needs action\.mode='absolute' and a T_p"):
         PrivilegedPolicy(_env())
     env = gym.make(
         "AeroMagCompensation-v0", scenario="nonstationary", **policy_env_kwargs("privileged")
@@ -183,8 +191,8 @@ def test_the_privileged_policy_acts_on_the_true_noise_and_the_steps():
 def test_the_privileged_floor_on_r_holds_on_its_scenarios_only():
     """With ``r_floor`` the teacher's R is the unfloored one where that is above the floor and
     the floor elsewhere, on the scenarios named; on the others it is unchanged."""
-    from agents import policy_env_kwargs
-    from agents.policies import PrivilegedPolicy
+    from agents.policies import policy_env_kwargs
+    from agents.policies.baselines import PrivilegedPolicy
 
     for scenario, floor in (("noise_bursts", 2.0), ("degradation", None)):
         env = gym.make(
@@ -223,7 +231,7 @@ def _env_state(env):
 def test_the_privileged_policies_leave_the_environment_untouched(name):
     """Predicting reads the environment (its truth, its filter's progress) and changes none of
     it: the state is equal before and after predictions without a step."""
-    from agents import policy_env_kwargs
+    from agents.policies import policy_env_kwargs
 
     env = gym.make("AeroMagCompensation-v0", scenario="nominal", **policy_env_kwargs(name))
     policy = make_policy(name, env)

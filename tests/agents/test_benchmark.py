@@ -1,6 +1,7 @@
-"""The learners' benchmark statistics (``agents.benchmark``) on hand-made numbers whose answers
-are known, and rliable (Agarwal et al. 2021) as the independent reference of the aggregates:
-our IQM (``agents.evaluate.iqm_interval``) and the vectorised probability of improvement and
+"""The learners' benchmark statistics (``agents.comparison.statistics``) on hand-made numbers whose
+answers are known, and rliable (Agarwal et al. 2021) as the independent reference of the aggregates:
+our IQM (``agents.evaluation.statistics.iqm_interval``) and the vectorised probability of
+improvement and
 performance profile give rliable's numbers, bootstrap intervals included."""
 
 from __future__ import annotations
@@ -11,8 +12,8 @@ from rliable import library as rly
 from rliable import metrics
 
 from aeromag_env.errors import AeromagError
-from agents import benchmark as bm
-from agents.evaluate import iqm_interval
+from agents.comparison import statistics as bm
+from agents.evaluation.statistics import iqm_interval
 from tests._helpers import assert_one_line_error
 
 SCENARIOS = ("paper", "nonstationary", "noise_bursts")
@@ -82,7 +83,7 @@ def test_flight_table_orders_learners_and_refuses_other_flights() -> None:
             }
         )
     )
-    assert list(table.learners) == ["ppo", "sac"]  # agents.learners.LEARNERS' order
+    assert list(table.learners) == ["ppo", "sac"]  # agents.training.learners.LEARNERS' order
     assert table.seeds["sac"] == (0, 1)
     np.testing.assert_array_equal(table.learners["sac"][0], one)
     assert table.scenarios == SCENARIOS and table.flights.shape == (3, 4)

@@ -1,11 +1,13 @@
 """Fault injection: hostile ``--hyperparams`` files get one line naming the field and its range.
 
-Every case is generated here from the shipped ``agents/hyperparams/ppo.json`` by class:
+Every case is generated here from the shipped ``agents/training/hyperparams/ppo.json`` by class:
 unreadable text, a document of the wrong kind, missing and unknown keys, wrong types, values
 out of range and environment settings :class:`~aeromag_env.environment.env.EnvConfig` refuses.
 Each must raise :class:`~aeromag_env.errors.HyperparameterError` from
-:func:`agents.ppo.load_hyperparams` (before any training starts) with a one-line message
-naming the file, the field and, for a value out of range, the allowed range.
+:func:`agents.training.ppo.load_hyperparams` (before any training starts) with a one-line message
+naming the file, the field and, for a value out of range, the allowed range. The models
+(:mod:`agents.training.hyperparameters`) are checked here too: their defaults, their schema
+(the committed file is the generated one) and their errors in Python.
 """
 
 from __future__ import annotations
@@ -25,8 +27,8 @@ from hypothesis import strategies as st
 from aeromag_env.cli.main import main
 from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS
 from aeromag_env.errors import HyperparameterError
-from agents.ppo import HYPERPARAMS, VEC_ENVS, _ppo_kwargs, load_hyperparams
-from tests._helpers import assert_one_line_error
+from agents.training.ppo import HYPERPARAMS, VEC_ENVS, _ppo_kwargs, load_hyperparams
+from tests._helpers import assert_one_line_error, examples
 
 SHIPPED = json.loads(HYPERPARAMS.read_text(encoding="utf-8"))
 SCHEMA = json.loads(HYPERPARAMS.with_name("ppo.schema.json").read_text(encoding="utf-8"))
@@ -76,11 +78,11 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
     ("a_string", lambda d: "ppo", 'must be a JSON object.*"ppo"'),
     ("null", lambda d: None, "must be a JSON object"),
     ("a_number", lambda d: 5, "must be a JSON object"),
-    ("empty_object", lambda d: {}, "'version' is a required property"),
-    ("no_scenarios", _no("scenarios"), "'scenarios' is a required property"),
+    ("empty_object", lambda d: {}, "version is missing"),
+    ("no_scenarios", _no("scenarios"), r"^\S+: scenarios is missing"),
     ("version_text", _top(lambda d: {**d, "version": "5"}), "version.*integer"),
     ("version_zero", _top(lambda d: {**d, "version": 0}), r"version.*≥ 1"),
-    ("unknown_top_key", _top(lambda d: {**d, "scenario": {}}), "'scenario' was unexpected"),
+    ("unknown_top_key", _top(lambda d: {**d, "scenario": {}}), "scenario is unknown; valid"),
     ("scenarios_a_list", _top(lambda d: {**d, "scenarios": []}), "scenarios.*object"),
     (
         "scenarios_empty",
@@ -90,7 +92,7 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
     (
         "unknown_scenario",
         _top(lambda d: {**d, "scenarios": {**d["scenarios"], "windy": HP}}),
-        "windy",
+        "scenarios.windy is no valid name: must be a scenario name",
     ),
     (
         "scenario_a_list",
@@ -98,7 +100,7 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
         "nonstationary.*object",
     ),
     *[
-        (f"missing_{k}", _hp_del(k), f"'{k}' is a required property")
+        (f"missing_{k}", _hp_del(k), f"scenarios.nonstationary.{k} is missing")
         for k in (
             "n_envs",
             "n_steps",
@@ -116,7 +118,7 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
             "env_kwargs",
         )
     ],
-    ("unknown_key", _hp("gama", 0.9), "'gama' was unexpected"),
+    ("unknown_key", _hp("gama", 0.9), "scenarios.nonstationary.gama is unknown; valid: n_envs"),
     ("n_envs_text", _hp("n_envs", "8"), "n_envs.*integer"),
     ("n_envs_fraction", _hp("n_envs", 8.5), "n_envs.*integer"),
     ("n_envs_float", _hp("n_envs", 8.0), "n_envs.*integer"),
@@ -126,8 +128,9 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
     ("n_steps_zero", _hp("n_steps", 0), r"n_steps.*≥ 1"),
     ("batch_size_one", _hp("batch_size", 1), r"batch_size.*≥ 2"),
     ("n_epochs_zero", _hp("n_epochs", 0), r"n_epochs.*≥ 1"),
-    ("learning_rate_zero", _hp("learning_rate", 0), r"learning_rate.*> 0"),
-    ("learning_rate_negative", _hp("learning_rate", -3e-4), r"learning_rate.*> 0"),
+    ("learning_rate_zero", _hp("learning_rate", 0), r"learning_rate must be a number in \(0, 1\]"),
+    ("learning_rate_negative", _hp("learning_rate", -3e-4), r"learning_rate.*\(0, 1\]"),
+    ("learning_rate_above_one", _hp("learning_rate", 1.5), r"learning_rate.*\(0, 1\].*got 1\.5"),
     ("learning_rate_word", _hp("learning_rate", "fast"), r"learning_rate.*lin_"),
     ("learning_rate_bad_schedule", _hp("learning_rate", "lin_x"), r"learning_rate.*lin_"),
     ("learning_rate_negative_schedule", _hp("learning_rate", "lin_-1"), r"learning_rate.*lin_"),
@@ -140,7 +143,9 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
     ("gamma_just_above_one", _hp("gamma", 1.000001), r"gamma.*\(0, 1\]"),
     ("gae_lambda_high", _hp("gae_lambda", 1.5), r"gae_lambda.*\[0, 1\]"),
     ("gae_lambda_negative", _hp("gae_lambda", -0.5), r"gae_lambda.*\[0, 1\]"),
-    ("ent_coef_negative", _hp("ent_coef", -0.01), r"ent_coef.*≥ 0"),
+    ("ent_coef_negative", _hp("ent_coef", -0.01), r"ent_coef.*\[0, 1\]"),
+    ("ent_coef_above_one", _hp("ent_coef", 2), r"ent_coef.*\[0, 1\]"),
+    ("train_scenario_null", _hp("train_scenario", None), "train_scenario must be .*got null"),
     ("clip_range_zero", _hp("clip_range", 0.0), r"clip_range.*\(0, 1\]"),
     ("clip_range_high", _hp("clip_range", 1.5), r"clip_range.*\(0, 1\]"),
     ("net_arch_text", _hp("net_arch", "64,64"), "net_arch.*list"),
@@ -158,13 +163,28 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
     ("log_std_init_text", _hp("log_std_init", "-2"), "log_std_init.*number"),
     ("env_kwargs_a_list", _hp("env_kwargs", [1]), "env_kwargs.*object"),
     ("env_kwargs_unknown", _sub("env_kwargs", "extra_s", 1), "env_kwargs.*extra_s"),
-    ("env_kwargs_bad_value", _sub("env_kwargs", "scale_limit", 0.5), "env_kwargs.*scale_limit"),
-    ("env_kwargs_bad_type", _sub("env_kwargs", "extras", "yes"), "env_kwargs.*extras"),
+    (
+        "env_kwargs_bad_value",
+        _sub("env_kwargs", "action", {"scale_limit": 0.5}),
+        "env_kwargs: .*scale_limit",
+    ),
+    ("env_kwargs_bad_type", _sub("env_kwargs", "decision_window", "5"), "env_kwargs: .*decision"),
+    ("env_kwargs_unknown_preset", _sub("env_kwargs", "preset", "windy"), "unknown preset 'windy'"),
+    (
+        "env_kwargs_flat_bad_type",  # a file of the first version: its flat keys, read as such
+        _hp("env_kwargs", {"extras": "yes"}),
+        "env_kwargs: extras must be true or false",
+    ),
+    (
+        "env_kwargs_flat_and_preset",
+        _sub("env_kwargs", "split_q", True),
+        "env_kwargs: .*mix the first version's flat keys \\(split_q\\) with preset",
+    ),
     ("pretrain_a_list", _hp("pretrain", []), "pretrain.*object"),
     (
         "pretrain_no_steps",
         lambda d: _hp("pretrain", {"epochs": 1})(d),
-        "'steps' is a required property",
+        "pretrain.steps is missing",
     ),
     ("pretrain_steps_zero", _sub("pretrain", "steps", 0), r"pretrain\.steps.*≥ 1"),
     ("pretrain_epochs_zero", _sub("pretrain", "epochs", 0), r"pretrain\.epochs.*≥ 1"),
@@ -173,7 +193,11 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
         _sub("pretrain", "threshold_nt", -1.0),
         r"pretrain\.threshold_nt.*> 0",
     ),
-    ("pretrain_lr_zero", _sub("pretrain", "learning_rate", 0.0), r"pretrain\.learning_rate.*> 0"),
+    (
+        "pretrain_lr_zero",
+        _sub("pretrain", "learning_rate", 0.0),
+        r"pretrain\.learning_rate.*\(0, 1\]",
+    ),
     (
         "pretrain_bc_negative",
         _sub("pretrain", "bc_minibatches", -1),
@@ -197,7 +221,7 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
     (
         "pretrain_bc_lr_zero",
         _sub("pretrain", "bc_learning_rate", 0.0),
-        r"pretrain\.bc_learning_rate.*> 0",
+        r"pretrain\.bc_learning_rate.*\(0, 1\]",
     ),
     (
         "pretrain_floor_unknown_scenario",
@@ -214,7 +238,7 @@ DOC_FAULTS: list[tuple[str, Callable[[Doc], Doc], str]] = [
         _sub("pretrain", "teacher_r_floor", {"noise_bursts": "high"}),
         r"pretrain\.teacher_r_floor\.noise_bursts.*number",
     ),
-    ("pretrain_unknown", _sub("pretrain", "stepz", 1), "'stepz' was unexpected"),
+    ("pretrain_unknown", _sub("pretrain", "stepz", 1), "pretrain.stepz is unknown"),
 ]
 
 GOOD_TEXT = HYPERPARAMS.read_text(encoding="utf-8")
@@ -305,6 +329,8 @@ def test_missing_file_directory_and_device(tmp_path):
         ("net_arch", []),
         ("clip_range", 1.0),
         ("ent_coef", 0),
+        ("ent_coef", 1.0),
+        ("learning_rate", 1.0),
         ("log_std_init", -20.0),
         ("vec_env", "dummy"),
         ("prefetch", False),
@@ -332,10 +358,10 @@ def test_the_schema_names_what_the_code_knows():
     """The schema is valid JSON Schema, its enumerations are the code's, and it requires every
     key training reads without a default."""
     jsonschema.Draft202012Validator.check_schema(SCHEMA)
-    scenario = SCHEMA["$defs"]["scenario"]
+    scenario = SCHEMA["$defs"]["PPOHyperparams"]
     assert set(scenario["properties"]["vec_env"]["enum"]) == set(VEC_ENVS)
     assert scenario["properties"]["train_scenario"]["enum"] == list(SCENARIOS + TRAINING_SCENARIOS)
-    pretrain = scenario["properties"]["pretrain"]["properties"]
+    pretrain = SCHEMA["$defs"]["Pretrain"]["properties"]
     assert pretrain["bc_scenarios"]["items"]["enum"] == list(SCENARIOS + TRAINING_SCENARIOS)
     assert pretrain["teacher_r_floor"]["propertyNames"]["enum"] == [
         s for s in SCENARIOS + TRAINING_SCENARIOS if s != "suite"
@@ -351,6 +377,8 @@ def test_the_schema_names_what_the_code_knows():
         "env_kwargs",
     }
     assert read <= set(scenario["required"])
+    # the shipped file is valid under the schema an editor reads
+    jsonschema.Draft202012Validator(SCHEMA).validate(SHIPPED)
 
 
 @pytest.mark.parametrize("case", ["gamma_two", "gamma_nan", "a_list", "missing_net_arch"])
@@ -391,7 +419,9 @@ JSON_VALUES = st.recursive(
 
 
 @settings(
-    max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=examples(300),
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(key=st.sampled_from(sorted(HP)), value=JSON_VALUES)
 def test_any_value_for_any_key_loads_or_names_the_key(tmp_path, key, value):
@@ -406,20 +436,25 @@ def test_any_value_for_any_key_loads_or_names_the_key(tmp_path, key, value):
     assert hp.to_entry()[key] == value
 
 
-def test_the_committed_schema_is_the_one_made_from_the_dataclass():
-    """``ppo.schema.json`` is :func:`agents.ppo_hyperparams.schema_text` (``python -m
-    agents.ppo_hyperparams`` rewrites it): a field changed in the dataclass alone fails here."""
-    from agents.ppo_hyperparams import ppo_schema, schema_text
+def test_the_committed_schemas_are_the_ones_made_from_the_models():
+    """``ppo.schema.json`` and ``learners.schema.json`` are made from the models (``python -m
+    agents.training.schemas`` rewrites them): a field changed in a model alone fails
+    here; and each is valid JSON Schema that the shipped file passes."""
+    from agents.training.schemas import schema_text, schemas
 
-    committed = HYPERPARAMS.with_name("ppo.schema.json").read_text(encoding="utf-8")
-    assert committed == schema_text()
-    assert json.loads(committed) == ppo_schema() == SCHEMA
+    made = schemas()
+    assert [p.name for p in made] == ["ppo.schema.json", "learners.schema.json"]
+    for path, schema in made.items():
+        assert path.read_text(encoding="utf-8") == schema_text(schema), path.name
+        jsonschema.Draft202012Validator.check_schema(schema)
+        shipped = json.loads(path.with_name(path.name.replace(".schema", "")).read_text())
+        jsonschema.Draft202012Validator(schema).validate(shipped)
 
 
-def test_the_dataclass_holds_the_file_and_the_defaults():
+def test_the_model_holds_the_file_and_the_defaults():
     """The shipped entries load to the same values; what a file leaves out takes the
-    dataclass's default, the one training uses."""
-    from agents.ppo_hyperparams import PPOHyperparams, Pretrain
+    model's default, the one training uses."""
+    from agents.training.hyperparameters import PPOHyperparams, Pretrain
 
     for scenario, entry in SHIPPED["scenarios"].items():
         hp = load_hyperparams(scenario)
@@ -437,6 +472,7 @@ def test_the_dataclass_holds_the_file_and_the_defaults():
         None,
         None,
     )
+    assert "pretrain" not in hp.to_entry() and "train_scenario" not in hp.to_entry()
     spec = Pretrain(steps=1, epochs=1)
     assert (spec.demonstrator, spec.dagger_rounds, spec.threshold_nt) == (
         "innovation_detector",
@@ -448,28 +484,31 @@ def test_the_dataclass_holds_the_file_and_the_defaults():
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        ({"gamma": 1.5}, r"^gamma: must be a number in \(0, 1\], got 1\.5$"),
-        ({"n_envs": 0}, r"^n_envs: must be an integer ≥ 1 and ≤ 256"),
-        ({"learning_rate": "cos_1"}, r"^learning_rate: must be a number > 0, or"),
-        ({"net_arch": [64, 0]}, r"^net_arch\.1: must be an integer ≥ 1"),
-        ({"vec_env": "subproc"}, r"^vec_env: must be batched or dummy"),
-        ({"env_kwargs": {"split_q": 3}}, r"^env_kwargs: "),
-        ({"pretrain": {"steps": 0}}, r"^pretrain\.steps: must be an integer ≥ 1"),
+        ({"gamma": 1.5}, r"^gamma must be a number in \(0, 1\], got 1\.5$"),
+        ({"n_envs": 0}, r"^n_envs must be an integer ≥ 1 and ≤ 256"),
+        ({"learning_rate": "cos_1"}, r"^learning_rate must be a number in \(0, 1\], or"),
+        ({"net_arch": [64, 0]}, r"^net_arch\.1 must be an integer ≥ 1"),
+        ({"vec_env": "subproc"}, r"^vec_env must be batched or dummy"),
+        ({"env_kwargs": {"split_q": 3}}, r"^env_kwargs: split_q must be true or false"),
+        ({"env_kwargs": {"preset": "windy"}}, r"^env_kwargs: unknown preset 'windy'"),
+        ({"pretrain": {"steps": 0}}, r"^pretrain\.steps must be an integer ≥ 1"),
     ],
 )
 def test_a_bad_value_is_a_one_line_config_error_naming_the_field(change, message):
+    from pydantic import ValidationError
+
     from aeromag_env.errors import ConfigError
 
     hp = load_hyperparams("nonstationary")
     with pytest.raises(ConfigError, match=message) as info:
         hp.with_values(**change)
     assert "\n" not in str(info.value)
-    with pytest.raises(Exception, match="cannot assign"):
-        hp.gamma = 0.5  # frozen
+    with pytest.raises(ValidationError, match="frozen"):
+        hp.gamma = 0.5  # type: ignore[misc]
 
 
-def test_the_dataclass_is_keyword_only():
-    from agents.ppo_hyperparams import PPOHyperparams
+def test_the_model_is_keyword_only():
+    from agents.training.hyperparameters import PPOHyperparams
 
     with pytest.raises(TypeError):
         PPOHyperparams(2, 64)  # type: ignore[misc]

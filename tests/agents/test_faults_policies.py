@@ -1,6 +1,7 @@
 """Fault injection: hostile policy files (``ppo:PATH``) get one clear line, at load time.
 
-Every case is generated here from the shipped policy (``agents/trained/ppo_nonstationary.npz``)
+Every case is generated here from the shipped policy
+(``agents/policies/trained/ppo_nonstationary.npz``)
 by class: bytes that are no archive, broken archives, archives without the arrays, wrong
 shapes, non-finite or out-of-range values, wrong dtypes and bad metadata. Each must raise
 :class:`~aeromag_env.errors.PolicyFileError` whose message is one line naming the file and the
@@ -23,9 +24,9 @@ from hypothesis import strategies as st
 
 from aeromag_env.cli.main import main
 from aeromag_env.errors import AeromagError, PolicyFileError
-from agents import DEFAULT_PPO, make_policy, policy_env_kwargs
-from agents.numpy_policy import NumpyPPOPolicy
-from tests._helpers import assert_one_line_error
+from agents.policies import DEFAULT_PPO, make_policy, policy_env_kwargs
+from agents.policies.numpy_policy import NumpyPPOPolicy
+from tests._helpers import assert_one_line_error, examples
 
 Arrays = dict[str, np.ndarray]
 
@@ -93,8 +94,8 @@ ARRAY_FAULTS: list[tuple[str, Callable[[Arrays], Arrays], str]] = [
     ),
     (
         "observations_for_another_layout",
-        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(innovation_power=False)),
-        "10 observations.*8",
+        lambda a: _with_meta(a, lambda m: m.update(env_kwargs={"preset": "paper"})),
+        "10 observations.*2",
     ),
     *[
         (f"{k}_{name}", _poke(k, v), f"{k}.*(finite|NaN|inf)")
@@ -127,8 +128,18 @@ ARRAY_FAULTS: list[tuple[str, Callable[[Arrays], Arrays], str]] = [
     ),
     (
         "env_kwargs_bad_value",
-        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(scale_limit=0.5)),
-        "scale_limit",
+        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(action={"scale_limit": 0.5})),
+        r"action\.scale_limit must be",
+    ),
+    (
+        "env_kwargs_flat_bad_value",  # a file of the first version, read by the legacy module
+        lambda a: _with_meta(a, lambda m: m.update(env_kwargs={"extras": "yes"})),
+        "meta env_kwargs: extras must be true or false",
+    ),
+    (
+        "env_kwargs_flat_and_preset",
+        lambda a: _with_meta(a, lambda m: m["env_kwargs"].update(split_q=True)),
+        "mix the first version's flat keys",
     ),
 ]
 
@@ -243,7 +254,7 @@ def test_nothing_in_a_policy_file_is_executed(tmp_path):
 
 
 def test_oversized_member_is_refused_before_reading(tmp_path, monkeypatch):
-    import agents.policy_file as policy_file
+    import agents.policies.policy_file as policy_file
 
     monkeypatch.setattr(policy_file, "MAX_ARRAY_BYTES", 20_000)
     path = tmp_path / "big.npz"
@@ -276,7 +287,9 @@ def test_cli_evaluate_with_a_broken_policy_exits_2_with_one_line(tmp_path, capsy
 
 
 @settings(
-    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=examples(150),
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(position=st.integers(0, len(GOOD) - 1), value=st.integers(0, 255))
 def test_any_corrupted_byte_loads_or_is_refused(tmp_path, position, value):

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aeromag_env.cli.evaluate import evaluation_table
-from agents.evaluate import BOOTSTRAP_RESAMPLES, _summaries, normalized_scores
+from aeromag_env.jobs.evaluate import evaluation_table
+from agents.evaluation.statistics import BOOTSTRAP_RESAMPLES, normalized_scores, policy_summaries
 
 
 def _per(**rmse: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
@@ -91,7 +91,7 @@ def test_the_table_shows_the_score_column_and_the_anchors():
     results = {
         "scenario": "x",
         "seeds": list(range(30)),
-        "policies": _summaries(per),
+        "policies": policy_summaries(per),
         "normalized_score": scores.pop("anchors"),
     }
     for name, row in scores.items():
@@ -105,7 +105,7 @@ def test_the_table_shows_the_score_column_and_the_anchors():
 def test_the_iqm_is_the_quarter_trimmed_mean_with_a_stratified_interval():
     from scipy import stats
 
-    from agents.evaluate import iqm_interval
+    from agents.evaluation.statistics import iqm_interval
 
     rng = np.random.default_rng(3)
     scores = rng.normal(0.7, 0.1, (5, 3))
@@ -126,7 +126,7 @@ def test_the_iqm_is_the_quarter_trimmed_mean_with_a_stratified_interval():
 def test_the_bootstrap_keeps_each_task_s_runs_in_their_task():
     """Task A scores 0 on every run, task B 1: any stratified resample holds four of each, so
     the IQM is 0.5 with no spread (an unstratified one would move)."""
-    from agents.evaluate import iqm_interval
+    from agents.evaluation.statistics import iqm_interval
 
     scores = np.column_stack([np.zeros(4), np.ones(4)])
     assert iqm_interval(scores) == (0.5, [0.5, 0.5])

@@ -1,5 +1,4 @@
 import json
-from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
@@ -11,9 +10,10 @@ from aeromag_env.environment.config import env_config
 from aeromag_env.environment.ids import SUITE
 from aeromag_env.environment.spaces import ACT_R
 from aeromag_env.errors import AeromagError
-from agents import DEFAULT_PPO, make_policy, policy_env_kwargs
-from agents.numpy_policy import NumpyPPOPolicy
-from agents.ppo import (
+from agents.policies import DEFAULT_PPO, make_policy, policy_env_kwargs
+from agents.policies.numpy_policy import NumpyPPOPolicy
+from agents.training.hyperparameters import Pretrain
+from agents.training.ppo import (
     HYPERPARAMS,
     export_policy,
     load_hyperparams,
@@ -21,7 +21,6 @@ from agents.ppo import (
     make_training_env,
     train_ppo,
 )
-from agents.ppo_hyperparams import Pretrain
 
 
 @pytest.mark.slow
@@ -64,7 +63,7 @@ def test_train_scenario_trains_on_its_own_scenario_only(kind):
     scenarios = inner.venv.scenarios if kind == "batched" else inner.get_attr("_scenario")
     assert list(scenarios) == ["nonstationary_dense"] * 2
     venv.close()
-    with pytest.raises(AeromagError, match="train_scenario: must be a scenario name: paper"):
+    with pytest.raises(AeromagError, match="train_scenario must be a scenario name: paper"):
         make_training_env("nonstationary", hp.with_values(train_scenario="windy"), 0)
 
 
@@ -117,7 +116,7 @@ def test_shipped_policy_runs_without_torch_imports():
 
 
 def test_discounted_returns_restart_after_an_episode_end():
-    from agents.imitation import _discounted
+    from agents.training.imitation import _discounted
 
     rewards = np.array([[1.0, 2.0], [1.0, 2.0], [1.0, 2.0]])
     dones = np.array([[False, True], [False, False], [False, False]])
@@ -133,12 +132,11 @@ def test_behaviour_clone_makes_the_actor_imitate_the_detector():
     (the rare T_p raises are what PPO then trains on)."""
     import torch
 
-    from agents.imitation import behaviour_clone
-    from agents.policies import InnovationDetectorPolicy
+    from agents.policies.baselines import InnovationDetectorPolicy
+    from agents.training.imitation import behaviour_clone
 
     torch.manual_seed(0)
-    hp = replace(
-        load_hyperparams("nonstationary"),
+    hp = load_hyperparams("nonstationary").with_values(
         n_envs=4,
         prefetch=False,
         pretrain=Pretrain(threshold_nt=20.0, steps=4000, epochs=50),
@@ -174,7 +172,7 @@ def test_training_setup_changes_no_result_and_restores_torch():
     from stable_baselines3 import PPO
     from torch.distributions import Distribution, Normal
 
-    from agents.ppo import _ppo_kwargs, training_torch
+    from agents.training.ppo import _ppo_kwargs, training_torch
 
     hp = load_hyperparams("nonstationary").with_values(
         n_envs=2, n_steps=64, batch_size=64, vec_env="batched", prefetch=False
@@ -214,7 +212,7 @@ def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teac
     flights (from the observations alone)."""
     import torch
 
-    from agents.imitation import _privileged_rollouts, behaviour_clone
+    from agents.training.imitation import _privileged_rollouts, behaviour_clone
 
     torch.manual_seed(0)
     hp = load_hyperparams("suite").with_values(n_envs=2, prefetch=False)
@@ -248,11 +246,11 @@ def test_imitating_the_privileged_policy_follows_the_student_and_learns_the_teac
 def test_the_dagger_teacher_keeps_r_above_its_floor_on_the_named_scenarios():
     """``pretrain.teacher_r_floor`` reaches the teacher: on noise_bursts flights every R label
     is at or above the floor, and the same flights without it have labels below."""
-    from agents.imitation import _privileged_rollouts
+    from agents.training.imitation import _privileged_rollouts
 
     hp = load_hyperparams("suite").with_values(n_envs=2, prefetch=False)
     venv = make_training_env("noise_bursts", hp, seed=0)
-    lo, hi = hp.env_kwargs["absolute_r_log10"]
+    lo, hi = env_config(**hp.env_kwargs).action.r_log10
     floor = 2.0 * (2.0 - lo) / (hi - lo) - 1.0
     labels = {}
     for name, given in (("plain", None), ("floored", {"noise_bursts": 2.0})):
@@ -268,8 +266,8 @@ def test_the_dagger_teacher_keeps_r_above_its_floor_on_the_named_scenarios():
 
 def _first_seed():
     """The first seed of the privileged rollouts' stream for environment 0 of 2."""
-    from agents.evaluate import TRAIN_SEEDS
-    from agents.imitation import seed_stream
+    from agents.evaluation.seeds import TRAIN_SEEDS
+    from agents.training.imitation import seed_stream
 
     return seed_stream(0, 2, offset=TRAIN_SEEDS.stop // 2)
 
@@ -280,10 +278,9 @@ def test_the_cloning_term_pulls_the_actor_to_the_demonstrations():
     exploration noise are PPO's alone."""
     import torch
 
-    from agents.imitation import CloningTerm, Demonstrations
+    from agents.training.imitation import CloningTerm, Demonstrations
 
-    hp = replace(
-        load_hyperparams("nonstationary"),
+    hp = load_hyperparams("nonstationary").with_values(
         n_envs=2,
         prefetch=False,
         pretrain=Pretrain(steps=1, epochs=1, bc_minibatches=200, bc_learning_rate=1e-3),
@@ -362,7 +359,7 @@ def test_training_with_the_cloning_term_keeps_and_reads_back_its_demonstrations(
 def test_the_cloning_term_keeps_only_the_scenarios_named():
     """``pretrain.bc_scenarios`` keeps the demonstrations flown in those scenarios (the others
     are PPO's alone); naming only scenarios never flown is a one-line error."""
-    from agents.imitation import CloningTerm, Demonstrations
+    from agents.training.imitation import CloningTerm, Demonstrations
 
     hp = load_hyperparams("nonstationary").with_values(n_envs=2, prefetch=False)
     venv = make_training_env("nonstationary", hp, seed=0)
@@ -375,7 +372,7 @@ def test_the_cloning_term_keeps_only_the_scenarios_named():
         flown,
     )
     spec = Pretrain(steps=1, epochs=1, bc_minibatches=1, bc_scenarios=("manoeuvre_heavy", "paper"))
-    hp = replace(hp, pretrain=spec)
+    hp = hp.with_values(pretrain=spec)
     kept = CloningTerm(model, venv, hp, demos, seed=0).demos
     np.testing.assert_array_equal(kept.obs, demos.obs[[0, 2, 3]])
     assert list(kept.scenarios) == ["manoeuvre_heavy", "paper", "manoeuvre_heavy"]
@@ -391,8 +388,8 @@ def test_the_teacher_holds_a_step_for_the_same_time_at_any_decision_window(windo
     30 samples after a step at K = 10 (3 windows) and K = 5 (6 windows): the same 3 s, so the
     student, which sees a step one window late, has as long to learn the response at K = 5."""
     from aeromag_env.environment.spaces import ACT_QP
-    from agents.imitation import TEACHER_AFTER_SAMPLES, teacher_after
-    from agents.policies import PrivilegedPolicy
+    from agents.policies.baselines import PrivilegedPolicy
+    from agents.training.imitation import TEACHER_AFTER_SAMPLES, teacher_after
 
     assert teacher_after(10) == 3 and teacher_after(5) == 6 and teacher_after(7) == 5
     env = gym.make(
@@ -416,8 +413,8 @@ def test_the_teacher_holds_a_step_for_the_same_time_at_any_decision_window(windo
 def test_quick_is_one_preset_applied_after_every_default():
     """``--quick`` replaces the sizes of the hyperparameter file, whatever it says, and the
     commands' default sizes; a size the caller gives is kept."""
-    from agents.ppo import TIMESTEPS
-    from agents.quick import QUICK, quick_hyperparams, sized
+    from agents.training.ppo import TIMESTEPS
+    from agents.training.quick import QUICK, quick_hyperparams, sized
 
     for scenario in ("nonstationary", "suite"):
         big = load_hyperparams(scenario).with_values(n_envs=64, n_steps=4096, eval_episodes=500)

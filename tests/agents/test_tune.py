@@ -1,6 +1,7 @@
-"""``aeromag tune`` (:mod:`agents.tune`, :mod:`agents.tune_space`): bad search spaces and refused
-output sets get one line before any Ray starts (default suite); a tiny search on the session's
-Ray writes a hyperparameter file that training accepts, holding the best trial's sample, and
+"""``aeromag tune`` (:mod:`agents.search.ppo`, :mod:`agents.search.space`): bad search spaces and
+refused output sets get one line before any Ray starts (default suite); a tiny search on the
+session's Ray writes a hyperparameter file that training accepts, holding the best trial's sample,
+and
 validates on validation seeds only (``-m ray``)."""
 
 from __future__ import annotations
@@ -12,13 +13,13 @@ from pathlib import Path
 import pytest
 
 from aeromag_env.errors import AeromagError, HyperparameterError
-from agents.evaluate import TEST_SEED_START, VALIDATION_SEEDS
-from agents.hyperparams_file import read_hyperparams
-from agents.ppo import HYPERPARAMS, load_hyperparams
-from agents.ppo_hyperparams import PPOHyperparams
-from agents.tune import OUTPUTS, ray_session
-from agents.tune_space import SPACE, read_space
-from agents.validation import validation_seeds
+from agents.evaluation.seeds import TEST_SEED_START, VALIDATION_SEEDS
+from agents.search.ppo import OUTPUTS, ray_session
+from agents.search.space import SPACE, read_space
+from agents.training.hyperparameters import PPOHyperparams
+from agents.training.hyperparams_file import read_hyperparams
+from agents.training.ppo import HYPERPARAMS, load_hyperparams
+from agents.training.validation import validation_seeds
 from tests._helpers import run_cli
 
 #: A small space of the three kinds of distribution (the shipped one has six keys).

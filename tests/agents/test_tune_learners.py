@@ -1,5 +1,5 @@
-"""``aeromag tune --learner`` (:mod:`agents.tune_learners`, the learners' spaces of
-:mod:`agents.tune_space`): bad spaces, ``cmaes`` and refused output sets get one line before any
+"""``aeromag tune --learner`` (:mod:`agents.search.learners`, the learners' spaces of
+:mod:`agents.search.space`): bad spaces, ``cmaes`` and refused output sets get one line before any
 Ray starts (default suite); a quick search on the session's Ray writes a learners file that
 training reads, holding the best trial's sample (``-m ray``)."""
 
@@ -11,14 +11,14 @@ from pathlib import Path
 import pytest
 
 from aeromag_env.errors import HyperparameterError
-from agents.learners import HYPERPARAMS, learner_hyperparams
-from agents.tune_learners import OUTPUTS, SEARCHED
-from agents.tune_space import (
+from agents.search.learners import OUTPUTS, SEARCHED
+from agents.search.space import (
     LEARNER_SPACES,
     LEARNER_SPACES_SCHEMA,
     SPACE_SCHEMA,
     read_learner_space,
 )
+from agents.training.learners import HYPERPARAMS, learner_hyperparams
 from tests._helpers import run_cli
 
 GAMMA = {"distribution": "uniform", "low": 0.6, "high": 0.9}
@@ -33,7 +33,7 @@ def _spaces(tmp_path: Path, learners: object, name: str = "spaces.json") -> Path
 @pytest.mark.parametrize("learner", SEARCHED)
 def test_shipped_spaces_read_and_tune_keys_of_the_learners_algo(learner) -> None:
     space = read_learner_space(learner, LEARNER_SPACES)
-    assert space and set(space) <= set(learner_hyperparams(learner)["algo"])
+    assert space and set(space) <= set(learner_hyperparams(learner).algo.model_fields_set)
 
 
 def test_the_learners_schema_draws_as_the_ppo_spaces_schema() -> None:
@@ -48,8 +48,15 @@ def test_the_learners_schema_draws_as_the_ppo_spaces_schema() -> None:
     [
         ({"cmaes": {"gamma": GAMMA}}, 'searches: recurrent_ppo, sac, tqc, got "cmaes"'),
         ({"ppo": {"gamma": GAMMA}}, 'got "ppo"'),
-        ({"sac": {"n_epochs": GAMMA}}, "sac.n_epochs: not a constructor parameter of SAC; valid"),
-        ({"tqc": {"gamma": GAMMA, "clip_range": GAMMA}}, "parameter of TQC; valid: learning_rate"),
+        ({"sac": {"n_epochs": GAMMA}}, "sac.n_epochs: not a hyperparameter of sac's algo; valid"),
+        (
+            {"tqc": {"gamma": GAMMA, "clip_range": GAMMA}},
+            "clip_range: not a hyperparameter of tqc's algo; valid: learning_rate",
+        ),
+        (
+            {"sac": {"gamma": {"distribution": "uniform", "low": 0.6, "high": 1.5}}},
+            "sac.gamma: 1.5 is no valid gamma: must be a number in (0, 1], got 1.5",
+        ),
         (
             {"sac": {"gamma": {"distribution": "uniform", "low": 0.9, "high": 0.6}}},
             "sac.gamma: needs low < high",
@@ -64,7 +71,7 @@ def test_the_learners_schema_draws_as_the_ppo_spaces_schema() -> None:
         ),
         (
             {"sac": {"batch_size": {"distribution": "choice", "values": [128, 1.5]}}},
-            "1.5 is no valid batch_size: the constructor takes int",
+            "1.5 is no valid batch_size: must be an integer ≥ 1 and ≤ 65536",
         ),
         ({"sac": {"gamma": {"distribution": "normal", "low": 0.6}}}, "must be uniform, "),
         ({"sac": {"gamma": {"distribution": "uniform", "low": 0.6}}}, "uniform takes low and high"),
@@ -82,16 +89,19 @@ def test_bad_learner_space_is_one_line_naming_the_field(tmp_path, learners, mess
 
 
 def test_a_space_of_mixed_annotations_takes_each_of_its_types(tmp_path) -> None:
-    """SAC's ``ent_coef`` is ``str | float``: ``"auto"`` and a number are both valid values."""
-    auto = {"ent_coef": {"distribution": "choice", "values": ["auto", 0.1]}}
+    """SAC's ``ent_coef`` is a number or ``"auto"``: both are valid values, a word is not."""
+    auto = {"ent_coef": {"distribution": "choice", "values": ["auto", 0.1, "auto_0.5"]}}
     assert read_learner_space("sac", _spaces(tmp_path, {"sac": auto})) == auto
+    bad = {"ent_coef": {"distribution": "choice", "values": ["often"]}}
+    with pytest.raises(HyperparameterError, match='"often" is no valid ent_coef: must be a num'):
+        read_learner_space("sac", _spaces(tmp_path, {"sac": bad}))
 
 
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
         (["--learner", "cmaes"], "aeromag tune does not search cmaes: "),
-        (["--learner", "sac", "--scenario", "paper"], "--scenario paper is for --learner ppo"),
+        (["--learner", "sac", "--scenario", "paper"], "--scenario must be suite for learner sac"),
     ],
 )
 def test_refused_learner_or_scenario_exits_2_before_ray(tmp_path, capsys, argv, message) -> None:
@@ -108,7 +118,7 @@ def test_bad_learner_space_on_the_command_line_exits_2_before_ray(tmp_path, caps
     argv = ["tune", "--learner", "sac", "--space", str(path), "--quick", "--out", str(out)]
     assert run_cli(argv) == 2
     err = capsys.readouterr().err
-    assert "not a constructor parameter of SAC" in err and err.count("\n") == 1
+    assert "not a hyperparameter of sac's algo" in err and err.count("\n") == 1
     assert not out.exists()
 
 
@@ -154,11 +164,12 @@ def test_quick_learner_search_writes_the_best_trial_into_a_learners_file(
     assert summary["best"] == best
     tuned = learner_hyperparams("sac", out / "learners.json")  # what aeromag train reads
     base = learner_hyperparams("sac")
-    assert tuned["algo"] == {**base["algo"], **best["config"]}
-    assert tuned["comment"].startswith("Tuned by aeromag tune --learner sac")
-    assert {k: v for k, v in tuned.items() if k not in ("algo", "comment")} == {
-        k: v for k, v in base.items() if k not in ("algo", "comment")
-    }
+    assert tuned.algo == base.algo.with_values(**best["config"])
+    assert tuned.comment is not None
+    assert tuned.comment.startswith("Tuned by aeromag tune --learner sac")
+    assert tuned.model_dump(exclude={"algo", "comment"}) == base.model_dump(
+        exclude={"algo", "comment"}
+    )
     for other in ("tqc", "recurrent_ppo", "cmaes"):  # the other learners as they were
         assert learner_hyperparams(other, out / "learners.json") == learner_hyperparams(other)
 
@@ -166,11 +177,14 @@ def test_quick_learner_search_writes_the_best_trial_into_a_learners_file(
 def test_a_search_record_names_the_checkouts_files_by_their_repository_path(
     tmp_path, monkeypatch
 ) -> None:
-    from agents.tune_space import LEARNER_SPACES, recorded_path
+    from agents.search.space import LEARNER_SPACES, recorded_path
 
-    repo = LEARNER_SPACES.parents[2]
+    repo = LEARNER_SPACES.parents[3]
     monkeypatch.chdir(repo)
-    assert recorded_path(LEARNER_SPACES) == "agents/hyperparams/tune_space_learners.json"
-    assert recorded_path("agents/hyperparams/learners.json") == "agents/hyperparams/learners.json"
+    assert recorded_path(LEARNER_SPACES) == "agents/search/spaces/tune_space_learners.json"
+    assert (
+        recorded_path("agents/training/hyperparams/learners.json")
+        == "agents/training/hyperparams/learners.json"
+    )
     outside = tmp_path / "mine.json"  # not under the working directory: as given
     assert recorded_path(outside) == str(outside)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from aeromag_env.environment.ids import SUITE
-from agents import validation
-from agents.validation import Validator
+from agents.training import validation
+from agents.training.validation import Validator
 
 #: Stand-in RMSE per (policy, scenario) [nT]: the candidate beats the tuned constant on every
 #: scenario but one, where it is 1.5× worse; the mean over flights hides that.

@@ -76,7 +76,7 @@ def test_duration_and_config_file(tmp_path):
         (["simulate", "--out", "x.txt"], "--out must end in .h5, .hdf5, .csv"),
         (["simulate", "--out", "x.h5", "--preset", "bogus"], "invalid choice: 'bogus'"),
         (["simulate", "--out", "x.h5", "--pattern", "spiral"], "invalid choice: 'spiral'"),
-        (["simulate", "--out", "x.h5", "--duration-s", "-3"], "duration_s must be > 0"),
+        (["simulate", "--out", "x.h5", "--duration-s", "-3"], "--duration-s must be > 0"),
         (["simulate", "--out", "x.h5", "--seed", "-1"], "--seed must be ≥ 0"),
         (["simulate", "--out", "x.h5", "--config", "missing.json"], "cannot read configuration"),
     ],

@@ -17,13 +17,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aeromag_env.cli import limits
 from aeromag_env.cli.main import main
 from aeromag_env.compensation.compensate import FILTER_METHODS, MIN_VECTOR_SAMPLES
 from aeromag_env.errors import FlightFileError, HyperparameterError
 from aeromag_env.flight.files import load_flight, write_flight
+from aeromag_env.jobs import limits
+from aeromag_env.jobs import simulate as simulate_job
 from aeromag_env.simulation.config import preset, with_overrides
-from agents.ppo import HYPERPARAMS, load_hyperparams
+from agents.training.ppo import HYPERPARAMS, load_hyperparams
 from tests._flights import simulated
 from tests._helpers import assert_one_line_error
 
@@ -73,7 +74,7 @@ def test_an_internal_error_is_one_line_and_exit_1(flight_file, capsys, monkeypat
     def broken(*args: object, **kwargs: object) -> int:
         raise exc
 
-    monkeypatch.setattr("aeromag_env.flight.info.main_info", broken)
+    monkeypatch.setattr("aeromag_env.jobs.info.describe", broken)
     monkeypatch.delenv("AEROMAG_DEBUG", raising=False)
     code, out, err = _run(["info", str(flight_file)], capsys)
     assert code == 1 and out == ""
@@ -113,7 +114,7 @@ def test_simulate_duration_out_of_range(tmp_path, capsys, value):
     _refused(
         ["simulate", f"--duration-s={value}", "--out", str(out), "--quiet"],
         capsys,
-        "duration_s must be > 0",
+        "--duration-s must be > 0",
         "0.2 to 1e+07 s at 10 Hz",
     )
     assert not out.exists()
@@ -128,7 +129,7 @@ def test_simulate_shortest_duration_gives_two_samples(tmp_path, capsys):
 
 def test_simulate_refuses_a_flight_larger_than_the_memory(tmp_path, capsys, monkeypatch):
     available = 10**6  # [bytes]
-    monkeypatch.setattr(limits, "available_memory_bytes", lambda: available)
+    monkeypatch.setattr(simulate_job, "available_memory_bytes", lambda: available)
     per_sample = limits.BYTES_PER_VALUE * len(simulated(trajectory__duration_s=1.0).names)
     largest = available // per_sample / 10.0  # [s] at 10 Hz
     out = tmp_path / "x.h5"
@@ -137,7 +138,7 @@ def test_simulate_refuses_a_flight_larger_than_the_memory(tmp_path, capsys, monk
     _refused(argv, capsys, *words)
     assert not out.exists()
     fits = with_overrides(preset("nominal"), {"trajectory.duration_s": math.floor(largest)})
-    limits.check_simulation(fits, replay=False)  # what the message offers is accepted
+    simulate_job.check_memory(fits, replay=False)  # what the message offers is accepted
 
 
 @pytest.mark.parametrize("value", ["1e-300", "0", "-1", "nan", "inf", "-inf", "1e300", "2e5"])
@@ -349,16 +350,16 @@ def _hp_file(tmp_path: Path, change: dict[str, object], pretrain: bool = False) 
 @pytest.mark.parametrize(
     ("change", "pretrain", "words"),
     [
-        ({"n_envs": 100_000}, False, "n_envs: must be an integer ≥ 1 and ≤ 256"),
-        ({"n_steps": 10**9}, False, "n_steps: must be an integer ≥ 1 and ≤ 16384"),
-        ({"batch_size": 10**7}, False, "batch_size: must be an integer ≥ 2 and ≤ 65536"),
-        ({"n_epochs": 10**6}, False, "n_epochs: must be an integer ≥ 1 and ≤ 100"),
-        ({"net_arch": [10**6]}, False, "net_arch.0: must be an integer ≥ 1 and ≤ 1024"),
-        ({"net_arch": [64] * 100}, False, "net_arch: must be a list of at most 8 integers"),
-        ({"eval_every": 10**12}, False, "eval_every: must be an integer ≥ 1 and ≤ 1000000000"),
-        ({"eval_episodes": 10**9}, False, "eval_episodes: must be an integer ≥ 1 and ≤ 10000"),
-        ({"steps": 10**12}, True, "pretrain.steps: must be an integer ≥ 1 and ≤ 10000000"),
-        ({"epochs": 10**6}, True, "pretrain.epochs: must be an integer ≥ 1 and ≤ 100"),
+        ({"n_envs": 100_000}, False, "n_envs must be an integer ≥ 1 and ≤ 256"),
+        ({"n_steps": 10**9}, False, "n_steps must be an integer ≥ 1 and ≤ 16384"),
+        ({"batch_size": 10**7}, False, "batch_size must be an integer ≥ 2 and ≤ 65536"),
+        ({"n_epochs": 10**6}, False, "n_epochs must be an integer ≥ 1 and ≤ 100"),
+        ({"net_arch": [10**6]}, False, "net_arch.0 must be an integer ≥ 1 and ≤ 1024"),
+        ({"net_arch": [64] * 100}, False, "net_arch must be a list of at most 8 integers"),
+        ({"eval_every": 10**12}, False, "eval_every must be an integer ≥ 1 and ≤ 1000000000"),
+        ({"eval_episodes": 10**9}, False, "eval_episodes must be an integer ≥ 1 and ≤ 10000"),
+        ({"steps": 10**12}, True, "pretrain.steps must be an integer ≥ 1 and ≤ 10000000"),
+        ({"epochs": 10**6}, True, "pretrain.epochs must be an integer ≥ 1 and ≤ 100"),
     ],
 )
 def test_hyperparameters_of_absurd_size_are_refused(tmp_path, change, pretrain, words):

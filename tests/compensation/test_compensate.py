@@ -151,3 +151,26 @@ def test_output_folder_cannot_overwrite_the_input(tmp_path, capsys):
     assert main(["compensate", str(path), "--method", "lsq", "--out", str(tmp_path)]) == 2
     assert "is the input file" in capsys.readouterr().err
     assert _sha(path) == before
+
+
+@pytest.mark.parametrize(
+    ("suffix", "method"),
+    [("h5", "vbakf"), ("csv", "vbakf-pr"), ("xyz", "imm"), ("mat", "vbakf")],
+)
+def test_the_new_filters_run_from_every_file_format_as_from_the_library(
+    tmp_path, capsys, suffix, method
+):
+    """``aeromag compensate FILE --method M`` on a flight written as HDF5, CSV, Geosoft XYZ or
+    MATLAB: its report's metrics are those :func:`aeromag_env.compensate` returns for the same
+    file (one door)."""
+    import aeromag_env
+
+    path = write_flight(simulated("nominal", 3), tmp_path / f"flight.{suffix}")
+    out = tmp_path / "out"
+    assert main(["compensate", str(path), "--method", method, "--out", str(out)]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["method"] == method and method.replace("-", "_") in report["settings"]
+    library = aeromag_env.compensate(path, method=method)
+    for key in ("compensation_rmse_nt", "divergences", "outliers_rejected", "fom_nt"):
+        assert report["metrics"][key] == library.metrics[key], key
+    assert report["metrics"]["compensation_rmse_nt"] < 2.0  # 212 nT RMS of interference

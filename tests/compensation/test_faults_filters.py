@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import aeromag_env  # noqa: F401  (registers the environment)
-from aeromag_env.cli.compensate import summary_line
+from aeromag_env.cli.summaries import compensate_line
 from aeromag_env.compensation.compensate import compensate_vector, earth_model, score
 from aeromag_env.compensation.kalman import FilterState, run_filter
 from aeromag_env.compensation.kalman_batch import BatchFilterState
@@ -34,7 +34,7 @@ from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
 from aeromag_env.errors import AeromagError, ConfigError
 from aeromag_env.flight.data import Flight
 from tests._flights import simulated
-from tests._helpers import assert_one_line_error
+from tests._helpers import assert_one_line_error, observations
 
 #: A 600-s nominal flight (6000 samples at 10 Hz) and where the faults go: the spike at its
 #: middle, the burst and the step from there on.
@@ -157,6 +157,46 @@ def test_ding_under_large_noise_stays_at_the_noise_level_unflagged(inputs):
     assert res.divergences == 0 and _rmse_second_half(res, inputs[3]) < BURST_RMS_NT
 
 
+@pytest.mark.parametrize("method", ["vbakf", "vbakf-pr", "imm"])
+def test_an_absurd_sample_restarts_the_variational_filters_and_the_bank(inputs, method):
+    """A sample of 1e300 nT passes the gate (its square overflows) and throws the state out:
+    one divergence, restarted from the last good state with R's prior (``vbakf``,
+    ``vbakf-pr``: R̂ back at R(0)) or every model there, equally probable (``imm``: its
+    weighted R the mean of the bank's R scales); nothing non-finite is written, and the second
+    half is as clean as without the sample."""
+    y = inputs[0].copy()
+    y[700] = 1e300
+    clean = _rmse_second_half(_run(method, inputs[0], inputs), inputs[3])
+    res = _run(method, y, inputs)
+    assert (res.divergences, res.outliers_rejected) == (1, 0)
+    _assert_finite(res)
+    restarted = FilterConfig().imm.scales()[:, 1].mean() if method == "imm" else 1.0
+    assert res.r_scale[700] == pytest.approx(restarted, rel=1e-12)
+    assert _rmse_second_half(res, inputs[3]) < clean + SLACK_NT
+
+
+@pytest.mark.parametrize("method", ["fakf", "sage-husa", "vbakf", "vbakf-pr"])
+def test_a_confident_wrong_prior_makes_an_adaptive_filter_fall_back(inputs, method):
+    """x(0) 5000 nT off on every T_p axis with a prior std of 1 nT: the estimate sits 5000 nT
+    from data of ~300 nT, so at the end of the first lap an adaptive filter has run away (its
+    innovations carry more than RUNAWAY_POWER times the data's power): one divergence, and it
+    goes on as the plain KF with Q(0), R(0) (the variational filters' R̂ no longer moves). The
+    plain KF is never checked (its Q and R do not move); both end within 3 nT of the truth
+    (measured 2.2 nT on the last sample)."""
+    from aeromag_env.compensation.kernel_layout import INTS
+
+    cfg = FilterConfig(method=method, x0=(5000.0,) * 3 + (0.0,) * 18, p0_std=(1.0, 5e-3, 1e-3))
+    state = FilterState(cfg, *inputs[:3])
+    state.advance(state.n)
+    res = state.result()
+    assert (res.divergences, res.outliers_rejected, int(state.ints[INTS.fell_back])) == (1, 0, 1)
+    assert np.all(res.r_scale[-100:] == 1.0) and np.all(res.q_scale[-100:] == 1.0)
+    plain = run_filter(replace(cfg, method="kf"), *inputs[:3])
+    assert plain.divergences == 0
+    for r in (res, plain):
+        assert np.abs(r.interference[-1] - inputs[3][-1]).max() < 3.0
+
+
 @pytest.mark.parametrize("method", ["fakf", "sage-husa"])
 def test_the_reference_falls_back_alike(inputs, method):
     """The numpy reference on a 2000-sample slice under the same noise: the same runaway, then
@@ -169,7 +209,7 @@ def test_the_reference_falls_back_alike(inputs, method):
     np.testing.assert_allclose(fast.interference, ref.interference, rtol=1e-7, atol=1e-5)
 
 
-@pytest.mark.parametrize("method", ["kf", "fakf", "sage-husa"])
+@pytest.mark.parametrize("method", ["kf", "fakf", "sage-husa", "vbakf", "vbakf-pr", "imm"])
 def test_the_numpy_reference_applies_the_same_checks(inputs, method):
     """Spike, then a step beyond the noise, on a 2000-sample slice: same counters, same
     estimates to round-off (relative 1e-7: the states differ in the last bits from the first
@@ -199,7 +239,7 @@ def test_compensate_reports_the_rejected_samples(flight):
     assert metrics["outliers_rejected"] == BURST_SAMPLES and metrics["divergences"] == 0
     assert metrics["compensation_rmse_nt"] < 2.0  # clean 1.65 nT; 237 nT before
     report = {"method": "fakf", "metrics": metrics, "input_problems": []}
-    line = summary_line(report, Path("out"))
+    line = compensate_line(report, Path("out"))
     assert f"{BURST_SAMPLES} samples rejected by the filter's outlier gate" in line
     assert score(flight, compensate_vector(flight, "fakf"))["outliers_rejected"] == 0
 
@@ -239,10 +279,8 @@ def test_hostile_actions_on_clean_flights_are_never_rejected():
     made one lap's innovations tiny; the window's own innovations now count too."""
     config = {
         "scenario": "misspecified",
-        "extras": True,
-        "split_q": True,
-        "s_max": 1e3,
-        "scale_limit": 1e100,
+        "observations": observations("log_qp_scale"),
+        "action": {"permanent": "graded", "s_max": 1e3, "scale_limit": 1e100},
         "duration_s": 60.0,
     }
     vec = AeroMagCompensationVecEnv(16, **config)

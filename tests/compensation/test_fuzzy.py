@@ -24,7 +24,7 @@ from aeromag_env.compensation.fuzzy import (
     zoomed_scale,
 )
 from aeromag_env.errors import ConfigError
-from tests._helpers import assert_one_line_error
+from tests._helpers import assert_one_line_error, examples
 
 TOLS = [EPSILON_R, ETA_Q]
 
@@ -147,13 +147,13 @@ def test_array_keeps_shape_and_callable_from_njit():
     tol=st.floats(0.01, 0.2),
     rho=st.one_of(st.floats(0.0, 3.0), st.floats(0.0, 1e6), st.floats(0.75, 1.25)),
 )
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 def test_rules_property(tol, rho):
     assert_rules(rho, fis_scale(rho, tol), tol)
 
 
 @given(data=st.data(), tol=st.floats(0.01, 0.2))
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=examples(100), deadline=None)
 def test_rules_property_any_valid_universe(data, tol):
     # the tightest universes validation allows: each output ramp spans >= one grid step
     k_lo = data.draw(st.integers(1, math.floor((1 - tol) / S_STEP - 1e-9) - 1))

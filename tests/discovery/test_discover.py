@@ -23,6 +23,7 @@ from aeromag_env.discovery.noise_model import (
     whiten,
 )
 from aeromag_env.discovery.preparation import prepare
+from aeromag_env.discovery.regressors import stacked_rows
 from aeromag_env.discovery.suite import Case, base_config, build_case, run_case, suite_cases
 from aeromag_env.discovery.whitened_problem import WhitenedProblem
 from aeromag_env.discovery.workflow import discover
@@ -192,12 +193,11 @@ def test_fast_groups_cannot_absorb_slow_sensor_noise_but_the_external_splines_ca
     share = [prob.absorbable_share([0], j, np.full(3, 600.0))[0] for j in range(1, 6)]
     assert max(s.max() for s in share[:4]) < ABSORBABLE_SHARE / 4
     assert share[4].min() > 4 * ABSORBABLE_SHARE
-    # the Gram-matrix bases (for speed) against tall SVDs of the same columns; the problem
-    # keeps them axis-major (3, m, p), so a reshape stacks the axes
+    # the Gram-matrix bases (for speed) against tall SVDs of the same columns, axis-stacked
     m = prob.idx.size
-    q0 = np.linalg.svd(prob.columns[0].reshape(3 * m, -1), full_matrices=False)[0]
+    q0 = np.linalg.svd(stacked_rows(prob.groups[0], prob.idx), full_matrices=False)[0]
     for j, got in zip(range(1, 6), share, strict=True):
-        x = prob.columns[j].reshape(3 * m, -1)
+        x = stacked_rows(prob.groups[j], prob.idx)
         xp = (x - q0 @ (q0.T @ x)) / np.linalg.norm(x, axis=0)
         u, sv, _ = np.linalg.svd(xp, full_matrices=False)
         u = u[:, sv > 1e-6]

@@ -31,7 +31,7 @@ def test_a_slow_residual_the_candidates_leave_is_a_caveat_on_stderr_and_in_the_r
     path = write_flight(ground, tmp_path / "ground.h5")
     assert main(["discover", str(path), "--out", str(tmp_path / "d")]) == 0
     err = [ln for ln in capsys.readouterr().err.splitlines() if "slow signal" in ln]
-    assert len(err) == 1 and err[0].startswith("aeromag: warning: the residual holds")
+    assert len(err) == 1 and err[0].startswith("aeromag discover: warning: the residual holds")
     assert "external_field_variation" in err[0] and "geology" in err[0]
     report = json.loads((tmp_path / "d" / "report.json").read_text())
     assert report["caveats"] and report["caveats"][0] in err[0]

@@ -14,12 +14,23 @@ from scipy.linalg import lstsq
 
 from aeromag_env.discovery import whitened_problem
 from aeromag_env.discovery.base_model import BaseSpan, base_columns, orthonormal, stack
-from aeromag_env.discovery.noise_model import NoiseModel, whiten
+from aeromag_env.discovery.noise_model import TAIL_TOL, NoiseModel, whiten, whiten_segments
 from aeromag_env.discovery.preparation import prepare
+from aeromag_env.discovery.regressors import (
+    AxisColumns,
+    compact_group,
+    is_compact,
+    one_axis,
+    predict,
+    spline_group,
+    stacked_rows,
+)
+from aeromag_env.discovery.segments import Segments, concat, gram
 from aeromag_env.discovery.suite import base_config
 from aeromag_env.discovery.whitened_problem import WhitenedProblem, least_squares
 from aeromag_env.flight.data import Flight
 from aeromag_env.simulation.effects import EFFECTS
+from aeromag_env.simulation.effects_base import body_columns
 from aeromag_env.simulation.simulate import simulate_flight
 
 
@@ -185,7 +196,7 @@ def test_cached_bases_are_forgotten_when_a_freed_index_is_reused(flight: Flight)
     taus = np.full((1, 3), 600.0)
     prob.add(splines.columns)
     spline_share = prob.absorbable_share([0], 2, taus)
-    prob.columns.pop(), prob.white.pop(), prob.perp.pop(), prob.scale.pop()
+    prob.remove_last()
     j = prob.add(lags[-1].columns)
     assert j == 2
     fresh = WhitenedProblem(data, [base, lags[0].columns, lags[-1].columns])
@@ -198,8 +209,8 @@ def test_cached_bases_are_forgotten_when_a_freed_index_is_reused(flight: Flight)
 
 @pytest.mark.parametrize("wider", [False, True])
 def test_a_replaced_group_is_what_the_next_noise_model_whitens(flight: Flight, wider: bool) -> None:
-    """The groups live in one array that set_noise whitens without a copy: a group replaced by
-    one of the same width, or of another, must be whitened as a fresh problem with it would."""
+    """set_noise whitens the groups into one reused array: a group replaced by one of the same
+    width, or of another, must be whitened as a fresh problem with it would."""
     data = prepare(flight, "flux_a", None)
     ctx = data.ctx
     base = base_columns(ctx.t_b, ctx.tdot_b)
@@ -214,6 +225,172 @@ def test_a_replaced_group_is_what_the_next_noise_model_whitens(flight: Flight, w
     fresh = WhitenedProblem(data, [base, new, lags[1].columns])
     fresh.set_noise(noise)
     for j in range(3):
-        np.testing.assert_array_equal(prob.white[j], fresh.white[j])
-        np.testing.assert_array_equal(prob.perp[j], fresh.perp[j])
+        np.testing.assert_array_equal(prob.white(j), fresh.white(j))
+        if j:
+            np.testing.assert_array_equal(prob.perp[j], fresh.perp[j])
     assert prob.test([0], 1) == fresh.test([0], 1)
+
+
+def _runs(rng: np.random.Generator, m: int, p: int) -> Segments:
+    """Random columns (3m, p), each one run of rows per axis (some axes empty)."""
+    start, length, chunks = np.zeros((p, 3), int), np.zeros((p, 3), int), []
+    for j in range(p):
+        for i in range(3):
+            n = int(rng.integers(0, m // 3)) if rng.random() > 0.2 else 0
+            a = int(rng.integers(0, m - n + 1))
+            start[j, i], length[j, i] = i * m + a, n
+            chunks.append(rng.standard_normal(n))
+    offset = (np.cumsum(length.ravel()) - length.ravel()).reshape(p, 3)
+    return Segments(3 * m, start, length, offset, np.concatenate(chunks))
+
+
+def test_products_of_columns_held_as_runs_equal_the_dense_products() -> None:
+    rng = np.random.default_rng(21)
+    a, b = _runs(rng, 400, 12), _runs(rng, 400, 7)
+    da, db = a.toarray(), b.toarray()
+    d = rng.standard_normal((1200, 5))
+    c = rng.standard_normal((12, 4))
+    # the same sums in another order: rounding, 1e-12 of the products' scale
+    np.testing.assert_allclose(gram(a, b), da.T @ db, rtol=0, atol=1e-12 * np.abs(da.T @ db).max())
+    np.testing.assert_allclose(a.t_dot(d), da.T @ d, rtol=0, atol=1e-12 * np.abs(da.T @ d).max())
+    np.testing.assert_allclose(a.dot(c), da @ c, rtol=0, atol=1e-12 * np.abs(da @ c).max())
+    np.testing.assert_allclose(a.t_dot(d[:, 0]), da.T @ d[:, 0], atol=1e-11)
+    np.testing.assert_allclose(a.squares().sum(axis=1), (da**2).sum(axis=0), rtol=1e-12)
+    by_axis = da.reshape(3, 400, 12).sum(axis=1).T
+    np.testing.assert_allclose(a.sums(), by_axis, atol=1e-11)
+    np.testing.assert_array_equal(a.axis(1).toarray()[400:800], da[400:800])
+    assert not a.axis(1).toarray()[:400].any()
+    np.testing.assert_array_equal(concat([a, b]).toarray(), np.hstack([da, db]))
+
+
+@pytest.fixture(scope="module")
+def spline_flight() -> Flight:
+    return simulate_flight(base_config(1500.0), 14)
+
+
+def test_compact_splines_are_the_effects_columns_bit_for_bit(spline_flight: Flight) -> None:
+    data = prepare(spline_flight, "flux_a", None)
+    dense = EFFECTS["external_field_variation"].groups(data.ctx)[0][0]
+    compact = spline_group(data.ctx)
+    cols = compact.columns
+    assert is_compact(cols) and cols.shape == dense.columns.shape
+    np.testing.assert_array_equal(cols.dense(), dense.columns)  # type: ignore[attr-defined]
+    assert compact.labels == dense.labels
+    b = np.random.default_rng(1).standard_normal(cols.shape[2])
+    assert compact.to_parameters(b) == dense.to_parameters(b)
+    idx = np.flatnonzero(data.calibration)
+    np.testing.assert_array_equal(
+        stacked_rows(cols, idx).toarray(), stacked_rows(dense.columns, idx)
+    )
+    want = np.einsum("kip,p->ki", dense.columns, b)
+    np.testing.assert_allclose(predict(cols, b), want, rtol=0, atol=1e-12 * np.abs(want).max())
+    np.testing.assert_allclose(predict(cols, b, data.held_out), want[data.held_out], atol=1e-9)
+    span = BaseSpan(base_columns(data.ctx.t_b, data.ctx.tdot_b), data.calibration)
+    assert span.identifiable_fraction(cols) == pytest.approx(
+        span.identifiable_fraction(dense.columns), rel=1e-10
+    )
+
+
+@pytest.mark.parametrize("noise", [(1.0, 0.8, 300.0), (0.5, 3.0, 20.0), (1.0, 0.05, 600.0)])
+def test_whitening_runs_keeps_the_dense_kernels_values_and_cuts_only_a_negligible_tail(
+    spline_flight: Flight, noise: tuple[float, float, float]
+) -> None:
+    data = prepare(spline_flight, "flux_a", None)
+    idx = np.flatnonzero(data.calibration)
+    m = idx.size
+    gap = np.r_[np.inf, np.diff(data.ctx.tt[idx])]
+    x = stacked_rows(spline_group(data.ctx).columns, idx)
+    model = NoiseModel(*(np.full(3, v) for v in noise))
+    got = whiten_segments(x, gap, model).toarray()
+    dense = x.toarray()
+    want = np.vstack([whiten(dense[i * m : (i + 1) * m], gap, *noise) for i in range(3)])
+    kept = got != 0
+    np.testing.assert_array_equal(got[kept], want[kept])
+    for i in range(3):  # what is cut: below TAIL_TOL of its column's largest on that axis
+        rows = slice(i * m, (i + 1) * m)
+        biggest = np.abs(want[rows]).max(axis=0)
+        cut = np.where(kept[rows], 0.0, np.abs(want[rows]))
+        assert (cut <= TAIL_TOL * biggest).all()
+
+
+def test_a_problem_with_compact_splines_tests_and_fits_as_with_dense_ones(
+    spline_flight: Flight,
+) -> None:
+    """The compact splines' test, fit and absorbable share (through Gram matrices and runs) and
+    the tests of other groups against them once chosen equal the dense forms' to rounding."""
+    data = prepare(spline_flight, "flux_a", None)
+    ctx = data.ctx
+    base = base_columns(ctx.t_b, ctx.tdot_b)
+    others = [g.columns for g in (*EFFECTS["eddy_time_constant"].groups(ctx)[0][:2],)]
+    dense = EFFECTS["external_field_variation"].groups(ctx)[0][0].columns
+    compact = spline_group(ctx).columns
+    noise = NoiseModel(np.ones(3), np.full(3, 1.5), np.full(3, 200.0))
+    probs = [WhitenedProblem(data, [base, s, *others]) for s in (dense, compact)]
+    for prob in probs:
+        prob.set_noise(noise)
+    for chosen, j in [([0], 1), ([0], 2), ([0, 1], 2), ([0, 1], 3), ([0, 2], 1)]:
+        want, got = probs[0].test(chosen, j), probs[1].test(chosen, j)
+        assert want is not None and got is not None
+        assert got["dof"] == want["dof"] and got["resid_dof"] == want["resid_dof"]
+        # both take ΔRSS from the eigenvalues of the candidate's Gram matrix off the span, whose
+        # rounding is eps · cond² of it (3.5e8 for these splines: the dense form itself moves by
+        # 2.5e-9 when its rows are reversed); the rest is plain rounding
+        g = probs[0]._span(chosen).remove(probs[0].perp[j])  # type: ignore[arg-type]
+        lam = np.linalg.eigvalsh(g.T @ g)
+        cond2 = lam[-1] / lam[lam > (1e-6 * probs[0].scale[j]) ** 2][0]
+        assert got["drss"] == pytest.approx(want["drss"], rel=1e-15 * cond2 + 1e-12)
+        assert got["rss0"] == pytest.approx(want["rss0"], rel=1e-12)
+    for chosen in ([0, 1], [0, 1, 2]):
+        (b0, c0), (b1, c1) = probs[0].fit(chosen), probs[1].fit(chosen)
+        se = np.sqrt(np.diag(c0))
+        np.testing.assert_allclose(b1, b0, rtol=0, atol=1e-8 * se.max())  # refined: rounding
+        # (xᵀx)⁻¹ from the normal equations, unrefined: eps · cond² of the unit-column design
+        # (about 1e9 with the splines: the dense form moves by 1e-7 on reordered rows)
+        np.testing.assert_allclose(np.sqrt(np.diag(c1)), se, rtol=1e-5)
+        np.testing.assert_allclose(
+            probs[1].residual(chosen, b1), probs[0].residual(chosen, b0), atol=1e-9
+        )
+        r0, r1 = probs[0].whitened_residual(chosen), probs[1].whitened_residual(chosen)
+        np.testing.assert_allclose(r1, r0, atol=1e-9 * np.abs(r0).max())
+    taus = np.array([[200.0] * 3, [30.0] * 3])
+    for chosen, j in [([0], 1), ([0, 1], 2)]:
+        # both bases come from a Gram matrix (eigenvalues down to 1e-12 of the largest kept):
+        # orthonormal to eps · cond², about 1e-7 here; the shares are compared with 0.05
+        np.testing.assert_allclose(
+            probs[1].absorbable_share(chosen, j, taus),
+            probs[0].absorbable_share(chosen, j, taus),
+            rtol=1e-6,
+        )
+    gls0, gls1 = (p.gls([0, 1], noise) for p in probs)
+    np.testing.assert_allclose(gls1, gls0, rtol=1e-8, atol=1e-12)
+
+
+def test_one_axis_groups_are_held_by_axis_and_whiten_as_the_dense_ones(flight: Flight) -> None:
+    """The eddy groups (B_e rows) and the currents (``w(t) e_i``) are one-axis: held as values by
+    axis, they are the dense columns bit for bit, whiten to the same bits and predict the same
+    field; a group with a column on two axes (the lag) stays dense."""
+    data = prepare(flight, "flux_a", None)
+    ctx = data.ctx
+    eddy = EFFECTS["eddy_time_constant"].groups(ctx)[0][3]
+    volts = np.linspace(27.5, 28.5, ctx.n)
+    current = body_columns(volts[:, None])
+    lag = EFFECTS["sensor_lag"].groups(ctx)[0][0]
+    assert one_axis(lag.columns) is None
+    compact = compact_group(eddy)
+    assert isinstance(compact.columns, AxisColumns) and compact.profile == eddy.profile
+    assert isinstance(compact.rebuild(0.3).columns, AxisColumns)  # type: ignore[misc]
+    base = base_columns(ctx.t_b, ctx.tdot_b)
+    noise = NoiseModel(np.ones(3), np.full(3, 1.5), np.full(3, 200.0))
+    for dense in (eddy.columns, current):
+        cols = one_axis(dense)
+        assert cols is not None
+        np.testing.assert_array_equal(cols.dense(), dense)
+        b = np.random.default_rng(5).standard_normal(dense.shape[2])
+        want = np.einsum("kip,p->ki", dense, b)
+        np.testing.assert_allclose(cols.predict(b), want, rtol=0, atol=1e-12 * np.abs(want).max())
+        probs = [WhitenedProblem(data, [base, c]) for c in (dense, cols)]
+        for prob in probs:
+            prob.set_noise(noise)
+        np.testing.assert_array_equal(probs[1].white(1), probs[0].white(1))
+        np.testing.assert_array_equal(probs[1].perp[1], probs[0].perp[1])
+        assert probs[1].test([0], 1) == probs[0].test([0], 1)

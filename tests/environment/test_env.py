@@ -23,6 +23,10 @@ from aeromag_env.environment.spaces import (
 )
 from aeromag_env.errors import ConfigError
 from aeromag_env.simulation.interference import INDUCED_START, STATE_SLICES
+from tests._helpers import observations
+
+#: Absolute actions with a T_p action (graded): the general policy's mapping.
+GRADED = {"mode": "absolute", "permanent": "graded"}
 
 TP = STATE_SLICES["permanent"]
 
@@ -31,12 +35,20 @@ def _make(**kw):
     return gym.make("AeroMagCompensation-v0", **kw)
 
 
-@pytest.mark.parametrize("extras, split_q", [(False, False), (True, False), (True, True)])
-def test_gymnasium_and_sb3_checkers_pass_without_warnings(extras, split_q):
+@pytest.mark.parametrize(
+    "settings",
+    [
+        {},
+        {"observations": observations()},
+        {"observations": observations("log_qp_scale"), "action": {"permanent": "graded"}},
+        {"preset": "general"},
+    ],
+)
+def test_gymnasium_and_sb3_checkers_pass_without_warnings(settings):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # any warning fails the test
-        gym_check_env(_make(extras=extras, split_q=split_q).unwrapped)
-        sb3_check_env(_make(extras=extras, split_q=split_q).unwrapped)
+        gym_check_env(_make(**settings).unwrapped)
+        sb3_check_env(_make(**settings).unwrapped)
 
 
 def _rollout(env, seed, actions):
@@ -60,7 +72,12 @@ def test_same_seed_same_actions_identical():
 
 
 def test_config_round_trips_through_gym_make_as_a_dict():
-    cfg = env_config(scenario="misspecified", decision_window=20, extras=True, s_max=3.0)
+    cfg = env_config(
+        scenario="misspecified",
+        decision_window=20,
+        observations=observations(),
+        action={"s_max": 3.0},
+    )
     env = _make(config=json.loads(json.dumps(to_dict(cfg))))
     assert env.unwrapped.config == cfg
     assert env.observation_space.shape == (7,)
@@ -87,15 +104,15 @@ FORMULAS = {"linear": lambda e: -e / 4.0, "squared": lambda e: -((e / 4.0) ** 2)
 def test_reward_forms_are_the_documented_formulas_over_the_same_windows(form, formula):
     runs = {}
     for f in ("log", form):
-        env = _make(config={"scenario": "nominal", "reward_form": f, "reward_scale_nt": 4.0})
+        env = _make(config={"scenario": "nominal", "reward": {"form": f, "scale_nt": 4.0}})
         env.reset(seed=100_001)
         runs[f] = [env.step(np.zeros(2, np.float32))[1::3] for _ in range(30)]
     for (r_log, info_log), (r, info) in zip(runs["log"], runs[form], strict=True):
         assert info["rmse_window_nt"] == info_log["rmse_window_nt"]  # the form changes no flight
         assert r_log == pytest.approx(-math.log1p(info["rmse_window_nt"] / 4.0))
         assert r == pytest.approx(formula(info["rmse_window_nt"]))
-    with pytest.raises(ConfigError, match=r"reward_form\): one of log, linear, squared"):
-        _make(config={"reward_form": "cubic"})
+    with pytest.raises(ConfigError, match=r"reward\.form.*one of log, linear, squared"):
+        _make(config={"reward": {"form": "cubic"}})
 
 
 def test_actions_are_clipped_and_nan_rejected():
@@ -110,7 +127,7 @@ def test_actions_are_clipped_and_nan_rejected():
 
 
 def test_scale_limit_holds():
-    env = _make(scale_limit=16.0)
+    env = _make(action={"scale_limit": 16.0})
     env.reset(seed=100_000)
     for _ in range(10):
         _, _, _, _, info = env.step(np.ones(2, np.float32))
@@ -253,10 +270,14 @@ def test_dense_training_variant_adds_steps_to_the_same_flight():
     assert "nonstationary_dense" not in SCENARIOS  # trained on, never tabled
 
 
-def test_split_q_scales_the_permanent_block_on_its_own():
+def test_a_graded_tp_action_scales_the_permanent_block_on_its_own():
     """Equal a_q and a_qp is the unsplit environment bitwise; a_qp moves only T_p's Q."""
-    kw = {"scenario": "nonstationary", "extras": True, "action_mode": "absolute"}
-    split, plain = _make(split_q=True, **kw), _make(**kw)
+    split = _make(
+        scenario="nonstationary", observations=observations("log_qp_scale"), action=GRADED
+    )
+    plain = _make(
+        scenario="nonstationary", observations=observations(), action={"mode": "absolute"}
+    )
     assert split.action_space.shape == (3,) and split.observation_space.shape == (8,)
     rng = np.random.default_rng(1)
     actions = rng.uniform(-1, 1, (40, 2)).astype(np.float32)
@@ -281,18 +302,11 @@ def test_split_q_scales_the_permanent_block_on_its_own():
         split.step(np.zeros(2, np.float32))
 
 
-def test_qp_gate_sets_the_permanent_q_to_either_end_of_its_range():
-    """With ``qp_gate`` the sign of a_qp alone picks T_p's Q: the range's top (10^10 here) or
-    its bottom (10^-2); a_q and a_r act as without the gate."""
-    kw = {
-        "scenario": "nonstationary",
-        "extras": True,
-        "action_mode": "absolute",
-        "split_q": True,
-        "absolute_qp_log10": (-2.0, 10.0),
-        "scale_limit": 1e10,
-    }
-    env = _make(qp_gate=True, **kw)
+def test_a_gated_tp_action_sets_the_permanent_q_to_either_end_of_its_range():
+    """With a gated T_p action the sign of a_qp alone picks T_p's Q: the range's top (10^10
+    here) or its bottom (10^-2); a_q and a_r act as without the gate."""
+    gate = {**GRADED, "permanent": "gate", "qp_log10": (-2.0, 10.0), "scale_limit": 1e10}
+    env = _make(scenario="nonstationary", observations=observations("log_qp_scale"), action=gate)
     env.reset(seed=100_000)
     q0 = env.unwrapped.filter.qd.copy()
     for a_qp, log_scale in [(0.01, 10.0), (-0.01, -2.0), (0.9, 10.0), (0.0, -2.0)]:
@@ -301,12 +315,13 @@ def test_qp_gate_sets_the_permanent_q_to_either_end_of_its_range():
         np.testing.assert_allclose(qd[TP] / q0[TP], 10.0**log_scale, rtol=1e-9)
         np.testing.assert_allclose(qd[INDUCED_START:] / q0[INDUCED_START:], 1.0, rtol=1e-9)
         assert info["q_permanent_scale"] == pytest.approx(10.0**log_scale, rel=1e-9)
-    with pytest.raises(ConfigError, match="qp_gate needs split_q"):
-        _make(qp_gate=True, extras=True, action_mode="absolute")
+    with pytest.raises(ConfigError, match=r"'gate' .*needs action\.mode='absolute'"):
+        _make(action={"permanent": "gate"})
 
 
 def test_innovation_power_observations_follow_their_definition():
-    env = _make(scenario="nonstationary", extras=True, innovation_power=True)
+    powers = ("log_innovation_power", "log_mean_innovation_power")
+    env = _make(scenario="nonstationary", observations=observations(*powers))
     assert env.observation_space.shape == (9,)
     env.reset(seed=100_003)
     f = env.unwrapped.filter
@@ -323,8 +338,6 @@ def test_innovation_power_observations_follow_their_definition():
     assert obs[column("log_mean_innovation_power")] == pytest.approx(
         np.log10(mean_power / tr_r0), rel=1e-5
     )
-    with pytest.raises(ConfigError, match="innovation_power needs extras"):
-        _make(innovation_power=True)
 
 
 def _flown_window(env, steps: int = 60):
@@ -344,7 +357,8 @@ def test_step_statistic_follows_its_definition_and_flags_a_step():
     from aeromag_env.compensation.kernel_layout import INTS
     from aeromag_env.environment.statistics import step_statistic
 
-    env = _make(scenario="nonstationary", extras=True, step_statistic=True, split_q=True)
+    layout = observations("log_qp_scale", "log_step_statistic")
+    env = _make(scenario="nonstationary", observations=layout, action=GRADED)
     assert env.observation_space.shape == (9,)
     obs, r = _flown_window(env)
     recent, before = r[-10:], r[:-10]
@@ -365,16 +379,14 @@ def test_step_statistic_follows_its_definition_and_flags_a_step():
     order = [(17 - 1 - j) % m for j in range(k)]  # the last k updates in the circular buffer
     buf[order] += 5.0
     assert step_statistic(k, ints, buf) > 100.0
-    with pytest.raises(ConfigError, match="step_statistic needs extras"):
-        _make(step_statistic=True)
 
 
 def test_turn_rate_follows_its_definition_and_the_manoeuvres():
     """The turn-rate observation is log10 of the RMS of |Ṫ|/|T| over the last decision window;
     on ``manoeuvre_heavy``, whose flex noise std is proportional to the INS angular rate, it
     follows that noise (log std against it: correlation 0.91 in the same window, 0.77 in the
-    next one, which the action sets R for, on this flight), and it needs extras."""
-    env = _make(scenario="manoeuvre_heavy", extras=True, turn_rate=True)
+    next one, which the action sets R for, on this flight)."""
+    env = _make(scenario="manoeuvre_heavy", observations=observations("log_turn_rate"))
     env.reset(seed=100_005)
     f, k_window = env.unwrapped.filter, env.unwrapped.config.decision_window
     column = observation_index(env.unwrapped.config, "log_turn_rate")
@@ -391,8 +403,6 @@ def test_turn_rate_follows_its_definition_and_the_manoeuvres():
         coming.append(0.5 * np.log10(np.mean(noise_var[k1 : k1 + k_window])))
     assert np.corrcoef(seen, noise)[0, 1] > 0.85
     assert np.corrcoef(seen, coming)[0, 1] > 0.6
-    with pytest.raises(ConfigError, match="turn_rate needs extras"):
-        _make(turn_rate=True)
 
 
 def test_innovation_bias_follows_its_definition_and_holds_a_missed_step():
@@ -403,7 +413,7 @@ def test_innovation_bias_follows_its_definition_and_holds_a_missed_step():
     from aeromag_env.compensation.kernel_layout import INTS
     from aeromag_env.environment.statistics import innovation_bias, step_statistic
 
-    env = _make(scenario="nonstationary", extras=True, innovation_bias=True)
+    env = _make(scenario="nonstationary", observations=observations("log_innovation_bias"))
     obs, r = _flown_window(env)
     expect = len(r) * np.sum(r.mean(0) ** 2) / np.sum(r.var(0, ddof=1))
     column = observation_index(env.unwrapped.config, "log_innovation_bias")
@@ -421,8 +431,6 @@ def test_innovation_bias_follows_its_definition_and_holds_a_missed_step():
     assert step_statistic(10, ints, held) < 10.0
     ints[INTS.updates] = 2
     assert np.isnan(innovation_bias(ints, held))
-    with pytest.raises(ConfigError, match="innovation_bias needs extras"):
-        _make(innovation_bias=True)
 
 
 def test_recent_samples_sets_the_window_of_the_recent_statistics():
@@ -431,9 +439,8 @@ def test_recent_samples_sets_the_window_of_the_recent_statistics():
     statistic is the formula over the last 10 innovations; a bad value is a config error."""
     env = _make(
         scenario="nonstationary",
-        extras=True,
-        step_statistic=True,
-        split_q=True,
+        observations=observations("log_qp_scale", "log_step_statistic"),
+        action=GRADED,
         decision_window=5,
         recent_samples=10,
     )
@@ -473,35 +480,29 @@ def test_whiteness_without_gaps_is_bitwise_the_general_loop_and_is_the_lag1_corr
 
 
 def test_spaces_lay_out_the_observations_and_actions_as_documented():
-    """The layouts the environment's docstring states: two observations, seven with extras, then
-    T_p's Q scale (split_q), the two innovation powers and the change statistic, in that
-    order; whiteness in [-1, 1], progress in [0, 1], the rest in ±8; a third action with
-    split_q. The compiled step writes each observation where observation_positions says."""
+    """The layouts the environment's docstring states: the paper's two observations first, then
+    those chosen, in their order; whiteness in [-1, 1], progress in [0, 1], the rest in ±8; a
+    third action with a T_p action. The compiled step writes each observation where
+    observation_positions says."""
     paper = EnvConfig()
     assert observation_names(paper) == ("log_ror", "log_qoq")
     assert action_names(paper) == ("a_q", "a_r")
-    full = env_config(
-        extras=True,
-        split_q=True,
-        innovation_power=True,
-        step_statistic=True,
-        turn_rate=True,
-        innovation_bias=True,
-    )
+    full = env_config(observations=NAMES, action={"permanent": "graded"})
     assert observation_names(full) == NAMES and len(NAMES) == 13
     assert action_names(full) == ("a_q", "a_r", "a_qp")
-    detector = env_config(extras=True, split_q=True, innovation_power=True)
+    powers = ("log_innovation_power", "log_mean_innovation_power")
+    detector = env_config(observations=observations("log_qp_scale", *powers), action=GRADED)
     assert observation_index(detector, "log_mean_innovation_power") == 9
-    assert (
-        observation_index(env_config(extras=True, step_statistic=True), "log_step_statistic") == 7
-    )
+    step = env_config(observations=observations("log_step_statistic"))
+    assert observation_index(step, "log_step_statistic") == 7
     with pytest.raises(ValueError, match="not in this layout"):
         observation_index(paper, "whiteness")
     positions = observation_positions(detector)
     assert positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, -1, -1, -1]
-    low, high = observation_bounds(env_config(extras=True))
+    low, high = observation_bounds(env_config(observations=observations()))
     np.testing.assert_array_equal(low, np.float32([-8, -8, -8, -8, -1, 0, -8]))
     np.testing.assert_array_equal(high, np.float32([8, 8, 8, 8, 1, 1, 8]))
-    assert observation_index(env_config(extras=True, turn_rate=True), "log_turn_rate") == 7
+    turn = env_config(observations=observations("log_turn_rate"))
+    assert observation_index(turn, "log_turn_rate") == 7
     env = _make(config=full)
     assert env.observation_space.shape == (13,) and env.action_space.shape == (3,)

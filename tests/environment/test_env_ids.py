@@ -8,14 +8,18 @@ vector environment over single environments, and SB3's ``make_vec_env``.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
 import aeromag_env
+from aeromag_env.environment.config import PRESETS
 from aeromag_env.environment.ids import SCENARIOS, TRAINING_SCENARIOS, env_id
 from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
+from tests._helpers import observations
 from tests.environment.test_vec_env import _assert_identical
 
 #: Totals the final info of an episode carries (the single env's and the vector env's).
@@ -117,7 +121,7 @@ def test_stable_baselines3_makes_it_by_id():
         "AeroMag/Nonstationary-v0",
         n_envs=2,
         seed=100_000,
-        env_kwargs={"duration_s": 20.0, "extras": True},
+        env_kwargs={"duration_s": 20.0, "observations": observations()},
     )
     obs = vec.reset()
     assert obs.shape == (2, 7)
@@ -129,7 +133,7 @@ def test_the_shipped_policy_makes_its_own_environment():
     """The kwargs travel with the policy: ``make_env`` builds the id of its training scenario
     with its env_kwargs, and a whole (short) episode runs; the bare id is refused with the way
     out in the message, not a broadcast error."""
-    from agents.numpy_policy import NumpyPPOPolicy
+    from agents.policies.numpy_policy import NumpyPPOPolicy
     from tests._helpers import SHIPPED
 
     policy = NumpyPPOPolicy.load(SHIPPED["policy"])
@@ -154,10 +158,11 @@ def test_a_scenario_given_twice_is_refused_in_one_line():
         with pytest.raises(ConfigError, match="scenario given twice: 'nonstationary' by the id"):
             gym.make("AeroMag/Nonstationary-v0", config=config)
     agree = gym.make(
-        "AeroMag/Nonstationary-v0", config={"scenario": "nonstationary", "extras": True}
+        "AeroMag/Nonstationary-v0", config={"scenario": "nonstationary", "preset": "general"}
     )
-    assert agree.unwrapped.config.extras
-    assert gym.make("AeroMag/Nonstationary-v0", config={"extras": True}).unwrapped.config.extras
+    assert agree.unwrapped.config == replace(PRESETS["general"], scenario="nonstationary")
+    named = gym.make("AeroMag/Nonstationary-v0", config={"preset": "general"})
+    assert named.unwrapped.config == agree.unwrapped.config
     assert gym.make("AeroMagCompensation-v0", config={"scenario": "paper"}).unwrapped.scenario == (
         "paper"
     )

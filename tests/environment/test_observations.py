@@ -27,11 +27,11 @@ from aeromag_env.environment.layout import N_RUN, OUT, RUN, STEP_PAR, Run
 from aeromag_env.environment.observations import NAMES, REGISTRY, entry, observation_id
 from aeromag_env.environment.spaces import observation_names
 from aeromag_env.errors import ConfigError
-from agents import SHIPPED
-from agents.numpy_policy import NumpyPPOPolicy
+from agents.policies import SHIPPED
+from agents.policies.numpy_policy import NumpyPPOPolicy
 
 ENVIRONMENT = Path(observe.__file__).parent
-HYPERPARAMS = Path(__file__).parents[2] / "agents" / "hyperparams" / "ppo.json"
+HYPERPARAMS = Path(__file__).parents[2] / "agents" / "training" / "hyperparams" / "ppo.json"
 
 
 def _subscript_writes(tree: ast.AST, name: str) -> list[int]:
@@ -125,14 +125,16 @@ def test_every_registered_id_and_every_shipped_policy_names_a_preset():
         assert dataclasses.replace(config, scenario="nominal") == PRESETS[preset]
 
 
-def test_the_training_files_flat_settings_are_the_shipped_presets():
-    """The hyperparameter file's env_kwargs (the first version's flat keys) load as the presets
-    the shipped policies name: old settings still load, and to the same configuration."""
+def test_the_training_file_names_the_shipped_policies_presets():
+    """The hyperparameter file's env_kwargs name the presets the shipped policies name (their
+    first version's flat keys, which the policies' training.json keep, are read as the same
+    presets: tests/environment/test_legacy.py)."""
     scenarios = json.loads(HYPERPARAMS.read_text())["scenarios"]
     for scenario, policy in (("nonstationary", "ppo"), ("suite", "general")):
-        flat = scenarios[scenario]["env_kwargs"]
         preset = NumpyPPOPolicy.load(SHIPPED[policy]).env_kwargs["preset"]
-        assert from_dict(EnvConfig, flat) == PRESETS[preset] == env_config(**flat)
+        settings = scenarios[scenario]["env_kwargs"]
+        assert settings == {"preset": preset}
+        assert from_dict(EnvConfig, settings) == PRESETS[preset] == env_config(**settings)
 
 
 @pytest.mark.parametrize("name", list(PRESETS))

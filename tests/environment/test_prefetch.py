@@ -2,6 +2,7 @@ import numpy as np
 
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
 from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
+from tests._helpers import observations
 
 
 def _same(a, b):
@@ -16,7 +17,7 @@ def _same(a, b):
 
 def test_prefetched_flights_are_the_flights_a_reset_simulates():
     """Over three autoresets, and after a reseeding reset that discards a prepared flight."""
-    kw = {"scenario": "misspecified", "duration_s": 10.0, "extras": True}
+    kw = {"scenario": "misspecified", "duration_s": 10.0, "observations": observations()}
     ahead, here = (
         AeroMagCompensationVecEnv(2, prefetch=True, **kw),
         AeroMagCompensationVecEnv(2, **kw),
@@ -55,7 +56,10 @@ def test_a_flight_the_worker_has_delivered_is_taken_from_it(monkeypatch):
     prefetcher = FlightPrefetcher()
     key = FlightKey("nominal", 5, 5.0)
     prefetcher.expect(0, key)
-    prefetcher._pending[0][1].result(timeout=120)  # the worker's answer has come
+    # the worker's answer, however long it takes: the worker runs at a lower priority, and on
+    # two busy cores a time limit here (120 s) ran out by chance; a worker that dies resolves
+    # the future with an error, so the wait cannot outlive it
+    prefetcher._pending[0][1].result()
 
     def no_simulation(key):
         raise AssertionError("simulated here, not taken from the worker")

@@ -1,5 +1,3 @@
-from dataclasses import replace
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -8,14 +6,19 @@ import torch
 import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.environment.sb3 import AeroMagSB3VecEnv
 from aeromag_env.errors import AeromagError
-from agents.ppo import load_hyperparams, make_training_env
+from agents.training.ppo import load_hyperparams, make_training_env
+from tests._helpers import observations
 
-ENV_KWARGS = {"extras": True, "action_mode": "absolute", "duration_s": 25.0}  # 25-step flights
+ENV_KWARGS = {  # 25-step flights
+    "observations": observations(),
+    "action": {"mode": "absolute"},
+    "duration_s": 25.0,
+}
 
 
 def _hp(kind, **kw):
     base = load_hyperparams("nonstationary").with_values(n_envs=3, env_kwargs=ENV_KWARGS)
-    return replace(base, vec_env=kind, **kw)
+    return base.with_values(vec_env=kind, **kw)
 
 
 @pytest.mark.parametrize("step_infos", ["every", "episode_end"])
@@ -89,5 +92,5 @@ def test_seed_then_reset_seeds_each_environment_like_a_single_env():
 
 
 def test_unknown_vectorisation_is_a_one_line_error():
-    with pytest.raises(AeromagError, match="vec_env: must be batched or dummy"):
+    with pytest.raises(AeromagError, match="vec_env must be batched or dummy"):
         make_training_env("nonstationary", _hp("subproc"), seed=0)

@@ -5,7 +5,9 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode
 
 import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.environment.observations import NAMES
 from aeromag_env.environment.vec_env import AeroMagCompensationVecEnv
+from tests._helpers import observations
 
 
 def _assert_identical(a, b, path="result"):
@@ -51,14 +53,12 @@ def _pair(n, mode, **kw):
     ],
 )
 def test_equals_gymnasium_sync_vector_env_of_single_envs(mode, split_q):
-    """Over two autoresets (30-step flights), random actions beyond the clip range; with
-    split_q also every optional observation."""
-    optional = dict.fromkeys(
-        ("innovation_power", "step_statistic", "turn_rate", "innovation_bias"), split_q
-    )
-    ours, sync = _pair(
-        3, mode, scenario="misspecified", extras=True, duration_s=30.0, split_q=split_q, **optional
-    )
+    """Over two autoresets (30-step flights), random actions beyond the clip range; with a T_p
+    action (split_q) also every optional observation."""
+    layout = {"observations": observations()}
+    if split_q:
+        layout = {"observations": NAMES, "action": {"permanent": "graded"}}
+    ours, sync = _pair(3, mode, scenario="misspecified", duration_s=30.0, **layout)
     _assert_identical(ours.reset(seed=100_000), sync.reset(seed=100_000))
     rng = np.random.default_rng(0)
     ends = 0
@@ -72,7 +72,7 @@ def test_equals_gymnasium_sync_vector_env_of_single_envs(mode, split_q):
 
 def test_flights_of_different_lengths_end_on_their_own():
     """A partial reset switches one environment to a longer scenario (12 000 vs 5 272 samples)."""
-    ours, sync = _pair(2, AutoresetMode.NEXT_STEP, scenario="nominal", action_mode="absolute")
+    ours, sync = _pair(2, AutoresetMode.NEXT_STEP, scenario="nominal", action={"mode": "absolute"})
     for env in (ours, sync):
         env.reset(seed=[100_000, 100_001])
     switch = {"scenario": "nonstationary", "reset_mask": np.array([False, True])}
@@ -95,7 +95,7 @@ def test_make_vec_builds_it_and_it_follows_the_vector_api():
         "AeroMagCompensation-v0",
         num_envs=4,
         duration_s=20.0,
-        extras=True,
+        observations=observations(),
         vectorization_mode="vector_entry_point",
     )
     assert isinstance(env, AeroMagCompensationVecEnv) and env.spec.id == "AeroMagCompensation-v0"

@@ -25,10 +25,10 @@ from tests.faults.cases import (
 VALUES = ("nan", "inf", "-inf", "-1", "0", "1e300", "1e-300", "abc", "")
 #: The first step of each heavy command's work: reaching it means a hazard was not refused first.
 WORK = {
-    "demo": "aeromag_env.cli.demo.simulate_flight",
+    "demo": "aeromag_env.jobs.demo.simulate_flight",
     "reproduce-paper": "aeromag_env.compensation.paper.simulate_flight",
-    "bench": "aeromag_env.cli.bench.bench_simulate",
-    "train": "agents.ppo.make_training_env",
+    "bench": "aeromag_env.jobs.bench.bench_simulate",
+    "train": "agents.training.ppo.make_training_env",
 }
 
 # ---------------------------------------------------------------------------------------------

@@ -182,9 +182,9 @@ def test_compensate_falls_back_to_flux_b_and_reports_it(
     assert main(["compensate", str(path), "--method", "lsq", "--out", str(tmp_path / "o")]) == 0
     err = capsys.readouterr().err.splitlines()
     assert err == [
-        "aeromag: warning: fluxgate: using flux_b, not flux_a (flux_a: all non-finite)",
-        "aeromag: warning: altitude channels disagree: alt and utm_z differ by a median 300 m "
-        "(> 100 m); using alt (IGRF changes by ~0.03 nT/m with height)",
+        "aeromag compensate: warning: fluxgate: using flux_b, not flux_a (flux_a: all non-finite)",
+        "aeromag compensate: warning: altitude channels disagree: alt and utm_z differ by a median "
+        "300 m (> 100 m); using alt (IGRF changes by ~0.03 nT/m with height)",
     ]
     report = json.loads((tmp_path / "o" / "report.json").read_text())
     assert report["channels"]["altitude"]["name"] == "alt"

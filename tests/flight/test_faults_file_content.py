@@ -365,7 +365,7 @@ def test_an_applied_mount_says_what_the_truth_rmse_includes(tmp_path, capsys):
     and the line says so, while IR stays that of the aligned file (within 5 %)."""
     from scipy.spatial.transform import Rotation
 
-    from aeromag_env.cli.compensate import MOUNT_RMSE_NOTE
+    from aeromag_env.cli.summaries import MOUNT_RMSE_NOTE
 
     f = simulated("nominal", 3, trajectory__duration_s=600.0)
     turned = {k: v.copy() for k, v in f.fields.items()}

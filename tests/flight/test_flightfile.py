@@ -21,7 +21,7 @@ from aeromag_env.flight import files as flightfile
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.files import load_flight, read_flight, write_flight
 from aeromag_env.flight.validation import FlightFileWarning
-from tests._helpers import assert_one_line_error
+from tests._helpers import assert_one_line_error, examples
 from tests._synthetic_flights import only, turning_flight, with_fields
 
 
@@ -85,7 +85,7 @@ def test_h5_layout_flat_float64_attrs_as_strings(tmp_path: Path) -> None:
         assert json.loads(f.attrs["axes"]) == [1, 2, 3]
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(
     values=hnp.arrays(
         np.float64, st.integers(1, 40), elements=st.floats(allow_nan=True, allow_infinity=True)
@@ -98,7 +98,7 @@ def test_csv_round_trip_arbitrary_floats(values: np.ndarray) -> None:
     assert_bit_identical(flight, back, nan_payload=False)
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=examples(30), deadline=None)
 @given(values=hnp.arrays(np.float64, st.integers(1, 40)))
 def test_h5_round_trip_keeps_every_bit(values: np.ndarray) -> None:
     flight = Flight({"tt": np.arange(values.size, dtype=float), "value": values})
@@ -107,13 +107,47 @@ def test_h5_round_trip_keeps_every_bit(values: np.ndarray) -> None:
     assert_bit_identical(flight, back)
 
 
-def test_h5_write_of_a_long_flight_is_fast(tmp_path: Path) -> None:
+def _long_flight() -> Flight:
+    """An hour at 10 Hz: 36 000 samples of 40 channels."""
     rng = np.random.default_rng(7)
     fields = {"tt": np.arange(36_000) / 10.0}
     fields |= {f"ch_{i}": rng.normal(50_000.0, 300.0, 36_000) for i in range(39)}
-    start = time.perf_counter()
-    write_flight(Flight(fields), tmp_path / "long.h5")
-    elapsed = time.perf_counter() - start
+    return Flight(fields)
+
+
+def test_h5_write_stores_each_field_whole_and_lightly_compressed(tmp_path: Path) -> None:
+    """What keeps writing an hour's flight well under a second, checked on the file rather than
+    by a clock (on two shared cores a time limit passes or fails by chance): one call per
+    field with the whole array, and above 4096 samples gzip at level 1 with shuffle."""
+    written = []
+    create = h5py.Group.create_dataset
+
+    def spy(group: h5py.Group, name: str, **kw: object) -> h5py.Dataset:
+        written.append((name, np.shape(kw["data"])))
+        return create(group, name, **kw)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(h5py.Group, "create_dataset", spy)
+        path = write_flight(_long_flight(), tmp_path / "long.h5")
+        short = write_flight(turning_flight(), tmp_path / "short.h5")
+    assert written[:40] == [(name, (36_000,)) for name in _long_flight().names]
+    with h5py.File(path) as f:
+        layouts = {(d.compression, d.compression_opts, d.shuffle) for d in f.values()}
+    assert layouts == {("gzip", 1, True)}
+    with h5py.File(short) as f:
+        assert {d.compression for d in f.values()} == {None}  # under 4096 samples: plain
+
+
+@pytest.mark.slow
+def test_h5_write_of_a_long_flight_is_fast(tmp_path: Path) -> None:
+    """The process's CPU time, the median of three writes: what other work on the machine
+    takes from the wall clock is not counted."""
+    flight, seconds = _long_flight(), []
+    for k in range(3):
+        start = time.process_time()
+        write_flight(flight, tmp_path / f"long{k}.h5")
+        seconds.append(time.process_time() - start)
+    elapsed = float(np.median(seconds))
     assert elapsed < 1.0, f"writing 36 000 × 40 samples took {elapsed:.2f} s"  # brief: ≪ 1 s
 
 

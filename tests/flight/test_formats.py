@@ -30,6 +30,7 @@ from aeromag_env.flight import aliases
 from aeromag_env.flight.aliases import apply_aliases, canonical_name
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.files import convert_flight, load_flight, write_flight
+from tests._helpers import examples
 from tests._synthetic_flights import turning_flight, with_fields
 from tests.flight.test_flightfile import assert_bit_identical, assert_one_line_error
 
@@ -287,7 +288,7 @@ def test_mat73_written_with_h5py(tmp_path: Path) -> None:
         assert flight.attrs.get("mat_struct") == struct
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=examples(25), deadline=None)
 @given(values=hnp.arrays(np.float64, st.integers(1, 30)))
 def test_mat5_round_trip_keeps_every_bit(values: np.ndarray) -> None:
     flight = Flight({"tt": np.arange(values.size, dtype=float), "value": values}, {"k": [1, 2]})
@@ -297,7 +298,7 @@ def test_mat5_round_trip_keeps_every_bit(values: np.ndarray) -> None:
     assert back.attrs == flight.attrs
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40), deadline=None)
 @given(
     values=hnp.arrays(
         np.float64, st.integers(1, 30), elements=st.floats(allow_nan=True, allow_infinity=True)

@@ -208,7 +208,9 @@ def test_cli_identity_on_a_remounted_fluxgate_warns_with_the_angle(
 ) -> None:
     report = _compensate(box_files[name], tmp_path, "--method", "lsq", "--mount", "identity")
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("aeromag: warning: flux_a: the assumed mount")
+    assert len(err) == 1 and err[0].startswith(
+        "aeromag compensate: warning: flux_a: the assumed mount"
+    )
     found = re.search(r"is ([\d.]+)° from the one the data indicate", err[0])
     assert found is not None  # the true mount's angle from the body axes, within 1° [deg]
     assert float(found.group(1)) == pytest.approx(

@@ -11,12 +11,13 @@ from aeromag_env.geo.frames import (
     nav_to_body,
     time_derivative,
 )
+from tests._helpers import examples
 
 angles = st.tuples(st.floats(-np.pi, np.pi), st.floats(-1.5, 1.5), st.floats(-np.pi, np.pi))
 
 
 @given(st.lists(angles, min_size=1, max_size=20))
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 def test_dcm_matches_scipy_zyx(rpy):
     roll, pitch, yaw = map(np.array, zip(*rpy, strict=True))
     ours = dcm_from_euler(roll, pitch, yaw)

@@ -18,9 +18,8 @@ import numpy as np
 import pytest
 
 import aeromag_env as am
-from aeromag_env.cli.compensate import summary_line
-from aeromag_env.cli.discover import summary_line as discover_line
 from aeromag_env.cli.main import main
+from aeromag_env.cli.summaries import compensate_line, discover_line
 from aeromag_env.errors import AeromagError, AeromagWarning
 from aeromag_env.flight.data import Flight, vector_names
 from aeromag_env.jobs.reports import report_json
@@ -28,7 +27,6 @@ from tests._flights import simulated
 
 #: The fluxgate's turn about the body z axis [deg].
 YAW_DEG = 45.0
-WARNING_PREFIX = "aeromag: warning: "
 
 
 def _rotated(flight: Flight, yaw_deg: float) -> Flight:
@@ -61,8 +59,9 @@ def _cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[str, list[str]
     capsys.readouterr()
     assert main(list(argv)) == 0
     out, err = capsys.readouterr()
-    said = [line.removeprefix(WARNING_PREFIX) for line in err.splitlines()]
-    assert all(line.startswith(WARNING_PREFIX) for line in err.splitlines())
+    prefix = f"aeromag {argv[0]}: warning: "
+    said = [line.removeprefix(prefix) for line in err.splitlines()]
+    assert all(line.startswith(prefix) for line in err.splitlines()), err
     return out, said
 
 
@@ -86,7 +85,7 @@ def test_compensate_cli_and_library_agree(
     cli_report = (cli_out / "report.json").read_text(encoding="utf-8")
     assert (lib_out / "report.json").read_text(encoding="utf-8") == cli_report
     assert report_json(result.report) == cli_report
-    assert printed == summary_line(result.report, cli_out) + "\n"
+    assert printed == compensate_line(result.report, cli_out) + "\n"
     assert cli_said == list(result.warnings) == issued
     assert result.paths == tuple(
         lib_out / n for n in ("compensated.h5", "report.json", "compensation.png", "report.html")

@@ -1,15 +1,19 @@
-"""What every format's reader and writer share: the raw result, attribute values, JSON, scalars."""
+"""What every format's reader and writer share: the raw result, the guard around a library
+reading a file, attribute values, JSON, scalars."""
 
 from __future__ import annotations
 
 import contextlib
 import json
 import os
+from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from aeromag_env.flight.validation import truncated_list
+from aeromag_env.errors import FlightFileError
+from aeromag_env.flight.validation import file_error, truncated_list
 
 #: What a reader returns: fields (float64, file order, the file's names), attributes, notes.
 RawFile = tuple[dict[str, np.ndarray], dict[str, Any], list[str]]
@@ -25,6 +29,39 @@ NUMERIC_KINDS = "iuf"
 BOOLEAN_KIND = "b"
 #: How a reader's note names the boolean arrays it skipped.
 BOOLEAN_ITEMS = "boolean (true/false) item(s), not numbers"
+#: How an HDF5 reader's note names the items h5py lists but cannot open: a link to nothing,
+#: or an object whose header is damaged. A field among them is then missing, by name.
+UNOPENED_ITEMS = "item(s) that cannot be opened (a link to nothing, or damaged)"
+
+
+#: Display names of the formats.
+LABELS = {
+    "hdf5": "HDF5",
+    "mat5": "MAT v5",
+    "mat73": "MAT v7.3",
+    "mat": "MAT",
+    "csv": "CSV",
+    "xyz": "XYZ",
+}
+
+
+@contextlib.contextmanager
+def reading(path: Path, kind: str, errors: tuple[type[BaseException], ...]) -> Iterator[None]:
+    """Where a reader hands the file to a library (h5py, scipy, the text decoder): the
+    exceptions in ``errors``, which that library raises on a damaged file, become the one-line
+    :class:`~aeromag_env.errors.FlightFileError` naming the file, its format ``kind`` (a key of
+    :data:`LABELS`) and the library's reason. Our own errors pass through unchanged."""
+    try:
+        yield
+    except FlightFileError:
+        raise
+    except errors as exc:
+        raise damaged(path, kind, reason(exc)) from None
+
+
+def damaged(path: Path, kind: str, why: str) -> FlightFileError:
+    """``<path>: cannot read as <format>: damaged or unreadable file (<why>)``."""
+    return file_error(path, f"cannot read as {LABELS[kind]}: damaged or unreadable file ({why})")
 
 
 def reason(exc: BaseException) -> str:

@@ -26,10 +26,13 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.flight.data import Flight
-from aeromag_env.flight.formats.common import RawFile, skipped_note, to_json
+from aeromag_env.flight.formats.common import RawFile, reading, reason, skipped_note, to_json
 from aeromag_env.flight.validation import file_error, truncated_list
 
 ATTR_LINE = "#@"
+#: What Python's CSV parser raises on a damaged file: a quote left open swallows the rest of
+#: the file into one cell, longer than the parser's field limit.
+CSV_ERRORS: tuple[type[Exception], ...] = (csv.Error,)
 #: Unreadable cells quoted (line and text) in a column's warning; the rest are counted.
 MAX_CELLS_LISTED = 3
 
@@ -37,14 +40,18 @@ MAX_CELLS_LISTED = 3
 def read_csv(path: Path) -> RawFile:
     """Header row, optional ``#@ {json}`` attribute line, numeric columns."""
     attrs: dict[str, Any] = {}
-    with open(path, encoding="utf-8-sig") as fh:
-        line, header_line = fh.readline(), 1
-        while line.startswith("#"):
-            if line.startswith(ATTR_LINE):
-                attrs = parse_attr_line(path, line[len(ATTR_LINE) :], ATTR_LINE)
-            line, header_line = fh.readline(), header_line + 1
-        body = fh.read()
-    names = [nm.strip() for nm in next(csv.reader([line]))] if line.strip() else []
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            line, header_line = fh.readline(), 1
+            while line.startswith("#"):
+                if line.startswith(ATTR_LINE):
+                    attrs = parse_attr_line(path, line[len(ATTR_LINE) :], ATTR_LINE)
+                line, header_line = fh.readline(), header_line + 1
+            body = fh.read()
+    except UnicodeDecodeError as exc:
+        raise file_error(path, f"cannot read as CSV: not UTF-8 text ({reason(exc)})") from None
+    with reading(path, "csv", CSV_ERRORS):
+        names = [nm.strip() for nm in next(csv.reader([line]))] if line.strip() else []
     if not names:
         raise file_error(path, "no header row of column names")
     if len(names) == 1 and ";" in names[0]:
@@ -94,10 +101,11 @@ def _parse_slow(
     numeric column are NaN and reported (:func:`_parse_column`)."""
     reader = csv.reader(io.StringIO(body))
     rows, lines = [], []
-    for row in reader:
-        if row and not row[0].startswith("#"):
-            rows.append(row)
-            lines.append(header_line + reader.line_num)
+    with reading(path, "csv", CSV_ERRORS):
+        for row in reader:
+            if row and not row[0].startswith("#"):
+                rows.append(row)
+                lines.append(header_line + reader.line_num)
     for i, row in enumerate(rows):
         if len(row) != len(names):
             raise file_error(

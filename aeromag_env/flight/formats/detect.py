@@ -17,20 +17,11 @@ from __future__ import annotations
 import codecs
 from pathlib import Path
 
-from aeromag_env.flight.formats.hdf5 import SIGNATURE
+from aeromag_env.flight.formats.hdf5_check import SIGNATURE
 from aeromag_env.flight.formats.mat import MAT5_HEADER, MAT73_HEADER
 from aeromag_env.flight.formats.xyz import RECORD_RE
 from aeromag_env.flight.validation import file_error
 
-#: Display names of the formats.
-LABELS = {
-    "hdf5": "HDF5",
-    "mat5": "MAT v5",
-    "mat73": "MAT v7.3",
-    "mat": "MAT",
-    "csv": "CSV",
-    "xyz": "XYZ",
-}
 #: What each suffix promises (``.mat`` means either MAT version).
 SUFFIXES = {".h5": "hdf5", ".hdf5": "hdf5", ".csv": "csv", ".xyz": "xyz", ".mat": "mat"}
 

@@ -28,41 +28,69 @@ from aeromag_env.flight.formats.common import (
     BOOLEAN_KIND,
     JSON_ATTRS,
     NUMERIC_KINDS,
+    UNOPENED_ITEMS,
     RawFile,
     decode_json_attrs,
     is_vector_shape,
     plain,
+    reading,
     skipped_note,
     split_scalars,
     to_json,
 )
+from aeromag_env.flight.formats.hdf5_check import check_global_heaps
 
-SIGNATURE = b"\x89HDF\r\n\x1a\n"
+#: What h5py raises on a damaged file: it maps HDF5's error classes onto OSError (I/O, a
+#: truncated file, a filter that fails), KeyError (an object not found), ValueError and
+#: TypeError (bad values and datatypes) and RuntimeError for the rest (a broken B-tree, symbol
+#: table, heap or object header); NotImplementedError (a RuntimeError) for a feature it lacks.
+H5PY_ERRORS: tuple[type[Exception], ...] = (OSError, RuntimeError, KeyError, ValueError, TypeError)
 _GZIP: dict[str, Any] = {"compression": "gzip", "compression_opts": 1, "shuffle": True}
 _GZIP_MIN_SAMPLES = 4096  # smaller datasets are stored plain (chunking overhead)
 
 
 def read_h5(path: Path) -> RawFile:
     """Fields, attributes and notes of a flat HDF5 flight file (see the module docstring)."""
+    check_global_heaps(path)  # a collection the library would loop on is refused first
+    with reading(path, "hdf5", H5PY_ERRORS), h5py.File(path, "r") as f:
+        items = [(name, *_read_item(item)) for name, item in f.items()]
+        file_attrs = dict(f.attrs.items())
     vectors: dict[str, np.ndarray] = {}
     shapes: dict[str, tuple[int, ...]] = {}
     attrs: dict[str, Any] = {}
-    skipped: list[str] = []
-    booleans: list[str] = []
-    with h5py.File(path, "r") as f:
-        for name, item in f.items():
-            kind = item.dtype.kind if isinstance(item, h5py.Dataset) else ""
-            if kind and item.ndim == 0 and kind in NUMERIC_KINDS + BOOLEAN_KIND + "SUO":
-                attrs[name] = plain(item[()])
-            elif kind and kind in NUMERIC_KINDS and item.ndim and is_vector_shape(item.shape):
-                vectors[name] = np.asarray(item[()], dtype=np.float64).reshape(-1)
-                shapes[name] = item.shape
-            else:
-                (booleans if kind == BOOLEAN_KIND else skipped).append(name)
-        attrs.update(decode_json_attrs({k: plain(v) for k, v in f.attrs.items()}))
+    passed: dict[str, list[str]] = {"boolean": [], "skipped": [], "unopened": []}
+    for name, role, shape, value in items:
+        if role == "attribute":
+            attrs[name] = plain(value)
+        elif role == "field":
+            vectors[name] = np.asarray(value, dtype=np.float64).reshape(-1)
+            shapes[name] = shape
+        else:
+            passed[role].append(name)
+    attrs.update(decode_json_attrs({k: plain(v) for k, v in file_attrs.items()}))
     fields, scalars = split_scalars(vectors, shapes)
-    notes = skipped_note(booleans, BOOLEAN_ITEMS) + skipped_note(skipped)
+    notes = (
+        skipped_note(passed["unopened"], UNOPENED_ITEMS)
+        + skipped_note(passed["boolean"], BOOLEAN_ITEMS)
+        + skipped_note(passed["skipped"])
+    )
     return fields, {**scalars, **attrs}, notes
+
+
+def _read_item(item: Any) -> tuple[str, tuple[int, ...], Any]:
+    """A root item's role (``field``, ``attribute``, ``boolean``, ``skipped`` or ``unopened``),
+    its shape and, for a field or an attribute, its value, read while the file is open. ``item``
+    is what h5py found under the name: a dataset, a group, or None when it cannot open it."""
+    if item is None:
+        return "unopened", (), None
+    if not isinstance(item, h5py.Dataset):
+        return "skipped", (), None
+    kind, shape = item.dtype.kind, item.shape
+    if item.ndim == 0 and kind in NUMERIC_KINDS + BOOLEAN_KIND + "SUO":
+        return "attribute", shape, item[()]
+    if kind in NUMERIC_KINDS and item.ndim and is_vector_shape(shape):
+        return "field", shape, item[()]
+    return ("boolean" if kind == BOOLEAN_KIND else "skipped"), shape, None
 
 
 def write_h5(flight: Flight, tmp: Path) -> None:

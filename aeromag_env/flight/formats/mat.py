@@ -23,28 +23,54 @@ from __future__ import annotations
 
 import json
 import re
+import struct
 import warnings
+import zlib
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
 import scipy.io
+from scipy.io.matlab import MatReadError
 
 from aeromag_env.flight.data import Flight
 from aeromag_env.flight.formats.common import (
     BOOLEAN_ITEMS,
     BOOLEAN_KIND,
     NUMERIC_KINDS,
+    UNOPENED_ITEMS,
     RawFile,
     is_vector_shape,
     plain,
+    reading,
     skipped_note,
     split_scalars,
     to_json,
 )
+from aeromag_env.flight.formats.hdf5 import H5PY_ERRORS
+from aeromag_env.flight.formats.hdf5_check import check_global_heaps
+from aeromag_env.flight.formats.mat5_check import check_data_types
 
 MAT5_HEADER = b"MATLAB 5.0 MAT-file"
+#: What scipy's v5 reader raises on a damaged file: its own MatReadError, ValueError (a bad
+#: size, tag or text), TypeError (an element of another type than the layout wants), KeyError
+#: and IndexError (a type or class code it has no entry for), EOFError and OSError (data cut
+#: short), struct.error (a header cut short), zlib.error (a damaged compressed variable),
+#: ZeroDivisionError (a struct's field-name length of 0), OverflowError (a size beyond C's).
+SCIPY_MAT_ERRORS: tuple[type[Exception], ...] = (
+    MatReadError,
+    ValueError,
+    TypeError,
+    KeyError,
+    IndexError,
+    EOFError,
+    OSError,
+    struct.error,
+    zlib.error,
+    ZeroDivisionError,
+    OverflowError,
+)
 MAT73_HEADER = b"MATLAB 7.3 MAT-file"
 ATTRS_VARIABLE = "aeromag_attrs"
 STRUCT_ATTR = "mat_struct"
@@ -57,6 +83,7 @@ class _Struct(dict[str, Any]):
 
 def read_mat5(path: Path) -> RawFile:
     """Fields, attributes and notes of a v5/v6/v7 MAT-file (see the module docstring)."""
+    check_data_types(path)  # a type code that would crash scipy's reader is refused first
     items = _load_mat5(path, as_class=False)
     if _has_integers(items):  # a logical loads as the uint8 it is stored as: find it by class
         items = _logicals_as_bool(items, _load_mat5(path, as_class=True))
@@ -67,7 +94,8 @@ def _load_mat5(path: Path, as_class: bool) -> dict[str, Any]:
     """The variables of a v5 MAT-file, structs marked. ``as_class``: each converted to its
     MATLAB class (``mat_dtype``), which tells a logical from a uint8 but casts complex values
     to real: such a load is only asked for its logicals (ComplexWarning silenced)."""
-    with open(path, "rb") as fh, warnings.catch_warnings():
+    reader = reading(path, "mat5", SCIPY_MAT_ERRORS)
+    with reader, open(path, "rb") as fh, warnings.catch_warnings():
         warnings.simplefilter("ignore", np.exceptions.ComplexWarning)
         data = scipy.io.loadmat(fh, simplify_cells=True, mat_dtype=as_class)
     return {k: _mark_structs(v) for k, v in data.items() if not k.startswith("__")}
@@ -104,19 +132,28 @@ def _mark_structs(value: Any) -> Any:
 
 def read_mat73(path: Path) -> RawFile:
     """Fields, attributes and notes of a v7.3 MAT-file (HDF5 with a MATLAB header)."""
-    with h5py.File(path, "r") as f:
-        return _collect(_h5_items(f))
+    unopened: list[str] = []
+    check_global_heaps(path, "mat73")  # a collection the library would loop on is refused first
+    with reading(path, "mat73", H5PY_ERRORS), h5py.File(path, "r") as f:
+        items = _h5_items(f, unopened)
+    fields, attrs, notes = _collect(items)
+    return fields, attrs, skipped_note(unopened, UNOPENED_ITEMS) + notes
 
 
-def _h5_items(group: h5py.Group) -> dict[str, Any]:
-    """A v7.3 group as loadmat would give it: arrays, strings, structs, None for the rest."""
+def _h5_items(group: h5py.Group, unopened: list[str], prefix: str = "") -> dict[str, Any]:
+    """A v7.3 group as loadmat would give it: arrays, strings, structs, None for the rest;
+    the names h5py lists but cannot open are added to ``unopened``."""
     items: dict[str, Any] = {}
     for name, item in group.items():
         if name.startswith("#"):
             continue
+        if item is None:  # a link to nothing, or a damaged object header
+            unopened.append(prefix + name)
+            continue
         cls = plain(item.attrs.get("MATLAB_class", b""))
         if isinstance(item, h5py.Group):
-            items[name] = _Struct(_h5_items(item)) if cls == "struct" else None
+            inner = _h5_items(item, unopened, f"{prefix}{name}.") if cls == "struct" else None
+            items[name] = None if inner is None else _Struct(inner)
         elif item.attrs.get("MATLAB_empty", 0):
             items[name] = np.empty(0)
         elif cls == "char":

@@ -1,0 +1,164 @@
+"""``aeromag discover`` as a user runs it: a fresh process on a flight file, figures and page
+included (:func:`bench_discover_cli`).
+
+Each measured run is ``python -m aeromag_env.cli.main discover FILE --out DIR`` in a new
+process, on a simulated 10 Hz ``nominal`` calibration+survey flight of ``hours`` flight-hours
+(seed 0, the flight of ``aeromag bench``); its wall time counts the interpreter's start, the
+imports, reading, the workflow, ``report.json``/``report.md``, both PNG figures and
+``report.html``. Peak memory is the child's own peak resident set (``ru_maxrss`` of
+``wait4``: the process and any it waited for). A first, unmeasured run per file warms the disk
+cache and numba's compiled-kernel cache, as any user's second run finds them.
+
+The machines these run on are shared: every figure is a median of repeats, the CPU time (user
++ system) is reported beside the wall time, and the 1-minute load average before and after is
+kept with the figures.
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from aeromag_env.errors import AeromagError
+
+#: Flight lengths measured by default [flight-hours] (``--quick``: :data:`QUICK_HOURS`).
+HOURS = (1.0, 4.0)
+QUICK_HOURS = (0.5,)
+#: Measured runs per flight length (the median is reported).
+REPEATS = 3
+#: The targets: wall seconds per flight-hour, and peak resident memory of a 1-hour run [MB].
+TARGET_S_PER_FLIGHT_HOUR = 5.0
+TARGET_PEAK_MB_1H = 600.0
+
+
+@dataclass(frozen=True)
+class Run:
+    """One fresh ``aeromag discover`` process: wall and CPU seconds, peak resident memory [MB]."""
+
+    wall_s: float
+    cpu_s: float
+    peak_mb: float | None
+
+
+def bench_discover_cli(
+    hours: Sequence[float] = HOURS, repeats: int = REPEATS, workdir: Path | None = None
+) -> dict[str, Any]:
+    """Seconds per flight-hour and peak memory of ``aeromag discover`` as a user runs it.
+
+    Parameters
+    ----------
+    hours : sequence of float
+        Flight lengths [flight-hours], each > 0.2 (discovery needs 5 min of calibration).
+    repeats : int
+        Measured runs per length, ≥ 1 (plus one unmeasured warm-up run).
+    workdir : Path or None
+        Where the flights and outputs go (a temporary folder when None, removed after).
+
+    Returns
+    -------
+    dict
+        Per length, with ``L`` its label (``1h``, ``4h``, ``0.5h``):
+        ``discover_cli_L_s_per_flight_hour`` (median wall time / hours),
+        ``discover_cli_L_cpu_s_per_flight_hour`` (median user + system time / hours) and
+        ``discover_cli_L_peak_mb`` (median peak resident memory [MB], None where ``wait4`` is
+        missing); then ``discover_cli_peak_growth_mb_per_flight_hour`` (the peak's growth
+        between the shortest and the longest flight, per flight-hour; None with one length),
+        ``discover_cli_repeats``, ``discover_cli_load`` (1-minute load average before and
+        after; None where unknown) and the targets ``discover_cli_target_s_per_flight_hour``
+        and ``discover_cli_target_peak_mb_1h``.
+
+    Raises
+    ------
+    AeromagError
+        A length ≤ 0.2 h or ``repeats`` < 1 (one line); a run that fails (its stderr's last
+        line).
+    """
+    if repeats < 1:
+        raise AeromagError(f"repeats must be ≥ 1, got {repeats}")
+    if not hours or min(hours) <= 0.2:
+        raise AeromagError(f"hours must each be > 0.2 flight-hours, got {list(hours)}")
+    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+        load_before = _load()
+        runs = {h: _measure(Path(tmp), h, repeats) for h in hours}
+        load_after = _load()
+    figures: dict[str, Any] = {}
+    for h, measured in runs.items():
+        label = f"discover_cli_{h:g}h"
+        peaks = [r.peak_mb for r in measured if r.peak_mb is not None]
+        figures[f"{label}_s_per_flight_hour"] = statistics.median(r.wall_s for r in measured) / h
+        figures[f"{label}_cpu_s_per_flight_hour"] = statistics.median(r.cpu_s for r in measured) / h
+        figures[f"{label}_peak_mb"] = statistics.median(peaks) if peaks else None
+    lo, hi = min(hours), max(hours)
+    peak_lo, peak_hi = (
+        figures[f"discover_cli_{lo:g}h_peak_mb"],
+        figures[f"discover_cli_{hi:g}h_peak_mb"],
+    )
+    growth = None if hi == lo or None in (peak_lo, peak_hi) else (peak_hi - peak_lo) / (hi - lo)
+    return figures | {
+        "discover_cli_peak_growth_mb_per_flight_hour": growth,
+        "discover_cli_repeats": repeats,
+        "discover_cli_load": [load_before, load_after],
+        "discover_cli_target_s_per_flight_hour": TARGET_S_PER_FLIGHT_HOUR,
+        "discover_cli_target_peak_mb_1h": TARGET_PEAK_MB_1H,
+    }
+
+
+def _measure(tmp: Path, hours: float, repeats: int) -> list[Run]:
+    """A warm-up run, then ``repeats`` measured runs, on a fresh ``hours``-long flight file."""
+    path = write_hour_flight(tmp / f"flight_{hours:g}h.h5", hours)
+    _run(path, tmp / "warm-up")
+    return [_run(path, tmp / f"out_{hours:g}h_{k}") for k in range(repeats)]
+
+
+def write_hour_flight(path: Path, hours: float) -> Path:
+    """Simulate the benchmarks' flight (``nominal``, calibration+survey, 10 Hz, seed 0) of
+    ``hours`` flight-hours and write it to ``path``."""
+    from aeromag_env.flight.files import write_flight
+    from aeromag_env.simulation.config import preset, with_overrides
+    from aeromag_env.simulation.simulate import simulate_flight
+
+    cfg = with_overrides(
+        preset("nominal"),
+        {"trajectory.pattern": "calibration+survey", "trajectory.duration_s": 3600.0 * hours},
+    )
+    return write_flight(simulate_flight(cfg, 0), path)
+
+
+def _run(path: Path, out: Path) -> Run:
+    """``aeromag discover path --out out`` in a fresh process: its wall and CPU time and peak
+    resident memory."""
+    cmd = [sys.executable, "-m", "aeromag_env.cli.main", "discover", str(path), "--out", str(out)]
+    t0 = time.perf_counter()
+    child = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    peak_mb: float | None = None
+    if hasattr(os, "wait4"):
+        _, status, usage = os.wait4(child.pid, 0)
+        wall = time.perf_counter() - t0
+        child.returncode = os.waitstatus_to_exitcode(status)
+        cpu = usage.ru_utime + usage.ru_stime
+        peak_mb = usage.ru_maxrss / (2**20 if sys.platform == "darwin" else 2**10)  # B or KiB
+    else:  # no per-child resource usage: time only
+        child.wait()
+        wall = time.perf_counter() - t0
+        cpu = float("nan")
+    stderr = child.stderr.read() if child.stderr else ""
+    if child.returncode != 0:
+        last = stderr.strip().splitlines()[-1] if stderr.strip() else f"exit {child.returncode}"
+        raise AeromagError(f"aeromag discover failed in the benchmark: {last}")
+    return Run(wall, cpu, peak_mb)
+
+
+def _load() -> float | None:
+    """The 1-minute load average (None where the system has none)."""
+    try:
+        return float(os.getloadavg()[0])
+    except (AttributeError, OSError):
+        return None

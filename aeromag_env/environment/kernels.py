@@ -207,38 +207,44 @@ def _env_step_range(lo: int, hi: int, limit: int, arrays: StepArrays) -> int:
 
 
 #: What :func:`env_step_batch` refuses (:func:`refusal`): an environment's action that is not
-#: finite, a step of an environment whose episode ended and which was not reset.
-NOT_FINITE, NOT_RESET = 0, 1
+#: finite, a step of an environment whose episode ended and which was not reset, actions of
+#: another shape than (N, the action's size).
+NOT_FINITE, NOT_RESET, NOT_SHAPED = 0, 1, 2
 
 
 @njit(cache=True, nogil=True)
-def _refused(arrays: StepArrays) -> int:
-    """0, or the refusal code of :func:`env_step_batch`: an active environment i that ended and
-    was not reset (−1 − N − i; checked first), an environment i whose action is not finite
-    (−1 − i)."""
-    b, actions = BatchArrays(*arrays.batch), EnvArrays(*arrays.envs).action
+def _refused(arrays: StepArrays, actions: np.ndarray) -> int:
+    """0, or the refusal code of :func:`env_step_batch` (−1 − (kind · N + i), :func:`refusal`),
+    in this order: an active environment i that ended and was not reset, ``actions`` not of
+    the step's actions' shape, environment i's action not finite; ``actions`` are copied into
+    the step's (float64) on the way, row by row."""
+    b, step_actions = BatchArrays(*arrays.batch), EnvArrays(*arrays.envs).action
     n = b.active.shape[0]
     for i in range(n):
         if b.active[i] and b.ended[i]:
-            return -1 - n - i
+            return -1 - (NOT_RESET * n + i)
+    if actions.shape != step_actions.shape:
+        return -1 - NOT_SHAPED * n
     for i in range(n):
         for j in range(actions.shape[1]):
-            if not np.isfinite(actions[i, j]):
-                return -1 - i
+            step_actions[i, j] = actions[i, j]
+        for j in range(actions.shape[1]):
+            if not np.isfinite(step_actions[i, j]):
+                return -1 - (NOT_FINITE * n + i)
     return 0
 
 
 def refusal(code: int, n: int) -> tuple[int, int]:
-    """:func:`env_step_batch`'s negative return ``code`` for N = ``n`` environments as
-    (:data:`NOT_FINITE` or :data:`NOT_RESET`, the environment)."""
-    i = -1 - code
-    return (NOT_RESET, i - n) if i >= n else (NOT_FINITE, i)
+    """:func:`env_step_batch`'s negative return ``code`` for N = ``n`` environments as (the
+    kind: :data:`NOT_FINITE`, :data:`NOT_RESET` or :data:`NOT_SHAPED`, the environment)."""
+    kind, i = divmod(-1 - code, n)
+    return kind, i
 
 
 @njit(cache=True, nogil=True)
-def _env_step_all(limit: int, arrays: StepArrays) -> int:
+def _env_step_all(limit: int, arrays: StepArrays, actions: np.ndarray) -> int:
     """:func:`env_step_batch` in one compiled call: the refusals first, then the step."""
-    code = _refused(arrays)
+    code = _refused(arrays, actions)
     if code < 0:
         return code
     n = BatchArrays(*arrays.batch).active.shape[0]
@@ -250,23 +256,25 @@ def _count_ended(arrays: StepArrays) -> int:
     return int(np.count_nonzero(BatchArrays(*arrays.batch).ended))
 
 
-def env_step_batch(arrays: StepArrays, num_envs: int, limit: int = 0) -> int:
-    """One step of N = ``num_envs`` environments: :func:`env_step` for every environment i with
+def env_step_batch(arrays: StepArrays, actions: np.ndarray, num_envs: int, limit: int = 0) -> int:
+    """One step of N = ``num_envs`` environments: ``actions`` (N, the action's size) of real
+    numbers copied into the step's, :func:`env_step` for every environment i with
     ``batch.active[i]``, the others' outcome zeroed, and the step's bookkeeping of every one
     (:class:`~aeromag_env.environment.layout.BatchArrays`: step count, end flags, reward; the
     step count reaching ``limit`` > 0 truncates, as a ``TimeLimit``).
 
     ``arrays`` (:func:`~aeromag_env.environment.step_arrays.step_arrays`) holds the groups:
     ``batch`` and the arrays of ``envs`` and ``filters`` with a leading environment axis (the
-    actions (N, 2 or 3) float64), the shared ``settings``. Returns the number of environments
-    whose episode ended; or, before any environment moved, a negative code (:func:`refusal`)
-    when an active environment's episode ended on an earlier step and it was not reset
-    (``batch.ended`` still set), or when an action is not finite. A few environments are one
-    compiled call; many are spread over the cores (:func:`aeromag_env.threads.run_chunks`).
+    step's actions (N, 2 or 3) float64), the shared ``settings``. Returns the number of
+    environments whose episode ended; or, before any environment moved, a negative code
+    (:func:`refusal`) when an active environment's episode ended on an earlier step and it was
+    not reset (``batch.ended`` still set), when ``actions`` have another shape, or when an
+    action is not finite. A few environments are one compiled call; many are spread over the
+    cores (:func:`aeromag_env.threads.run_chunks`).
     """
     if num_envs < 2 * MIN_CHUNK:  # one chunk anyway (run_chunks would run it in this thread)
-        return int(_env_step_all(limit, arrays))
-    code = int(_refused(arrays))
+        return int(_env_step_all(limit, arrays, actions))
+    code = int(_refused(arrays, actions))
     if code < 0:
         return code
     run_chunks(_env_step_range, num_envs, limit, arrays)

@@ -23,12 +23,14 @@ from aeromag_env.environment.info import info, info_rows, put_infos
 from aeromag_env.environment.layout import N_OUT, N_RUN, BatchArrays, EnvArrays
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
 from aeromag_env.environment.spaces import (
-    REAL_KINDS,
     action_size,
     check_actions,
     non_finite_actions,
 )
 from aeromag_env.environment.step_arrays import StepArrays, step_arrays
+
+#: The actions' types the compiled step takes as they are (others are converted first).
+KERNEL_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 
 #: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
 VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS)
@@ -244,12 +246,7 @@ class AeroMagCompensationVecEnv(VectorEnv):
         environment that ended and was not reset is refused (``ResetNeeded``)."""
         if self.autoreset_mode != AutoresetMode.DISABLED:
             raise ValueError("step_in_place needs autoreset_mode=AutoresetMode.DISABLED")
-        self._take_actions(actions)
-        arrays = self._step_arrays or self._pack()
-        ended = kernels.env_step_batch(arrays, self.num_envs, self.max_episode_steps or 0)
-        if ended < 0:
-            self._refuse(ended)
-        return ended
+        return self._advance(actions, None)
 
     def info_rows(self, indices: np.ndarray | None = None) -> list[dict[str, Any]]:
         """The single env's info of each environment after the last step (of ``indices`` only,
@@ -259,16 +256,17 @@ class AeroMagCompensationVecEnv(VectorEnv):
             return info_rows(self._out, ints, self.flight_seeds)
         return info_rows(self._out[indices], ints[indices], self.flight_seeds[indices])
 
-    def _take_actions(self, actions: np.ndarray) -> None:
-        """``actions`` into the step's actions, checked as :func:`check_actions` checks them
-        (whether they are finite: by the compiled step); an array of real numbers of the right
-        shape (every step of a trainer) is copied without more ado."""
-        a = self._actions
-        usual = type(actions) is np.ndarray and actions.shape == a.shape
-        if usual and actions.dtype.kind in REAL_KINDS:
-            np.copyto(a, actions)
-        else:
-            check_actions(actions, *a.shape, out=a, finite=False)
+    def _real_actions(self, actions: object) -> np.ndarray:
+        """``actions`` as a float array for the compiled step, which copies them into the step's
+        own, checking their shape and that they are finite: a two-dimensional array of native
+        float32 or float64 (every step of a trainer) as it is, anything else through
+        :func:`check_actions` (which converts it, or raises what it refuses; the compiled step
+        is compiled for those types only)."""
+        if type(actions) is np.ndarray and actions.ndim == 2 and actions.dtype in KERNEL_DTYPES:
+            return actions
+        if self.autoreset_mode == AutoresetMode.DISABLED and self._any_ended():
+            self._refuse(-1 - kernels.NOT_RESET * self.num_envs)  # refused first, as ever
+        return check_actions(actions, *self._actions.shape, out=self._actions, finite=False)
 
     def _pack(self) -> StepArrays:
         """The compiled step's arrays in one object, built once per allocation (a reset may
@@ -287,24 +285,28 @@ class AeroMagCompensationVecEnv(VectorEnv):
     def _advance(self, actions: np.ndarray, stepped: np.ndarray | None) -> int:
         """Step the environments of ``stepped`` (None: all; the others' outcome rows zeroed) in
         one compiled call, the results in :attr:`results`; the number whose episode ended."""
-        self._take_actions(actions)
+        actions = self._real_actions(actions)
         arrays = self._step_arrays or self._pack()
         if stepped is not None:
             np.copyto(self._active, stepped)
         try:
-            ended = kernels.env_step_batch(arrays, self.num_envs, self.max_episode_steps or 0)
+            limit = self.max_episode_steps or 0
+            ended = kernels.env_step_batch(arrays, actions, self.num_envs, limit)
         finally:
             if stepped is not None:
                 self._active.fill(True)
         if ended < 0:
-            self._refuse(ended)
+            self._refuse(ended, actions)
         return ended
 
-    def _refuse(self, code: int) -> None:
+    def _refuse(self, code: int, actions: np.ndarray | None = None) -> None:
         """The error of :func:`~aeromag_env.environment.kernels.env_step_batch`'s refusal
-        ``code`` (nothing moved)."""
-        refusal, i = kernels.refusal(code, self.num_envs)
-        if refusal == kernels.NOT_FINITE:
+        ``code`` (nothing moved) for ``actions``."""
+        kind, i = kernels.refusal(code, self.num_envs)
+        if kind == kernels.NOT_SHAPED:
+            check_actions(actions, *self._actions.shape, finite=False)  # says what is wrong
+            raise ValueError(f"actions must have shape {self._actions.shape}")
+        if kind != kernels.NOT_RESET:
             raise non_finite_actions(i, self._actions)
         raise ResetNeeded(
             f"environments {np.flatnonzero(self._ended).tolist()} ended; reset them with "

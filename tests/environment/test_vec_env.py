@@ -120,14 +120,40 @@ def test_bad_actions_and_calls_are_one_line_errors():
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(2, 2\).*got shape \(2,\)"):
         env.step(np.zeros(2))
+    with pytest.raises(ValueError, match=r"shape \(2, 2\).*got shape \(3, 2\)"):
+        env.step(np.zeros((3, 2), np.float32))  # the compiled step checks the shape
     with pytest.raises(ValueError, match=r"finite; environment 1 got \[nan, 0.0\]"):
         env.step(np.array([[0.0, 0.0], [np.nan, 0.0]]))
+    with pytest.raises(ValueError, match=r"finite; environment 0 got \[inf, 0.0\]"):
+        env.step(np.array([[np.inf, 0.0], [0.0, 0.0]], np.float32))
     with pytest.raises(ValueError, match="numbers"):
         env.step([["a", "b"], ["c", "d"]])
     with pytest.raises(ValueError, match="one seed per environment"):
         env.reset(seed=[1, 2, 3])
     with pytest.raises(ValueError, match="num_envs"):
         AeroMagCompensationVecEnv(0)
+
+
+def test_actions_of_every_real_type_step_alike():
+    """float32, float64, big-endian, strided and integer actions of the same values give the
+    same step (the first two go to the compiled step as they are, the others converted)."""
+    a = np.array([[0.5, -0.25], [1.0, 0.0]])
+    kinds = [
+        a,
+        a.astype(np.float32),
+        a.astype(">f8"),
+        np.repeat(a, 2, axis=1)[:, ::2],
+        np.array([[1, 0], [-1, 0]]),
+    ]
+    for given in kinds:
+        env = AeroMagCompensationVecEnv(2, duration_s=20.0)
+        env.reset(seed=3)
+        obs, rewards, *_ = env.step(given)
+        ref = AeroMagCompensationVecEnv(2, duration_s=20.0)
+        ref.reset(seed=3)
+        expected, expected_rewards, *_ = ref.step(given.astype(np.float64))
+        np.testing.assert_array_equal(obs, expected)
+        np.testing.assert_array_equal(rewards, expected_rewards)
 
 
 def test_disabled_autoreset_refuses_to_step_an_ended_environment():

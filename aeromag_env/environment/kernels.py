@@ -40,7 +40,7 @@ from aeromag_env.environment.layout import (
 from aeromag_env.environment.observe import keep_sums, observe, take_leaving_updates
 from aeromag_env.environment.spaces import ACT_Q, ACT_QP, ACT_R
 from aeromag_env.environment.step_arrays import StepArrays
-from aeromag_env.environment.window_sums import per_step
+from aeromag_env.environment.window_sums import per_step, window_mark
 from aeromag_env.numba_cache import njit
 from aeromag_env.simulation.interference import INDUCED_START, PERMANENT_START
 from aeromag_env.threads import MIN_CHUNK, run_chunks
@@ -161,7 +161,7 @@ def env_step(
     _rescale(qd, rm, s_qp, s_q, s_r)
     k0, divergences = ints[INTS.k], ints[INTS.div]
     k1 = min(k0 + int(e[STEP_PAR.k]), n)
-    window = (ints[INTS.pos], ints[INTS.updates], divergences)  # before the filter's updates
+    window = window_mark(ints)  # before the filter's updates
     taken = take_leaving_updates(k0, k1, env, settings, f)
     if k1 > k0:
         advance(mode, k0, k1, f)

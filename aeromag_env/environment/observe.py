@@ -27,7 +27,14 @@ from aeromag_env.environment.statistics import (
     whiteness_running,
     window_power,
 )
-from aeromag_env.environment.window_sums import per_step, put_updates, slide_samples, take_leaving
+from aeromag_env.environment.window_sums import (
+    Taken,
+    WindowMark,
+    per_step,
+    put_updates,
+    slide_samples,
+    take_leaving,
+)
 
 # Each observation's registry id (an unknown name fails here, at import).
 LOG_ROR = observation_id("log_ror")
@@ -146,12 +153,14 @@ def _update_sums_read(s: EnvSettings) -> bool:
 
 
 @per_step
-def take_leaving_updates(k0: int, k1: int, env: EnvArrays, s: EnvSettings, f: FilterArrays):
+def take_leaving_updates(
+    k0: int, k1: int, env: EnvArrays, s: EnvSettings, f: FilterArrays
+) -> Taken:
     """Before the filter advances over ``k0 ≤ k < k1``: what
     :func:`aeromag_env.environment.window_sums.take_leaving` takes out of the running sums over
     the window's updates, when an observation reads them (else nothing)."""
     if not _update_sums_read(s):
-        return 0, 0.0
+        return Taken(0, 0.0)
     return take_leaving(k1 - k0, f.state.ints, f.window.rbuf, env.run)
 
 
@@ -159,18 +168,18 @@ def take_leaving_updates(k0: int, k1: int, env: EnvArrays, s: EnvSettings, f: Fi
 def keep_sums(
     k0: int,
     k1: int,
-    taken: tuple[int, float],
-    before: tuple[int, int, int],
+    taken: Taken,
+    before: WindowMark,
     env: EnvArrays,
     s: EnvSettings,
     f: FilterArrays,
 ) -> None:
-    """After the filter advanced over ``k0 ≤ k < k1`` from a window at slot, count, restarts
-    ``before``: bring the running sums the chosen observations read up to date
-    (:mod:`aeromag_env.environment.window_sums`)."""
+    """After the filter advanced over ``k0 ≤ k < k1`` from the window ``before``, ``taken``
+    what :func:`take_leaving_updates` took out: bring the running sums the chosen observations
+    read up to date (:mod:`aeromag_env.environment.window_sums`)."""
     ints = f.state.ints
     if _update_sums_read(s):
-        put_updates(taken, before[0], before[1], before[2], ints, f.window.rbuf, env.run)
+        put_updates(taken, before, ints, f.window.rbuf, env.run)
     if s.obs_at[WHITENESS] >= 0:
         slide_samples(k0, k1, ints[INTS.window], f.outputs.innov, env.run)
 

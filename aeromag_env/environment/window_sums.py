@@ -25,6 +25,8 @@ within a few 1e-13 of the window's own, relative (tested against a plain numpy r
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from aeromag_env.compensation.kernel_layout import INTS
@@ -77,56 +79,68 @@ def update_sums(ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray) -> None:
         w = _wrapped(w + 1, size)
 
 
+class WindowMark(NamedTuple):
+    """Where the filter's window of updates stood before a step's advance."""
+
+    slot: int  #: the slot its next update goes to (``ints[INTS.pos]``)
+    updates: int  #: the updates it held (``ints[INTS.updates]``)
+    restarts: int  #: the filter's restarts so far (``ints[INTS.div]``)
+
+
+class Taken(NamedTuple):
+    """What :func:`take_leaving` took out of the window sums before a step's advance."""
+
+    count: int  #: the oldest updates taken out (−1: the step could turn the whole window over)
+    largest_rr: float  #: the largest ``|r|²`` among them [nT²]
+
+
 @per_step
-def take_leaving(
-    samples: int, ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray
-) -> tuple[int, float]:
+def window_mark(ints: np.ndarray) -> WindowMark:
+    """The :class:`WindowMark` of the filter's window now (its integers ``ints``)."""
+    return WindowMark(ints[INTS.pos], ints[INTS.updates], ints[INTS.div])
+
+
+@per_step
+def take_leaving(samples: int, ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray) -> Taken:
     """Before the filter advances over ``samples`` samples: take out of the window sums the
     oldest updates that the step's updates could push out of the window (at most one update a
-    sample). Returns their count (−1 when the step could turn the whole window over: the sums
-    are then summed afresh after it) and the largest ``|r|²`` among them [nT²]."""
+    sample); what was taken (:class:`Taken`: their count, −1 when the step could turn the whole
+    window over and the sums are summed afresh after it, and the largest ``|r|²``)."""
     size, count = ints[INTS.window], ints[INTS.updates]
     if samples >= size:
-        return -1, 0.0
+        return Taken(-1, 0.0)
     candidates = max(0, count + samples - size)  # ≤ samples, ≤ count
     largest, w = 0.0, _wrapped(ints[INTS.pos] - count + size, size)  # from the oldest update
     for _ in range(candidates):
         largest = max(largest, _add_update(run, rbuf, w, -1.0))
         w = _wrapped(w + 1, size)
-    return candidates, largest
+    return Taken(candidates, largest)
 
 
 @per_step
 def put_updates(
-    taken: tuple[int, float],
-    pos0: int,
-    count0: int,
-    restarts0: int,
-    ints: np.ndarray,
-    rbuf: np.ndarray,
-    run: np.ndarray,
+    taken: Taken, before: WindowMark, ints: np.ndarray, rbuf: np.ndarray, run: np.ndarray
 ) -> None:
-    """After the filter advanced from a window at slot ``pos0`` holding ``count0`` updates with
-    ``restarts0`` restarts so far, ``taken`` what :func:`take_leaving` took out of the sums
-    before: put back the updates that stayed in the window and add the new ones; or sum afresh
-    after a lap of the window, a restart, or when one of the updates taken out carried more
-    than :data:`SUM_RATIO` times what is left."""
-    candidates, largest = taken
+    """After the filter advanced from the window ``before``, ``taken`` what :func:`take_leaving`
+    took out of the sums before: put back the updates that stayed in the window and add the new
+    ones; or sum afresh after a lap of the window, a restart, or when one of the updates taken
+    out carried more than :data:`SUM_RATIO` times what is left."""
+    pos0, count0 = before.slot, before.updates
     size, pos = ints[INTS.window], ints[INTS.pos]
     added = _wrapped(pos - pos0 + size, size)  # fewer than size: the step has fewer samples
-    if candidates < 0 or ints[INTS.div] != restarts0 or pos0 + added >= size:
+    if taken.count < 0 or ints[INTS.div] != before.restarts or pos0 + added >= size:
         update_sums(ints, rbuf, run)
         return
     left = max(0, count0 + added - size)  # the oldest ones: their slots hold new updates now
     w = _wrapped(pos0 - count0 + size + left, size)
-    for _ in range(left, candidates):
+    for _ in range(left, taken.count):
         _add_update(run, rbuf, w, 1.0)
         w = _wrapped(w + 1, size)
     w = pos0
     for _ in range(added):
         _add_update(run, rbuf, w, 1.0)
         w = _wrapped(w + 1, size)
-    if largest > 0.0 and not run[RUN.win_rr] * SUM_RATIO >= largest:
+    if taken.largest_rr > 0.0 and not run[RUN.win_rr] * SUM_RATIO >= taken.largest_rr:
         update_sums(ints, rbuf, run)
 
 

@@ -34,10 +34,13 @@ from aeromag_env.environment.layout import N_RUN, RUN
 from aeromag_env.environment.observations import OBS_LIMIT
 from aeromag_env.environment.spaces import observation_index
 from aeromag_env.environment.window_sums import (
+    Taken,
+    WindowMark,
     put_updates,
     sample_sums,
     slide_samples,
     take_leaving,
+    window_mark,
 )
 
 M = 50
@@ -85,7 +88,7 @@ def test_update_sums_follow_the_filters_window(seed):
     k = 0
     for step in range(600):
         samples = int(rng.choice([1, 5, 10, 10, 10, 49, 60]))
-        before = (int(ints[INTS.pos]), int(ints[INTS.updates]), int(ints[INTS.div]))
+        before = window_mark(ints)
         taken = take_leaving(samples, ints, rbuf, run)
         for _ in range(samples):
             if rng.random() < 0.1:  # skipped or rejected: no update
@@ -97,7 +100,7 @@ def test_update_sums_follow_the_filters_window(seed):
                 ints[INTS.div] += 1
                 if rng.random() < 0.5:
                     clear_window(acc, ints)
-        put_updates(taken, *before, ints, rbuf, run)
+        put_updates(taken, before, ints, rbuf, run)
         _assert_update_sums(ints, rbuf, run, f"step {step}")
     assert ints[INTS.div] > 0
 
@@ -159,7 +162,7 @@ def test_centred_statistics_from_the_sums_or_afresh(offset):
     ints[INTS.window], ints[INTS.updates], ints[INTS.pos] = M, M, 17
     rbuf = rng.standard_normal((M, 3)) + offset
     rbuf[[(17 - 1 - j) % M for j in range(10)]] += 3.0  # a step in the last 10 updates
-    put_updates((-1, 0.0), 0, 0, 0, ints, rbuf, run)  # summed afresh
+    put_updates(Taken(-1, 0.0), WindowMark(0, 0, 0), ints, rbuf, run)  # summed afresh
     assert compiled.innovation_bias_running(ints, rbuf, run) == pytest.approx(
         ref.innovation_bias(ints, rbuf), rel=1e-9
     )

@@ -90,7 +90,7 @@ class WindowMark(NamedTuple):
 class Taken(NamedTuple):
     """What :func:`take_leaving` took out of the window sums before a step's advance."""
 
-    count: int  #: the oldest updates taken out (−1: the step could turn the whole window over)
+    updates: int  #: the oldest updates taken out (−1: the step could turn the whole window over)
     largest_rr: float  #: the largest ``|r|²`` among them [nT²]
 
 
@@ -128,12 +128,12 @@ def put_updates(
     pos0, count0 = before.slot, before.updates
     size, pos = ints[INTS.window], ints[INTS.pos]
     added = _wrapped(pos - pos0 + size, size)  # fewer than size: the step has fewer samples
-    if taken.count < 0 or ints[INTS.div] != before.restarts or pos0 + added >= size:
+    if taken.updates < 0 or ints[INTS.div] != before.restarts or pos0 + added >= size:
         update_sums(ints, rbuf, run)
         return
     left = max(0, count0 + added - size)  # the oldest ones: their slots hold new updates now
     w = _wrapped(pos0 - count0 + size + left, size)
-    for _ in range(left, taken.count):
+    for _ in range(left, taken.updates):
         _add_update(run, rbuf, w, 1.0)
         w = _wrapped(w + 1, size)
     w = pos0

@@ -30,10 +30,10 @@ def cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def run_chunks(kernel: Callable[..., None], n: int, *args: object) -> None:
+def run_chunks(kernel: Callable[..., object], n: int, *args: object) -> None:
     """``kernel(lo, hi, *args)`` for contiguous chunks ``[lo, hi)`` covering ``[0, n)``, on up
     to :func:`cores` threads (this one included); returns when all are done, re-raising the
-    first error."""
+    first error (what the kernel returns is dropped)."""
     # (cores() is a system call, skipped when there is one chunk anyway: a small batch's step)
     workers = 1 if n < 2 * MIN_CHUNK else min(cores(), n // MIN_CHUNK)
     if workers == 1:

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from aeromag_env.configs import check
+from aeromag_env.environment.layout import RewardForm
 from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS, check_scenario
 from aeromag_env.errors import ConfigError
 
@@ -45,9 +46,9 @@ ACTION_MODES = ("relative", "absolute")
 #: How the Q of the permanent-field block T_p is set: with the other 18 states (``joint``), by a
 #: third action (``graded``), or by a third action that is a switch (``gate``).
 PERMANENT_MODES = ("joint", "graded", "gate")
-#: Reward forms (:class:`~aeromag_env.environment.config.RewardSpec`), coded by their index in
-#: the compiled step's parameters.
-REWARD_FORMS = ("log", "linear", "squared")
+#: Reward forms (:class:`~aeromag_env.environment.config.RewardSpec`): the names of
+#: :class:`~aeromag_env.environment.layout.RewardForm`, which codes them for the compiled step.
+REWARD_FORMS = tuple(form.name.lower() for form in RewardForm)
 #: The (lo, hi) log10 ranges of the absolute mode (fields of the ActionSpec).
 LOG10_RANGES = ("q_log10", "r_log10", "qp_log10")
 

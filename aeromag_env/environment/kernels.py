@@ -4,10 +4,13 @@
 once the action has been checked: map the action to Q and R scale factors, rescale, advance the
 filter (:func:`aeromag_env.compensation.kernels.advance`) over one decision window, score the
 window against the true interference and write the observation. :func:`env_step_batch` runs it for
-many environments at once, in compiled chunks spread over the cores (:mod:`aeromag_env.threads`;
-used by :class:`aeromag_env.environment.vec_env.AeroMagCompensationVecEnv`). Both run the same
-compiled code, so environment i of the vector environment is bitwise the single environment given
-the same flight and actions (tested).
+many environments at once, with the vector environment's bookkeeping of a step (the action check,
+the episode's step count and limit, the end flags, the rewards: :class:`BatchArrays
+<aeromag_env.environment.layout.BatchArrays>`), in one compiled call, or in compiled chunks
+spread over the cores for many environments (:mod:`aeromag_env.threads`; used by
+:class:`aeromag_env.environment.vec_env.AeroMagCompensationVecEnv`). Both run the same compiled
+step, so environment i of the vector environment is bitwise the single environment given the same
+flight and actions (tested).
 
 The action mapping, reward and observation are specified in the environment's docstring; the
 action and observation layouts are named in :mod:`aeromag_env.environment.spaces`, the
@@ -21,15 +24,26 @@ import math
 
 import numpy as np
 
-from aeromag_env.compensation.arrays import FilterArrays, Packed, named, packed, row
+from aeromag_env.compensation.arrays import FilterArrays, Packed, named, row
 from aeromag_env.compensation.kernel_layout import INTS
 from aeromag_env.compensation.kernels import advance
-from aeromag_env.environment.layout import LN10, OUT, RUN, STEP_PAR, EnvArrays, EnvSettings
-from aeromag_env.environment.observe import observe
+from aeromag_env.environment.layout import (
+    LN10,
+    OUT,
+    RUN,
+    STEP_PAR,
+    BatchArrays,
+    EnvArrays,
+    EnvSettings,
+    RewardForm,
+)
+from aeromag_env.environment.observe import keep_sums, observe, take_leaving_updates
 from aeromag_env.environment.spaces import ACT_Q, ACT_QP, ACT_R
+from aeromag_env.environment.step_arrays import StepArrays
+from aeromag_env.environment.window_sums import per_step, window_mark
 from aeromag_env.numba_cache import njit
 from aeromag_env.simulation.interference import INDUCED_START, PERMANENT_START
-from aeromag_env.threads import run_chunks
+from aeromag_env.threads import MIN_CHUNK, run_chunks
 
 
 @njit(cache=True, inline="always")  # as arrays.row
@@ -38,7 +52,7 @@ def _env_row(e: EnvArrays, i: int) -> EnvArrays:
     return EnvArrays(e.action[i], e.run[i], e.truth[i], e.obs[i], e.outcome[i])
 
 
-@njit(cache=True)
+@per_step
 def _scale(a: float, slot: int, lo: float, hi: float, run: np.ndarray, par: np.ndarray) -> float:
     """One action → the factor that moves the cumulative log scale ``run[slot]`` to its new value.
 
@@ -56,7 +70,7 @@ def _scale(a: float, slot: int, lo: float, hi: float, run: np.ndarray, par: np.n
     return math.exp(new - old)
 
 
-@njit(cache=True)
+@per_step
 def _window_error(
     k0: int, k1: int, truth: np.ndarray, est: np.ndarray, score_start: int, run: np.ndarray
 ) -> float:
@@ -82,7 +96,7 @@ def _window_error(
     return math.sqrt(total / (3 * (k1 - k0))) if k1 > k0 else np.nan
 
 
-@njit(cache=True)
+@per_step
 def _episode_rmse(run: np.ndarray, window_rmse: float) -> float:
     """The episode's RMSE so far [nT]: over the flight after ``score_from``; before it (an
     episode cut or diverged early) over the part flown, so that a score is never NaN; the
@@ -94,18 +108,31 @@ def _episode_rmse(run: np.ndarray, window_rmse: float) -> float:
     return window_rmse
 
 
-@njit(cache=True)
-def _reward(e: float, form: float) -> float:
-    """The reward of a window error ``e`` in units of the reward's ``scale_nt``: ``−ln(1 + e)``
-    (form 0, log), ``−e`` (1, linear) or ``−e²`` (2, squared)."""
-    if form == 0.0:
+@per_step
+def _reward(e: float, form: int) -> float:
+    """The reward of a window error ``e`` in units of the reward's ``scale_nt`` by its
+    :class:`~aeromag_env.environment.layout.RewardForm`: ``−ln(1 + e)``, ``−e`` or ``−e²``."""
+    if form == RewardForm.LOG:
         return -math.log1p(e)
-    if form == 1.0:
+    if form == RewardForm.LINEAR:
         return -e
     return -e * e
 
 
-@njit(cache=True)
+@per_step
+def _rescale(qd: np.ndarray, rm: np.ndarray, s_qp: float, s_q: float, s_r: float) -> None:
+    """Eq. 21: ``Q ← s_a Q``, ``R ← s_r R``, with T_p's block of Q scaled by ``s_qp`` (``s_q``
+    without a T_p action), element by element (a slice would need numba's runtime)."""
+    for a in range(PERMANENT_START, INDUCED_START):
+        qd[a] *= s_qp
+    for a in range(INDUCED_START, qd.shape[0]):
+        qd[a] *= s_q
+    for i in range(3):
+        for j in range(3):
+            rm[i, j] *= s_r
+
+
+@njit(cache=True, inline="always")
 def env_step(
     mode: int,
     n: int,
@@ -127,22 +154,22 @@ def env_step(
     qd, rm, ints = f.state.qd, f.state.rm, f.state.ints
     s_q = _scale(a[ACT_Q], RUN.log_q, e[STEP_PAR.q_lo], e[STEP_PAR.q_hi], run, e)
     s_r = _scale(a[ACT_R], RUN.log_r, e[STEP_PAR.r_lo], e[STEP_PAR.r_hi], run, e)
+    s_qp = s_q
     if e[STEP_PAR.split_q] != 0.0:  # T_p's Q on its own, the coefficient blocks' by s_q
         a_qp = a[ACT_QP] if e[STEP_PAR.qp_gate] == 0.0 else (1.0 if a[ACT_QP] > 0.0 else -1.0)
         s_qp = _scale(a_qp, RUN.log_qp, e[STEP_PAR.qp_lo], e[STEP_PAR.qp_hi], run, e)
-        qd[PERMANENT_START:INDUCED_START] *= s_qp
-        qd[INDUCED_START:] *= s_q
-    else:
-        qd *= s_q  # eq. 21: Q ← s_a Q, R ← s_r R
-    rm *= s_r
+    _rescale(qd, rm, s_qp, s_q, s_r)
     k0, divergences = ints[INTS.k], ints[INTS.div]
     k1 = min(k0 + int(e[STEP_PAR.k]), n)
+    window = window_mark(ints)  # before the filter's updates
+    taken = take_leaving_updates(k0, k1, env, settings, f)
     if k1 > k0:
         advance(mode, k0, k1, f)
+    keep_sums(k0, k1, taken, window, env, settings, f)
     ror, qoq = f.outputs.ror, f.outputs.qoq
     rmse = _window_error(k0, k1, env.truth, f.outputs.est, score_start, run)
     terminated = ints[INTS.div] > divergences
-    reward = _reward(rmse / e[STEP_PAR.reward_nt], e[STEP_PAR.reward_form])
+    reward = _reward(rmse / e[STEP_PAR.reward_nt], int(e[STEP_PAR.reward_form]))
     out[OUT.reward] = e[STEP_PAR.penalty] if terminated else reward
     out[OUT.rmse] = rmse
     out[OUT.ror], out[OUT.qoq] = ror[k1 - 1], qoq[k1 - 1]
@@ -155,54 +182,100 @@ def env_step(
 
 
 @njit(cache=True, nogil=True)
-def _env_step_range(
-    lo: int,
-    hi: int,
-    active: np.ndarray,
-    modes: np.ndarray,
-    n: np.ndarray,
-    score_start: np.ndarray,
-    env_arrays: Packed,
-    shared: Packed,
-    filter_arrays: Packed,
-) -> None:
-    """Environments ``lo ≤ i < hi`` of :func:`env_step_batch`."""
-    envs, settings, filters = EnvArrays(*env_arrays), EnvSettings(*shared), named(filter_arrays)
+def _env_step_range(lo: int, hi: int, limit: int, arrays: StepArrays) -> int:
+    """Environments ``lo ≤ i < hi`` of :func:`env_step_batch` (their actions checked): step the
+    active ones, zero the others' outcome, and write each one's step count, end flags and
+    reward; the number of environments whose episode ended."""
+    b, envs = BatchArrays(*arrays.batch), EnvArrays(*arrays.envs)
+    settings, filters = EnvSettings(*arrays.settings), named(arrays.filters)
+    ended = 0
     for i in range(lo, hi):
-        if active[i]:
+        out = envs.outcome[i]
+        if b.active[i]:
             env = _env_row(envs, i)
-            env_step(modes[i], n[i], score_start[i], env, settings, row(filters, i))
+            env_step(b.mode[i], b.n[i], b.score_start[i], env, settings, row(filters, i))
+            b.steps[i] += 1
+            if limit > 0 and b.steps[i] >= limit:  # a TimeLimit's cut, as gym.make's
+                out[OUT.truncated] = 1.0
+        else:
+            out[:] = 0.0
+        b.reward[i] = out[OUT.reward]
+        b.terminated[i], b.truncated[i] = out[OUT.terminated] > 0.0, out[OUT.truncated] > 0.0
+        b.ended[i] = b.terminated[i] or b.truncated[i]
+        ended += b.ended[i]
+    return ended
 
 
-def env_step_batch(
-    active: np.ndarray,
-    modes: np.ndarray,
-    n: np.ndarray,
-    score_start: np.ndarray,
-    envs: EnvArrays | Packed,
-    settings: EnvSettings | Packed,
-    filters: FilterArrays | Packed,
-) -> None:
-    """:func:`env_step` for every environment i with ``active[i]`` (N,) bool, on all cores.
+#: What :func:`env_step_batch` refuses (:func:`refusal`): an environment's action that is not
+#: finite, a step of an environment whose episode ended and which was not reset, actions of
+#: another shape than (N, the action's size).
+NOT_FINITE, NOT_RESET, NOT_SHAPED = 0, 1, 2
 
-    ``modes``, ``n``, ``score_start`` (N,) int64 and the arrays of ``envs`` and ``filters`` have
-    a leading environment axis (the actions (N, 2 or 3) float64 finite); ``settings`` are
-    shared. Each group as a NamedTuple or already :func:`~aeromag_env.compensation.arrays.packed`
-    (a caller stepping the same arrays again and again packs them once).
+
+@njit(cache=True, nogil=True)
+def _refused(arrays: StepArrays, actions: np.ndarray) -> int:
+    """0, or the refusal code of :func:`env_step_batch` (−1 − (kind · N + i), :func:`refusal`),
+    in this order: an active environment i that ended and was not reset, ``actions`` not of
+    the step's actions' shape, environment i's action not finite; ``actions`` are copied into
+    the step's (float64) on the way, row by row."""
+    b, step_actions = BatchArrays(*arrays.batch), EnvArrays(*arrays.envs).action
+    n = b.active.shape[0]
+    for i in range(n):
+        if b.active[i] and b.ended[i]:
+            return -1 - (NOT_RESET * n + i)
+    if actions.shape != step_actions.shape:
+        return -1 - NOT_SHAPED * n
+    for i in range(n):
+        for j in range(actions.shape[1]):
+            step_actions[i, j] = actions[i, j]
+        for j in range(actions.shape[1]):
+            if not np.isfinite(step_actions[i, j]):
+                return -1 - (NOT_FINITE * n + i)
+    return 0
+
+
+def refusal(code: int, n: int) -> tuple[int, int]:
+    """:func:`env_step_batch`'s negative return ``code`` for N = ``n`` environments as (the
+    kind: :data:`NOT_FINITE`, :data:`NOT_RESET` or :data:`NOT_SHAPED`, the environment)."""
+    kind, i = divmod(-1 - code, n)
+    return kind, i
+
+
+@njit(cache=True, nogil=True)
+def _env_step_all(limit: int, arrays: StepArrays, actions: np.ndarray) -> int:
+    """:func:`env_step_batch` in one compiled call: the refusals first, then the step."""
+    code = _refused(arrays, actions)
+    if code < 0:
+        return code
+    n = BatchArrays(*arrays.batch).active.shape[0]
+    return _env_step_range(0, n, limit, arrays)
+
+
+@njit(cache=True)
+def _count_ended(arrays: StepArrays) -> int:
+    return int(np.count_nonzero(BatchArrays(*arrays.batch).ended))
+
+
+def env_step_batch(arrays: StepArrays, actions: np.ndarray, num_envs: int, limit: int = 0) -> int:
+    """One step of N = ``num_envs`` environments: ``actions`` (N, the action's size) of real
+    numbers copied into the step's, :func:`env_step` for every environment i with
+    ``batch.active[i]``, the others' outcome zeroed, and the step's bookkeeping of every one
+    (:class:`~aeromag_env.environment.layout.BatchArrays`: step count, end flags, reward; the
+    step count reaching ``limit`` > 0 truncates, as a ``TimeLimit``).
+
+    ``arrays`` (:func:`~aeromag_env.environment.step_arrays.step_arrays`) holds the groups:
+    ``batch`` and the arrays of ``envs`` and ``filters`` with a leading environment axis (the
+    step's actions (N, 2 or 3) float64), the shared ``settings``. Returns the number of
+    environments whose episode ended; or, before any environment moved, a negative code
+    (:func:`refusal`) when an active environment's episode ended on an earlier step and it was
+    not reset (``batch.ended`` still set), when ``actions`` have another shape, or when an
+    action is not finite. A few environments are one compiled call; many are spread over the
+    cores (:func:`aeromag_env.threads.run_chunks`).
     """
-    run_chunks(
-        _env_step_range,
-        int(active.shape[0]),
-        active,
-        modes,
-        n,
-        score_start,
-        _packed(envs),
-        _packed(settings),
-        _packed(filters),
-    )
-
-
-def _packed(arrays: tuple) -> Packed:
-    """``arrays`` packed, unless they already are (a plain tuple, not a NamedTuple)."""
-    return arrays if type(arrays) is tuple else packed(arrays)
+    if num_envs < 2 * MIN_CHUNK:  # one chunk anyway (run_chunks would run it in this thread)
+        return int(_env_step_all(limit, arrays, actions))
+    code = int(_refused(arrays, actions))
+    if code < 0:
+        return code
+    run_chunks(_env_step_range, num_envs, limit, arrays)
+    return int(_count_ended(arrays))

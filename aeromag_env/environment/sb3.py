@@ -94,6 +94,7 @@ class AeroMagSB3VecEnv(VecEnv):
             [next(s) for s in self._seed_streams] if self._seed_streams else [None] * num_envs
         )
         self._actions = np.zeros((num_envs, action_size(self.venv.config)))
+        self._results = self.venv.results  # the arrays every step leaves its results in
         super().__init__(
             num_envs, self.venv.single_observation_space, self.venv.single_action_space
         )
@@ -114,26 +115,46 @@ class AeroMagSB3VecEnv(VecEnv):
         self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
-        obs, rewards, terminated, truncated, info_list = self.venv.step_rows(
-            self._actions, self._every_info
-        )
-        dones = terminated | truncated
-        ended = dones.nonzero()[0].tolist()
-        # the infos that carry TimeLimit.truncated (with "episode_end", most steps: none)
-        labelled = range(self.num_envs) if self._every_info else ended
-        if labelled:
-            limits = (truncated & ~terminated).tolist()
-            for i in labelled:
-                info_list[i]["TimeLimit.truncated"] = limits[i]
+        ended = self.venv.step_in_place(self._actions)  # one compiled call does the step
+        results = self._results
+        obs, dones = results.obs.copy(), results.ended.copy()
+        rewards = results.reward.astype(np.float32)
+        if self._every_info:
+            info_list = self.venv.info_rows()
+            limits = (results.truncated & ~results.terminated).tolist()
+            for info, limit in zip(info_list, limits, strict=True):
+                info["TimeLimit.truncated"] = limit
+        else:  # SB3's trainers read infos at episode ends only
+            info_list = [{} for _ in range(self.num_envs)]
         if ended:
-            for i in ended:
-                info_list[i]["terminal_observation"] = obs[i].copy()
-            seeds = self._next_seeds([None] * self.num_envs, dones)
-            obs, reset_infos = self.venv.reset(seed=seeds, options={"reset_mask": dones})
-            for i, info in zip(ended, _info_list(reset_infos, self.num_envs, ended), strict=True):
-                self.reset_infos[i] = info
-                self.venv.prefetch_next(i, self._upcoming[i])
-        return obs, rewards.astype(np.float32), dones, info_list
+            obs = self._end_episodes(obs, dones, info_list)
+        return obs, rewards, dones, info_list
+
+    def _end_episodes(
+        self, obs: np.ndarray, dones: np.ndarray, info_list: list[dict[str, Any]]
+    ) -> np.ndarray:
+        """The environments of ``dones`` ended on this step: their infos (with
+        ``TimeLimit.truncated``, unless every info has it already, and ``terminal_observation``
+        from ``obs``), and reset (the next flights already prefetched). Returns the
+        observations with those of the new flights."""
+        ended = np.flatnonzero(dones)
+        if not self._every_info:
+            results = self.venv.results
+            limits = (results.truncated[ended] & ~results.terminated[ended]).tolist()
+            rows = self.venv.info_rows(ended)
+            for i, row, limit in zip(ended.tolist(), rows, limits, strict=True):
+                row["TimeLimit.truncated"] = limit
+                info_list[i] = row
+        for i in ended.tolist():
+            info_list[i]["terminal_observation"] = obs[i].copy()
+        seeds = self._next_seeds([None] * self.num_envs, dones)
+        obs, reset_infos = self.venv.reset(seed=seeds, options={"reset_mask": dones})
+        for i, info in zip(
+            ended.tolist(), _info_list(reset_infos, self.num_envs, ended), strict=True
+        ):
+            self.reset_infos[i] = info
+            self.venv.prefetch_next(i, self._upcoming[i])
+        return obs
 
     def close(self) -> None:
         self.venv.close()

@@ -74,12 +74,15 @@ def check_actions(
     num_envs: int | None = None,
     size: int = len(BASE_ACTIONS),
     out: np.ndarray | None = None,
+    finite: bool = True,
 ) -> np.ndarray:
     """The action of one environment as float64 (size,), or with ``num_envs`` the actions of a
     vector environment (num_envs, size), written into ``out`` (float64 (num_envs, size)) if
     given; a one-line ValueError when the size is wrong, the values are not real numbers
     (complex, bool, text, objects) or one is not finite (values outside [-1, 1] are clipped
-    later, not refused)."""
+    later, not refused). With ``finite=False`` (a vector environment's actions only) the values
+    are not checked for being finite: the caller's compiled step checks them before it moves
+    any environment and raises :func:`non_finite_actions`."""
     try:
         given = np.asarray(actions)
     except (TypeError, ValueError):
@@ -104,11 +107,17 @@ def check_actions(
     else:
         a = out
         np.copyto(a, given)
-    finite = np.isfinite(a)
-    if not finite.all():
-        i = int(np.flatnonzero(~finite.all(axis=1))[0])
-        raise ValueError(f"actions must be finite; environment {i} got {a[i].tolist()}")
+    if finite:
+        rows = np.flatnonzero(~np.isfinite(a).all(axis=1))
+        if rows.size:
+            raise non_finite_actions(int(rows[0]), a)
     return a
+
+
+def non_finite_actions(i: int, actions: np.ndarray) -> ValueError:
+    """The error for the actions (num_envs, size) of a vector environment whose row i is not
+    finite."""
+    return ValueError(f"actions must be finite; environment {i} got {actions[i].tolist()}")
 
 
 #: numpy dtype kinds an action may have: floating point, signed and unsigned integers.

@@ -5,7 +5,7 @@ from __future__ import annotations
 import copy
 import functools
 from dataclasses import replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium.error import ResetNeeded
@@ -13,7 +13,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from aeromag_env.compensation.arrays import Packed, packed
+from aeromag_env.compensation.arrays import packed
 from aeromag_env.compensation.kalman import FilterState
 from aeromag_env.compensation.kalman_batch import BatchFilterState
 from aeromag_env.compensation.kernel_layout import INTS
@@ -22,12 +22,31 @@ from aeromag_env.environment import kernels
 from aeromag_env.environment.checks import RESET_OPTIONS, reset_options
 from aeromag_env.environment.env import AeroMagCompensationEnv, EnvConfig, step_settings
 from aeromag_env.environment.info import info, info_rows, put_infos
-from aeromag_env.environment.layout import OUT, RUN, EnvArrays
+from aeromag_env.environment.layout import N_OUT, N_RUN, BatchArrays, EnvArrays
 from aeromag_env.environment.prefetch import FlightKey, FlightPrefetcher, simulate
-from aeromag_env.environment.spaces import action_size, check_actions
+from aeromag_env.environment.spaces import (
+    action_size,
+    check_actions,
+    non_finite_actions,
+)
+from aeromag_env.environment.step_arrays import StepArrays, step_arrays
+
+#: The actions' types the compiled step takes as they are (others are converted first).
+KERNEL_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 
 #: The keys ``reset(options=...)`` takes: the single environment's and ``reset_mask``.
 VEC_RESET_OPTIONS = ("reset_mask", *RESET_OPTIONS, "filter_method")
+
+
+class StepResults(NamedTuple):
+    """The arrays a step leaves its results in (the same arrays for the environment's life:
+    read them, copy what is kept, before the next step or reset)."""
+
+    obs: np.ndarray  #: (N, dim) float32 observations
+    reward: np.ndarray  #: (N,) float64 rewards
+    terminated: np.ndarray  #: (N,) bool
+    truncated: np.ndarray  #: (N,) bool
+    ended: np.ndarray  #: (N,) bool: terminated or truncated
 
 
 class AeroMagCompensationVecEnv(VectorEnv):
@@ -39,10 +58,11 @@ class AeroMagCompensationVecEnv(VectorEnv):
     configuration, spaces, reward and episode end): given the same reset seed and the same actions
     it returns bitwise the same observations, rewards, terminations, truncations and infos as
     ``gym.make_vec(..., vectorization_mode="sync")`` over single environments (tested). The step
-    of all N environments — action mapping, filter over K samples, reward, observation — is one
-    compiled call (:func:`aeromag_env.environment.kernels.env_step_batch`) spread over the cores;
-    only resets (simulating a new flight) run in Python, one environment at a time (or ahead, in a
-    worker process: Prefetching below).
+    of all N environments — action check, action mapping, filter over K samples, reward,
+    observation, step count, end flags — is one compiled call
+    (:func:`aeromag_env.environment.kernels.env_step_batch`), spread over the cores for many
+    environments; only resets (simulating a new flight) run in Python, one environment at a time
+    (or ahead, in a worker process: Prefetching below).
 
     ## Spaces
 
@@ -142,16 +162,21 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self.flight_seeds = np.zeros(n, np.int64)
         self._filters: BatchFilterState | None = None
         self._truth = np.zeros((n, 0, 3))
-        self._run = np.zeros((n, len(RUN)))
+        self._run = np.zeros((n, N_RUN))
         self._score_start = np.zeros(n, np.int64)
         self._obs = np.zeros((n, self._settings.low.size), np.float32)
-        self._out = np.zeros((n, len(OUT)))
-        self._ended = np.zeros(n, bool)
+        self._out = np.zeros((n, N_OUT))
+        self._active = np.ones(n, bool)  # the environments a step moves (the others restart)
         self._steps = np.zeros(n, np.int64)  # steps of each environment's current episode
         self._everyone = np.ones(n, bool)  # the mask of a step without restarts (never written)
         self._actions = np.zeros((n, action_size(self.config)))  # the step's checked actions
-        # the kernel's arrays, packed once (rebuilt after a reset, which may reallocate them)
-        self._step_arrays: tuple[Packed, Packed, Packed] | None = None
+        self.results = StepResults(
+            self._obs, np.zeros(n), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool)
+        )
+        self._ended = self.results.ended
+        # the compiled step's arrays in one object (rebuilt after a reset, which may reallocate
+        # them)
+        self._step_arrays: StepArrays | None = None
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self._prefetcher = FlightPrefetcher() if prefetch else None
         if not (isinstance(flight_cache, int | np.integer) and flight_cache >= 0):
@@ -210,72 +235,99 @@ class AeroMagCompensationVecEnv(VectorEnv):
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         infos: dict[str, Any] = {}
-        active = self._restart_ended(infos)
-        rewards, terminated, truncated = self._advance(actions, active)
+        stepped = self._restart_ended(infos)
+        self._advance(actions, stepped)
+        stepped = self._everyone if stepped is None else stepped
+        r = self.results
+        rewards, terminated, truncated = r.reward.copy(), r.terminated.copy(), r.truncated.copy()
         if self.autoreset_mode == AutoresetMode.SAME_STEP and self._any_ended():
-            obs = self._same_step_reset(infos, active)
+            obs = self._same_step_reset(infos, stepped)
         else:
             obs = self._obs.copy()
-            self._step_infos(infos, active)
+            self._step_infos(infos, stepped)
         return obs, rewards, terminated, truncated, infos
 
-    def step_rows(
-        self, actions: np.ndarray, every: bool = True
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
-        """:meth:`step` with every environment's info as its own dict (the single env's info),
-        for adapters that want one dict per environment (stable-baselines3): building them
-        straight from the outcome rows skips the batched layout. With ``every=False`` only the
-        environments whose episode ended get their info, the others an empty dict (a trainer
-        that reads infos only at episode ends: PPO, SAC). Autoreset must be disabled."""
+    def step_in_place(self, actions: np.ndarray) -> int:
+        """:meth:`step` of every environment for an adapter that wants no more (stable-baselines3:
+        :class:`~aeromag_env.environment.sb3.AeroMagSB3VecEnv`): one compiled call, the results
+        left in :attr:`results`, no infos built (:meth:`info_rows` builds them), no reset. Returns
+        the number of environments whose episode ended. Autoreset must be disabled; stepping an
+        environment that ended and was not reset is refused (``ResetNeeded``)."""
         if self.autoreset_mode != AutoresetMode.DISABLED:
-            raise ValueError("step_rows needs autoreset_mode=AutoresetMode.DISABLED")
-        active = self._restart_ended({})
-        rewards, terminated, truncated = self._advance(actions, active)
+            raise ValueError("step_in_place needs autoreset_mode=AutoresetMode.DISABLED")
+        return self._advance(actions, None)
+
+    def info_rows(self, indices: np.ndarray | None = None) -> list[dict[str, Any]]:
+        """The single env's info of each environment after the last step (of ``indices`` only,
+        if given), one dict each: built straight from the outcome rows."""
         ints = self._need_filters().ints
-        if every:
-            rows = info_rows(self._out, ints, self.flight_seeds)
-        else:
-            rows = [{} for _ in range(self.num_envs)]
-            if self._any_ended():
-                ended = np.flatnonzero(self._ended)
-                ended_rows = info_rows(self._out[ended], ints[ended], self.flight_seeds[ended])
-                for i, row in zip(ended.tolist(), ended_rows, strict=True):
-                    rows[i] = row
-        return self._obs.copy(), rewards, terminated, truncated, rows
+        if indices is None:
+            return info_rows(self._out, ints, self.flight_seeds)
+        return info_rows(self._out[indices], ints[indices], self.flight_seeds[indices])
 
-    def _advance(
-        self, actions: np.ndarray, active: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Step the ``active`` environments (the others' outcome rows zeroed): rewards,
-        terminated, truncated; sets ``_ended``."""
-        filters = self._need_filters()
-        check_actions(actions, *self._actions.shape, out=self._actions)
-        if active is not self._everyone:
-            self._out[~active] = 0.0
-        if self._step_arrays is None:
-            envs = EnvArrays(self._actions, self._run, self._truth, self._obs, self._out)
-            self._step_arrays = packed(envs), packed(self._settings), packed(filters.arrays())
-        kernels.env_step_batch(
-            active, filters.mode, filters.n, self._score_start, *self._step_arrays
+    def _real_actions(self, actions: object) -> np.ndarray:
+        """``actions`` as a float array for the compiled step, which copies them into the step's
+        own, checking their shape and that they are finite: a two-dimensional array of native
+        float32 or float64 (every step of a trainer) as it is, anything else through
+        :func:`check_actions` (which converts it, or raises what it refuses; the compiled step
+        is compiled for those types only)."""
+        if type(actions) is np.ndarray and actions.ndim == 2 and actions.dtype in KERNEL_DTYPES:
+            return actions
+        if self.autoreset_mode == AutoresetMode.DISABLED and self._any_ended():
+            self._refuse(-1 - kernels.NOT_RESET * self.num_envs)  # refused first, as ever
+        return check_actions(actions, *self._actions.shape, out=self._actions, finite=False)
+
+    def _pack(self) -> StepArrays:
+        """The compiled step's arrays in one object, built once per allocation (a reset may
+        reallocate the filters' and the truth's arrays)."""
+        filters, r = self._need_filters(), self.results
+        batch = BatchArrays(
+            *(self._active, filters.mode, filters.n, self._score_start, self._steps),
+            *(r.reward, r.terminated, r.truncated, r.ended),
         )
-        out = self._out
-        self._steps += active
-        if self.max_episode_steps is not None:  # a TimeLimit's cut, as gym.make's
-            out[active & (self._steps >= self.max_episode_steps), OUT.truncated] = 1.0
-        terminated, truncated = out[:, OUT.terminated] > 0, out[:, OUT.truncated] > 0
-        self._ended = terminated | truncated
-        return out[:, OUT.reward].copy(), terminated, truncated
+        envs = EnvArrays(self._actions, self._run, self._truth, self._obs, self._out)
+        self._step_arrays = step_arrays(
+            packed(batch), packed(envs), packed(self._settings), packed(filters.arrays())
+        )
+        return self._step_arrays
 
-    def _restart_ended(self, infos: dict[str, Any]) -> np.ndarray:
-        """Environments that ended on the previous step: ``NEXT_STEP`` restarts them now, which
-        is their whole step; ``DISABLED`` refuses. Returns the environments to step."""
-        if not self._any_ended():
-            return self._everyone
-        if self.autoreset_mode != AutoresetMode.NEXT_STEP:
-            raise ResetNeeded(
-                f"environments {np.flatnonzero(self._ended).tolist()} ended; reset them with "
-                "reset(options={'reset_mask': mask})"
-            )
+    def _advance(self, actions: np.ndarray, stepped: np.ndarray | None) -> int:
+        """Step the environments of ``stepped`` (None: all; the others' outcome rows zeroed) in
+        one compiled call, the results in :attr:`results`; the number whose episode ended."""
+        actions = self._real_actions(actions)
+        arrays = self._step_arrays or self._pack()
+        if stepped is not None:
+            np.copyto(self._active, stepped)
+        try:
+            limit = self.max_episode_steps or 0
+            ended = kernels.env_step_batch(arrays, actions, self.num_envs, limit)
+        finally:
+            if stepped is not None:
+                self._active.fill(True)
+        if ended < 0:
+            self._refuse(ended, actions)
+        return ended
+
+    def _refuse(self, code: int, actions: np.ndarray | None = None) -> None:
+        """The error of :func:`~aeromag_env.environment.kernels.env_step_batch`'s refusal
+        ``code`` (nothing moved) for ``actions``."""
+        kind, i = kernels.refusal(code, self.num_envs)
+        if kind == kernels.NOT_SHAPED:
+            check_actions(actions, *self._actions.shape, finite=False)  # says what is wrong
+            raise ValueError(f"actions must have shape {self._actions.shape}")
+        if kind != kernels.NOT_RESET:
+            raise non_finite_actions(i, self._actions)
+        raise ResetNeeded(
+            f"environments {np.flatnonzero(self._ended).tolist()} ended; reset them with "
+            "reset(options={'reset_mask': mask})"
+        )
+
+    def _restart_ended(self, infos: dict[str, Any]) -> np.ndarray | None:
+        """With ``NEXT_STEP``, environments that ended on the previous step restart now, which
+        is their whole step: returns the environments to step (None: all). (``DISABLED``: the
+        compiled step refuses an ended environment.)"""
+        if self.autoreset_mode != AutoresetMode.NEXT_STEP or not self._any_ended():
+            return None
         restart = self._ended.copy()
         for i in np.flatnonzero(restart):
             self._load(int(i), *self._new_flight(int(i), None, {}))

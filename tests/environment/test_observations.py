@@ -23,7 +23,7 @@ from aeromag_env.configs import from_dict, to_json
 from aeromag_env.environment import observe
 from aeromag_env.environment.config import PRESETS, EnvConfig, env_config
 from aeromag_env.environment.ids import registered_ids
-from aeromag_env.environment.layout import OUT, RUN, STEP_PAR
+from aeromag_env.environment.layout import N_RUN, OUT, RUN, STEP_PAR, Run
 from aeromag_env.environment.observations import NAMES, REGISTRY, entry, observation_id
 from aeromag_env.environment.spaces import observation_names
 from aeromag_env.errors import ConfigError
@@ -165,12 +165,15 @@ def test_compiled_layouts_are_generated_from_their_field_lists():
     from aeromag_env.compensation.kalman import FilterState
     from aeromag_env.environment.scenarios import make_episode
 
-    for layout in (PAR, INTS, RUN, STEP_PAR, OUT):
+    for layout in (PAR, INTS, STEP_PAR, OUT):
         assert list(layout) == list(range(len(layout)))
-    widths = list(Acc())
-    assert list(ACC) == [sum(widths[:i]) for i in range(len(widths))] and sum(widths) == N_ACC
+    for starts, widths, size in ((ACC, list(Acc()), N_ACC), (RUN, list(Run()), N_RUN)):
+        assert list(starts) == [sum(widths[:i]) for i in range(len(widths))]
+        assert sum(widths) == size
     ep = make_episode("nominal", 0, 20.0)
     f = FilterState(ep.filter_cfg, ep.y, ep.t_b, ep.tdot_b, store_states=False)
     assert (f.par.size, f.ints.size, f.acc.size) == (N_PAR, N_INT, N_ACC)
     env = gym.make("AeroMagCompensation-v0").unwrapped
+    env.reset(seed=0)
     assert env._out.size == len(OUT) and env._settings.par.size == len(STEP_PAR)
+    assert env._run.size == N_RUN

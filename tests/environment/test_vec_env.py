@@ -120,14 +120,40 @@ def test_bad_actions_and_calls_are_one_line_errors():
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(2, 2\).*got shape \(2,\)"):
         env.step(np.zeros(2))
+    with pytest.raises(ValueError, match=r"shape \(2, 2\).*got shape \(3, 2\)"):
+        env.step(np.zeros((3, 2), np.float32))  # the compiled step checks the shape
     with pytest.raises(ValueError, match=r"finite; environment 1 got \[nan, 0.0\]"):
         env.step(np.array([[0.0, 0.0], [np.nan, 0.0]]))
+    with pytest.raises(ValueError, match=r"finite; environment 0 got \[inf, 0.0\]"):
+        env.step(np.array([[np.inf, 0.0], [0.0, 0.0]], np.float32))
     with pytest.raises(ValueError, match="numbers"):
         env.step([["a", "b"], ["c", "d"]])
     with pytest.raises(ValueError, match="one seed per environment"):
         env.reset(seed=[1, 2, 3])
     with pytest.raises(ValueError, match="num_envs"):
         AeroMagCompensationVecEnv(0)
+
+
+def test_actions_of_every_real_type_step_alike():
+    """float32, float64, big-endian, strided and integer actions of the same values give the
+    same step (the first two go to the compiled step as they are, the others converted)."""
+    a = np.array([[0.5, -0.25], [1.0, 0.0]])
+    kinds = [
+        a,
+        a.astype(np.float32),
+        a.astype(">f8"),
+        np.repeat(a, 2, axis=1)[:, ::2],
+        np.array([[1, 0], [-1, 0]]),
+    ]
+    for given in kinds:
+        env = AeroMagCompensationVecEnv(2, duration_s=20.0)
+        env.reset(seed=3)
+        obs, rewards, *_ = env.step(given)
+        ref = AeroMagCompensationVecEnv(2, duration_s=20.0)
+        ref.reset(seed=3)
+        expected, expected_rewards, *_ = ref.step(given.astype(np.float64))
+        np.testing.assert_array_equal(obs, expected)
+        np.testing.assert_array_equal(rewards, expected_rewards)
 
 
 def test_disabled_autoreset_refuses_to_step_an_ended_environment():
@@ -160,3 +186,34 @@ def test_building_either_environment_loads_no_training_or_plotting_package():
     )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert run.stdout.strip() == ""
+
+
+def test_many_environments_on_threads_equal_single_envs_and_refuse_before_moving():
+    """17 environments (the step spread over threads: more than one chunk) with every optional
+    observation, a step limit and random actions: bitwise the single environments. A
+    non-finite action, or stepping an ended environment with autoreset disabled, is refused
+    before any environment moves."""
+    n = 17
+    kw = {"preset": "general", "scenario": "misspecified", "duration_s": 30.0}
+    ours, sync = _pair(n, AutoresetMode.NEXT_STEP, max_episode_steps=20, **kw)
+    _assert_identical(ours.reset(seed=5), sync.reset(seed=5))
+    rng = np.random.default_rng(1)
+    for _ in range(45):  # two episodes cut at 20 steps, and their restarts
+        actions = rng.uniform(-1.5, 1.5, (n, 3)).astype(np.float32)
+        _assert_identical(ours.step(actions), sync.step(actions))
+    k = ours.unwrapped.filters.k
+    bad = rng.uniform(-1, 1, (n, 3))
+    bad[13, 2] = np.inf
+    with pytest.raises(ValueError, match=r"finite; environment 13 got \[.*inf\]"):
+        ours.step(bad)
+    np.testing.assert_array_equal(ours.unwrapped.filters.k, k)  # nothing moved
+
+    disabled = AeroMagCompensationVecEnv(n, autoreset_mode="Disabled", max_episode_steps=2, **kw)
+    disabled.reset(seed=0)
+    disabled.step(np.zeros((n, 3)))
+    _, _, _, truncated, _ = disabled.step(np.zeros((n, 3)))
+    assert truncated.all()
+    k = disabled.filters.k
+    with pytest.raises(ResetNeeded, match="ended"):
+        disabled.step(np.zeros((n, 3)))
+    np.testing.assert_array_equal(disabled.filters.k, k)

@@ -8,15 +8,27 @@ import pytest
 from aeromag_env.flight.files import read_flight
 from aeromag_env.flight.validation import FlightFileWarning
 from aeromag_env.jobs.example import SEED, contractor_flight
-from tests._helpers import experiment, run_cli
+from aeromag_env.simulation.config import preset, with_overrides
+from aeromag_env.simulation.simulate import simulate_flight
+from tests._helpers import run_cli
 
 
-def test_the_sample_is_the_walkthrough_scripts_file_bit_for_bit() -> None:
-    """The guide's figures are the experiment's file's: the two must stay one flight."""
-    ours, theirs = contractor_flight(), experiment("own_flight_file")["raw_flight"](SEED)
-    assert ours.names == theirs.names
-    for name in ours.names:
-        np.testing.assert_array_equal(ours[name], theirs[name], err_msg=name)
+def test_the_sample_is_the_simulated_flight_as_a_contractor_delivers_it() -> None:
+    """Against the simulator's own flight: the fluxgate read in sensor axes (right, down,
+    forward), the vendor's channel the scalar less the true interference within its noise, the
+    spike one sample of 1e6 nT."""
+    ours = contractor_flight()
+    cfg = with_overrides(preset("nominal"), {"trajectory.pattern": "calibration+survey"})
+    sim = simulate_flight(cfg, rng=SEED)
+    kept = np.isin(sim.tt, ours["TIME"])
+    assert int(kept.sum()) == ours.n and ours.n < sim.n  # the samples of the gap are gone
+    body = sim.vector("flux_a")[kept]
+    sensor = np.column_stack([ours[f"FLUXA_{a}"] for a in "XYZ"])
+    np.testing.assert_array_equal(sensor, body[:, [1, 2, 0]])  # x, y, z = right, down, forward
+    vendor = ours["COMPMAG1"] - (sim["mag_1_uc"] - sim["truth_interf_mag_1"])[kept]
+    assert abs(float(np.std(vendor)) - 0.05) < 0.005  # [nT]: the vendor's noise, 20 000 samples
+    jump = ours["UNCOMPMAG1"] - sim["mag_1_uc"][kept]
+    assert np.count_nonzero(jump) == 1 and abs(float(jump.max()) - 1e6) < 1e-6  # [nT]: rounding
 
 
 def test_the_command_writes_a_file_every_tool_reads_with_its_faults(tmp_path, capsys) -> None:

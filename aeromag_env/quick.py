@@ -11,6 +11,7 @@ A command says so in one line on stderr. The sizes are :data:`agents.training.qu
 
 from __future__ import annotations
 
+import argparse
 import os
 from collections.abc import Mapping
 
@@ -36,4 +37,17 @@ def quick_requested(environ: Mapping[str, str] | None = None) -> bool:
         return True
     raise AeromagError(
         f"{QUICK_VARIABLE} must be 1 (every command at its quick size) or 0, got {value!r}"
+    )
+
+
+def add_quick_option(parser: argparse.ArgumentParser, help: str) -> None:
+    """A script's ``--quick`` flag (``help`` says its sizes), on by default in the reduced mode
+    (:func:`quick_requested`); a value of :data:`QUICK_VARIABLE` other than 0 or 1 is the
+    parser's one-line error."""
+    try:
+        default = quick_requested()
+    except AeromagError as e:
+        parser.error(str(e))
+    parser.add_argument(
+        "--quick", action="store_true", default=default, help=f"{help}; also {QUICK_VARIABLE}=1"
     )

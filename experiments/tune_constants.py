@@ -24,6 +24,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.atomic import write_text
 from aeromag_env.environment.scenarios import SCENARIOS
+from aeromag_env.quick import add_quick_option
 from agents.policies.tuned_table import TABLE
 from agents.search.tuned_constant import LOG10_Q_GRID, LOG10_R_GRID, tune_constant
 from agents.training.quick import QUICK
@@ -38,7 +39,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--out", type=Path, default=Path("results/tuned_constants.json"), help="the table"
     )
-    parser.add_argument("--quick", action="store_true", help="one scenario, 2 seeds, coarse")
+    add_quick_option(parser, "one scenario, 2 seeds, coarse")
     args = parser.parse_args(argv)
     scenarios = args.scenarios.split(",")
     grids: tuple[Sequence[float], Sequence[float]] = (LOG10_Q_GRID, LOG10_R_GRID)

@@ -33,6 +33,8 @@ FENCE = re.compile(
     r"^(?P<indent>[ \t]*)```(?P<lang>[\w-]*)[^\n]*\n(?P<body>.*?)^(?P=indent)```[ \t]*$",
     re.M | re.S,
 )
+#: Characters of a shell word the shell expands.
+EXPANDED = "$*?[`~"
 #: The prompt of a ``console`` transcript's command lines.
 PROMPT = "$ "
 
@@ -90,7 +92,7 @@ def _joined(script: str) -> str:
 
 def outputs(script: str) -> list[str]:
     """The ``--out`` arguments of the commands of a shell script (the files or folders they
-    say they write)."""
+    say they write); one the shell expands (a variable of a loop, a glob) is not checked."""
     found = []
     for line in _joined(script).splitlines():
         try:
@@ -99,4 +101,4 @@ def outputs(script: str) -> list[str]:
             continue
         found += [words[i + 1] for i, w in enumerate(words[:-1]) if w == "--out"]
         found += [w.removeprefix("--out=") for w in words if w.startswith("--out=")]
-    return found
+    return [out for out in found if not set(out) & set(EXPANDED)]

@@ -157,5 +157,6 @@ def test_the_outputs_of_a_script_are_its_out_arguments() -> None:
         "aeromag simulate --seed 7 --out flight.h5\n"
         "aeromag compensate flight.h5 --method tl \\\n    --out results/tl   # a comment --out x\n"
         "aeromag bench --out=results/bench\n"
+        'for s in 1 2; do aeromag simulate --seed "$s" --out "survey/f_$s.h5"; done\n'
     )
     assert outputs(script) == ["flight.h5", "results/tl", "results/bench"]

@@ -91,14 +91,25 @@ def _joined(script: str) -> str:
 
 
 def outputs(script: str) -> list[str]:
-    """The ``--out`` arguments of the commands of a shell script (the files or folders they
-    say they write); one the shell expands (a variable of a loop, a glob) is not checked."""
+    """What the commands of a shell script say they write: their ``--out`` arguments, the
+    output file of ``aeromag example`` and ``aeromag convert``, a file stdout is redirected to;
+    one the shell expands (a variable of a loop, a glob) is not checked."""
     found = []
     for line in _joined(script).splitlines():
         try:
             words = shlex.split(line, comments=True)
         except ValueError:  # a heredoc's body, an unbalanced quote: no command line
             continue
-        found += [words[i + 1] for i, w in enumerate(words[:-1]) if w == "--out"]
+        found += [words[i + 1] for i, w in enumerate(words[:-1]) if w in ("--out", ">")]
         found += [w.removeprefix("--out=") for w in words if w.startswith("--out=")]
+        found += _positional_output(words)
     return [out for out in found if not set(out) & set(EXPANDED)]
+
+
+def _positional_output(words: list[str]) -> list[str]:
+    """The output file of ``aeromag example OUT`` and ``aeromag convert IN OUT``."""
+    if len(words) >= 3 and words[0] == "aeromag" and words[1] == "example":
+        return [words[2]]
+    if len(words) >= 4 and words[0] == "aeromag" and words[1] == "convert":
+        return [words[3]]
+    return []

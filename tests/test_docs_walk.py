@@ -158,5 +158,14 @@ def test_the_outputs_of_a_script_are_its_out_arguments() -> None:
         "aeromag compensate flight.h5 --method tl \\\n    --out results/tl   # a comment --out x\n"
         "aeromag bench --out=results/bench\n"
         'for s in 1 2; do aeromag simulate --seed "$s" --out "survey/f_$s.h5"; done\n'
+        "aeromag example survey_raw.xyz\naeromag convert survey_raw.xyz flight.csv  # format\n"
+        "aeromag stream --model cal/model.json < line.csv > line_c.csv\n"
     )
-    assert outputs(script) == ["flight.h5", "results/tl", "results/bench"]
+    assert outputs(script) == [
+        "flight.h5",
+        "results/tl",
+        "results/bench",
+        "survey_raw.xyz",
+        "flight.csv",
+        "line_c.csv",
+    ]

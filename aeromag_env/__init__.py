@@ -39,8 +39,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from aeromag_env.environment.ids import ENV_ID, register_all
-
-__version__ = "0.1.0"
+from aeromag_env.version import __version__
 
 register_all()  # ENV_ID (the generic id) and AeroMag/<Scenario>-v0 per scenario
 

@@ -1,6 +1,6 @@
 """Benchmark: ``aeromag discover`` as a user runs it, a fresh process per run on simulated 1- and
 4-flight-hour files, figures and report included: seconds per flight-hour and peak memory [MB]
-(:func:`aeromag_env.jobs.bench_discover.bench_discover_cli`).
+(:func:`aeromag_env.jobs.bench.discover_cli.bench_discover_cli`).
 
 Run: ``.venv/bin/python benchmarks/discover_cli.py [--quick] [--hours 1 2 4] [--repeats 3]
 [--out FILE.json]``; ``--quick``: one 30-min flight, one measured run (about a minute).
@@ -14,8 +14,11 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from aeromag_env.atomic import write_text
-from aeromag_env.jobs.bench_discover import HOURS, QUICK_HOURS, REPEATS, bench_discover_cli
+from aeromag_env.jobs.bench.discover_cli import HOURS, QUICK_HOURS, REPEATS, bench_discover_cli
 from aeromag_env.quick import add_quick_option
 
 

@@ -42,6 +42,9 @@ from typing import Any
 
 import numpy as np
 
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import aeromag_env
 from aeromag_env.atomic import write_text
 from aeromag_env.compensation import metrics

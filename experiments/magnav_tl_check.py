@@ -37,6 +37,9 @@ from typing import Any
 import numpy as np
 import scipy.io
 
+if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import aeromag_env
 from aeromag_env.atomic import write_text
 from aeromag_env.flight.data import Flight

@@ -52,11 +52,9 @@ def _ours(value: Any) -> str:
     return num(value)
 
 
-def paper_page(docs: Path) -> str:
-    """``paper.md``: the paper's §4 claims judged on ``docs/paper/report.json``."""
-    r = read(docs, "paper/report.json")
-    s = r["setting"]
-    claims = [
+def _paper_claims(r: dict[str, Any]) -> list[tuple[str, ...]]:
+    """The claims' rows of ``paper.md``: claim, criterion, ours, verdict."""
+    return [
         (
             c["claim"],
             c["criterion"],
@@ -65,10 +63,12 @@ def paper_page(docs: Path) -> str:
         )
         for c in r["claims"]
     ]
-    n_ok = sum(c["reproduced"] for c in r["claims"] if not c["claim"].startswith("(not"))
-    n_claims = sum(not c["claim"].startswith("(not") for c in r["claims"])
+
+
+def _paper_filters(r: dict[str, Any]) -> list[tuple[str, ...]]:
+    """The filters' rows of ``paper.md``: the fuzzy KF, the KF and the KF with the true R."""
     filters = {"fakf": r["fakf"], "kf": r["kf"], "kf with the true R": r["reference"]["kf_true_r"]}
-    rows = [
+    return [
         (
             f"`{name}`" if " " not in name else name,
             num(f["compensation_rmse_nt"]),
@@ -81,6 +81,15 @@ def paper_page(docs: Path) -> str:
         )
         for name, f in filters.items()
     ]
+
+
+def paper_page(docs: Path) -> str:
+    """``paper.md``: the paper's §4 claims judged on ``docs/paper/report.json``."""
+    r = read(docs, "paper/report.json")
+    s = r["setting"]
+    claims, rows = _paper_claims(r), _paper_filters(r)
+    n_ok = sum(c["reproduced"] for c in r["claims"] if not c["claim"].startswith("(not"))
+    n_claims = sum(not c["claim"].startswith("(not") for c in r["claims"])
     lines = [
         "# The paper reproduced",
         "",
@@ -273,11 +282,10 @@ def _nominal(flights: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
-def discovery_page(docs: Path) -> str:
-    """``discovery.md``: the hidden-effect suite and the plain-flight false alarms."""
-    s = read(docs, "discovery/summary.json")
+def _discovery_claims(s: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """The claims' rows of ``discovery.md``: claim, target, result."""
     one, fa = s["single_snr_ge_2"], s["false_alarm"]
-    claims = [
+    return [
         ("single effects at SNR ≥ 2, exact set named", "≥ 90 %", pct(one["exact_set"])),
         ("single effects at SNR ≥ 2, first named = truth", "–", pct(one["top1"])),
         ("false alarms on null flights (nominal + coloured noise)", "≤ 5 %", pct(fa["all_nulls"])),
@@ -295,37 +303,73 @@ def discovery_page(docs: Path) -> str:
         ),
         ("pairs at SNR 4, exact set", "–", pct(s["pairs_exact_set"])),
     ]
-    effects = [
+
+
+def _discovery_duration(d: dict[str, Any]) -> list[str]:
+    """The power-against-duration section's lines of ``discovery.md`` (its tables)."""
+    lines = [
+        f"{d['flights']} flights; detected = {d['detection']}; decoy channels named on these "
+        f"flights: {d['decoy_named']}.",
+        "",
+    ]
+    for snr, per in d["power"].items():
+        durations = list(next(iter(per.values())))
+        lines += table(
+            [f"effect (SNR {snr})", *(f"{int(x) // 60} min" for x in durations)],
+            [(f"`{name}`", *(pct(per[name][x]) for x in durations)) for name in per],
+        )
+        lines.append("")
+    return lines
+
+
+def _discovery_effects(s: dict[str, Any]) -> list[tuple[str, ...]]:
+    """The per-effect rows of ``discovery.md``: exact set, gap shrink, power by SNR."""
+    return [
         (
             f"`{name}`",
             f"{100 * e['exact']['rate']:.0f} %",
             f"{e['median_shrink']:.1f}×",
             " / ".join(f"{100 * s['power'][name][x]['rate']:.0f} %" for x in SNRS),
         )
-        for name, e in one["per_effect"].items()
+        for name, e in s["single_snr_ge_2"]["per_effect"].items()
     ]
-    conf = s["confusion"]
+
+
+def _discovery_confusion(conf: dict[str, dict[str, int]]) -> list[str]:
+    """The confusion table's lines of ``discovery.md``: injected effects by what was named."""
     cols = list(next(iter(conf.values())))
-    confusion = [(f"`{t}`", *(str(conf[t][c]) for c in cols)) for t in conf]
+    rows = [(f"`{t}`", *(str(conf[t][c]) for c in cols)) for t in conf]
+    return table(["injected", *(f"`{c}`" for c in cols)], rows)
+
+
+def _discovery_sources(docs: Path) -> str:
+    """The source line of ``discovery.md``: its data files and the commands that wrote them."""
+    return source_line(
+        docs,
+        [
+            (
+                "discovery/summary.json",
+                "python -m experiments.hidden_effects --single 10 --null 40 --coloured 20 "
+                "--absorbed 5 --pairs 5 --out docs/discovery (10.3 min on a 2-core machine), "
+                "then --only duration --durations 4 --out docs/discovery (17.5 min)",
+            ),
+            (
+                "discovery/nominal.json",
+                "python -m experiments.discovery_nominal --out docs/discovery",
+            ),
+        ],
+    )
+
+
+def discovery_page(docs: Path) -> str:
+    """``discovery.md``: the hidden-effect suite and the plain-flight false alarms."""
+    s = read(docs, "discovery/summary.json")
+    claims, effects = _discovery_claims(s), _discovery_effects(s)
     cases = ", ".join(f"{k} {v}" for k, v in s["cases"].items())
     lines = [
         "# Discovery power and false alarms",
         "",
-        source_line(
-            docs,
-            [
-                (
-                    "discovery/summary.json",
-                    "python -m experiments.hidden_effects --single 10 --null 40 --coloured 20 "
-                    "--absorbed 5 --pairs 5 --out docs/discovery (10.3 min on a 2-core machine), "
-                    "then --only duration --durations 4 --out docs/discovery (17.5 min)",
-                ),
-                (
-                    "discovery/nominal.json",
-                    "python -m experiments.discovery_nominal --out docs/discovery",
-                ),
-            ],
-        ),
+        _discovery_sources(docs),
         "",
         "The hidden-effect suite injects known effects into simulated flights and asks "
         "`aeromag discover` to name them; decoy channels ride along in every flight. Strength "
@@ -358,25 +402,11 @@ def discovery_page(docs: Path) -> str:
         "Rows: the injected effect (single effects at SNR ≥ 2, and null flights); columns: what "
         "was named.",
         "",
-        *table(["injected", *(f"`{c}`" for c in cols)], confusion),
+        *_discovery_confusion(s["confusion"]),
         "",
         "## Power against flight duration",
         "",
-    ]
-    d = s["power_duration"]
-    lines += [
-        f"{d['flights']} flights; detected = {d['detection']}; decoy channels named on these "
-        f"flights: {d['decoy_named']}.",
-        "",
-    ]
-    for snr, per in d["power"].items():
-        durations = list(next(iter(per.values())))
-        lines += table(
-            [f"effect (SNR {snr})", *(f"{int(x) // 60} min" for x in durations)],
-            [(f"`{name}`", *(pct(per[name][x]) for x in durations)) for name in per],
-        )
-        lines.append("")
-    lines += [
+        *_discovery_duration(s["power_duration"]),
         "![Power against flight duration](../discovery/power_duration.png)",
         "",
         "## Plain simulated flights",

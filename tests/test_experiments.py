@@ -446,3 +446,41 @@ def test_the_calibrate_howto_quotes_its_results_file():
     table = experiment("calibrate_then_apply")["markdown_table"](results["summary"])
     assert table in (ROOT / "docs" / "howto" / "calibrate.md").read_text()
     assert results["summary"]["pairs"] >= 10
+
+
+def test_general_tuner_bounds_summary_on_made_up_flights():
+    """The summary's hindsight minimum is per flight, the blind row is the lowest geometric
+    mean ratio, and a scenario without headroom gets no score."""
+    summarise = experiment("general_tuner_bounds")["summarise"]
+    flights = {
+        "a": {  # headroom 1 nT on every flight
+            "tuned_constant": [2.0, 2.0, 2.2],
+            "privileged": [1.0, 1.0, 1.2],
+            "constant:a": [2.0, 2.0, 2.2],
+            "constant:b": [4.0, 1.5, 4.2],
+        },
+        "b": {  # no headroom
+            "tuned_constant": [1.0, 1.1, 1.0],
+            "privileged": [1.0, 1.1, 1.0],
+            "constant:a": [3.0, 3.3, 3.0],
+            "constant:b": [1.0, 1.1, 1.0],
+        },
+    }
+    s = summarise(flights)
+    a = s["scenarios"]["a"]
+    assert a["mean_rmse_nt"]["hindsight_best_constant"] == pytest.approx((2.0 + 1.5 + 2.2) / 3)
+    assert a["score"]["hindsight_best_constant"] == pytest.approx((6.2 - 5.7) / 3 / 1.0)
+    assert s["scenarios"]["b"]["score"]["privileged"] is None
+    # row a: ratios 1 and 3; row b: 1.57 and 1: the geometric means 1.73 and 1.25
+    assert s["best_blind_row"] == "constant:b"
+    assert s["iqm"]["privileged"] == pytest.approx(1.0)
+
+
+@pytest.mark.slow
+def test_general_tuner_bounds_quick(tmp_path):
+    out = tmp_path / "bounds.json"
+    assert "wrote" in _ok(run_script("general_tuner_bounds", "--quick", "--out", str(out)))
+    result = json.loads(out.read_text())
+    assert len(result["seeds"]) == 2 and len(result["flights"]) == 2
+    first = next(iter(result["flights"].values()))
+    assert {"tuned_constant", "privileged", "imm", "vbakf"} <= set(first)

@@ -20,7 +20,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
-from aeromag_env import __version__, reports
+from aeromag_env import reports
 from aeromag_env.atomic import check_output_set, output_set, write_text
 from aeromag_env.compensation.calibration_model import CalibrationModel
 from aeromag_env.compensation.compensate import Compensation
@@ -39,6 +39,7 @@ from aeromag_env.jobs.provenance import (
     load_source,
 )
 from aeromag_env.jobs.reports import jsonable, report_json
+from aeromag_env.version import __version__
 
 #: The output set of a calibration, in the folder ``out``.
 OUTPUTS = ("model.json", "report.json", reports.PAGE)

@@ -13,7 +13,7 @@ per learner, seed, scenario and test flight, the reference policies with an empt
   the paired 95 % t interval over flights;
 * rliable's aggregates over seeds × scenarios (IQM, mean, optimality gap, probability of
   improvement, performance profiles) with stratified-bootstrap intervals (Agarwal et al. 2021);
-* the bar a shipped general policy has to clear (issue 41), checked per learner;
+* the bar a shipped general policy has to clear, checked per learner;
 * the learning curves on the normalized scale, from the validation flights.
 
 A scenario where ``privileged`` is not better than ``tuned_constant`` beyond the paired interval

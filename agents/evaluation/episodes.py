@@ -13,7 +13,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.environment.ids import register_all
 from aeromag_env.environment.scenarios import SCENARIOS, TRAINING_SCENARIOS, check_scenario
 from aeromag_env.errors import AeromagError
 from aeromag_env.parallel import Runner, SerialRunner, Task, failures
@@ -22,6 +22,8 @@ from agents.evaluation.statistics import normalized_scores, policy_summaries
 from agents.policies import make_policy, policy_env_kwargs
 from agents.policies.baselines import BasePolicy
 from agents.policies.protocol import TuningPolicy
+
+register_all()  # the environment ids gym.make reads (a second call does nothing)
 
 #: Flights per task when evaluation runs on Ray (one task per policy here).
 CHUNK = 8

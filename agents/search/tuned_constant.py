@@ -14,11 +14,13 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-import aeromag_env  # noqa: F401  (registers the environment)
+from aeromag_env.environment.ids import register_all
 from aeromag_env.errors import AeromagError
 from agents.evaluation.episodes import run_episode
 from agents.evaluation.seeds import TRAIN_SEEDS
 from agents.policies.baselines import TargetScalePolicy
+
+register_all()  # the environment ids gym.make reads (a second call does nothing)
 
 #: Wide enough for the paper's R(0), 2e5× too small, and Q(0), far too large.
 LOG10_Q_GRID = tuple(float(v) for v in np.arange(-10.0, 6.01, 1.0))

@@ -25,8 +25,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.atomic import check_output_set, output_set, write_text
+from aeromag_env.environment.ids import register_all
 from aeromag_env.environment.scenarios import check_scenario
 from aeromag_env.errors import AeromagError, HyperparameterError
 from agents.policies.numpy_policy import NumpyPPOPolicy
@@ -36,6 +36,8 @@ from agents.training.hyperparams_file import read_ppo
 from agents.training.imitation import CloningTerm, Demonstrations, behaviour_clone, seed_stream
 from agents.training.quick import QUICK, quick_hyperparams, sized
 from agents.training.validation import Validator, validation_rmse
+
+register_all()  # the environment ids gym.make reads (a second call does nothing)
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.json"
 #: The checkpoint, written as a set (the model, the observation normaliser, the curve).

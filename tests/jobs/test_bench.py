@@ -235,9 +235,16 @@ def test_bench_only_discover_measures_the_workflow_alone(tmp_path, capsys):
 
     assert main(["bench", "--only", "discover", "--quick", "--out", str(tmp_path)]) == 0
     result = json.loads((tmp_path / "bench.json").read_text())
-    assert set(result["figures"]) == {"discover_s_per_flight_hour"}
+    assert {k for k in result["figures"] if not k.startswith("discover_cli_")} == {
+        "discover_s_per_flight_hour"
+    }
+    assert result["figures"]["discover_cli_0.5h_peak_mb"] > 0  # the fresh process's run too
     assert result["figures"]["discover_s_per_flight_hour"] > 0
-    assert [r["benchmark"] for r in result["rows"]] == ["discover 1 flight-hour"]
+    assert [r["benchmark"] for r in result["rows"]] == [
+        "discover 1 flight-hour",
+        "aeromag discover, fresh process, 0.5 flight-hour file",
+        "aeromag discover, 0.5 flight-hour file, peak RSS",
+    ]
     assert result["rows"][0]["target"] == "≤ 5 s"
     assert "discover 1 flight-hour" in capsys.readouterr().out
 

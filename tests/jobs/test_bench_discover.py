@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from aeromag_env.errors import AeromagError
-from aeromag_env.jobs import bench_discover
-from aeromag_env.jobs.bench_discover import bench_discover_cli
+from aeromag_env.jobs.bench import discover_cli as bench_discover
+from aeromag_env.jobs.bench.discover_cli import bench_discover_cli
 from tests._helpers import ROOT, assert_one_line_error
 
 

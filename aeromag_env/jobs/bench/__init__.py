@@ -23,6 +23,10 @@ Figures (``bench.json`` → ``figures``):
   (:func:`~aeromag_env.jobs.bench.workflows.peak_rss_mb`: interpreter, libraries, reading,
   filtering, writing and the figure; target < 1 GB), against
   ``compensate_baseline_mb``, the same process after its imports, before the work.
+* ``discover_cli_<hours>h_…`` — ``aeromag discover`` as a user runs it, a fresh process on a
+  1- and a 4-flight-hour file, figures and page included
+  (:mod:`aeromag_env.jobs.bench.discover_cli`): wall and CPU seconds per flight-hour (target
+  5 s) and peak resident memory (target 600 MB on the 1-hour file, and its growth per hour).
 * ``stream_<method>_…`` — ``aeromag stream``'s latency per sample (median, 99th percentile) and
   its memory over a 10-hour stream (:mod:`aeromag_env.jobs.bench.stream`), for a Tolles–Lawson
   and a Kalman filter model.
@@ -40,6 +44,7 @@ from typing import Any
 
 from aeromag_env.atomic import check_output_set, write_text
 from aeromag_env.errors import ArgumentError
+from aeromag_env.jobs.bench.discover_cli import bench_discover_cli, discover_cli_rows
 from aeromag_env.jobs.bench.filters import bench_filter_figures
 from aeromag_env.jobs.bench.on_ray import bench_ray, ray_rows
 from aeromag_env.jobs.bench.stream import HOURS, QUICK_HOURS, bench_stream, stream_rows
@@ -166,7 +171,8 @@ def _measure(request: BenchRequest, say: Callable[[str], Any]) -> tuple[dict[str
     if request.only == "discover":
         say("discover")
         figures |= bench_discover(hour_flight(hours), 1 if quick else 3)
-        return figures, [discover_row(figures)]
+        figures |= _discover_cli(quick)
+        return figures, [discover_row(figures), *discover_cli_rows(figures)]
     if request.only == "stream":
         say("stream")
         figures |= bench_stream(QUICK_HOURS if quick else HOURS)
@@ -189,12 +195,24 @@ def _measure(request: BenchRequest, say: Callable[[str], Any]) -> tuple[dict[str
     figures |= _bench_ppo_both(quick)
     say("discover")
     figures |= bench_discover(hour, 1 if quick else 3)
+    figures |= _discover_cli(quick)
     if not quick or q.bench_memory:
         say("memory")
         figures |= bench_memory()
     say("stream")
     figures |= bench_stream(QUICK_HOURS if quick else HOURS)
-    return figures, rows(figures) + stream_rows(figures) + ray_rows(figures)
+    table_rows = rows(figures) + discover_cli_rows(figures) + stream_rows(figures)
+    return figures, table_rows + ray_rows(figures)
+
+
+def _discover_cli(quick: bool) -> dict[str, Any]:
+    """``aeromag discover`` as a user runs it, in fresh processes (1 and 4 flight-hours; quick:
+    one run on half an hour)."""
+    from aeromag_env.jobs.bench import discover_cli
+
+    if quick:
+        return bench_discover_cli(discover_cli.QUICK_HOURS, 1)
+    return bench_discover_cli(discover_cli.HOURS, discover_cli.REPEATS)
 
 
 def _bench_ppo_both(quick: bool, scale: int = 1) -> dict[str, Any]:

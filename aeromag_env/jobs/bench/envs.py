@@ -8,28 +8,26 @@
   :data:`VEC_ENVS` environments, the same protocol (seeds 100 000 + i, steps only).
 * ``env_reset_s`` — seconds per reset of one env (simulating a ``nominal`` flight): the part
   of training that batching does not speed up.
-* ``ppo_batched_steps_per_s``, ``ppo_dummyvec_steps_per_s`` — stable-baselines3 PPO
-  ``learn`` throughput (environment steps per second, resets and updates included) with the
-  training environments of ``aeromag train`` (``agents/training/hyperparams/ppo.json``, scenario
-  ``nonstationary``: its 8 envs, n_steps, batch size, epochs, network; torch set up as in
-  training, :func:`agents.training.ppo.training_torch`): batched with flights prefetched in a worker
-  process (the default), SB3's ``DummyVecEnv``, and ``ppo_batched_no_prefetch_steps_per_s``
-  (batched stepping alone). The four run side by side in one process, taking turns one
-  rollout (and its update) at a time, the order rotating each turn, so that the slow drifts of
-  a shared machine's speed fall on all of them alike (until 2026-11-27 each repeat ran one
-  variant's whole run after another's, and single repeats of the share below scattered from
-  −6 to 59 %). Steady-state throughput: one untimed rollout first (the first reset of every
-  environment, torch's first calls), then ``learn`` goes on, timed, for five episodes per
-  environment in each repeat (with 8; two with 64), the resets at episode ends included. A
-  training run of 1.5M steps has 20–160 episodes per environment, so its first reset
-  (``env_reset_s`` per environment) weighs little. With them the share of each run's time
-  spent in the environments (``ppo_*_env_time_share``) and the microseconds per environment
-  step in each part of the run (``ppo_*_{env,forward,update,rest}_us_per_step``: the
-  environments' ``step_wait``, the policy's forward pass in the rollouts, the updates, the
-  rest — rollout buffer, normalisation, SB3's loop); ``ppo_free_*``: PPO on
-  :func:`free_vec_env`, PPO's own cost alone; ``ppo_batched_ratio_min`` / ``_max``: the range
-  over the repeats of the batched variant's ratio to ``DummyVecEnv`` in the same repeat.
-  ``ppo64_*``: the same with 64 environments.
+* ``ppo_batched_steps_per_s``, ``ppo_dummyvec_steps_per_s`` — stable-baselines3 PPO ``learn``
+  throughput (environment steps per second, resets and updates included) with the training
+  environments of ``aeromag train`` (``agents/training/hyperparams/ppo.json``, scenario
+  ``nonstationary``: its 8 envs, n_steps, batch size, epochs, network; torch set up as in training,
+  :func:`agents.training.ppo.training_torch`): batched with flights prefetched in a worker process
+  (the default), SB3's ``DummyVecEnv``, and ``ppo_batched_no_prefetch_steps_per_s`` (batched
+  stepping alone). The four run side by side in one process, taking turns one rollout (and its
+  update) at a time, the order rotating each turn, so that the slow drifts of a shared machine's
+  speed fall on all of them alike (run one after another, single repeats of the share below
+  scattered from −6 to 59 %). Steady-state throughput: one untimed rollout first (the first reset of
+  every environment, torch's first calls), then ``learn`` goes on, timed, for five episodes per
+  environment in each repeat (with 8; two with 64), the resets at episode ends included. A training
+  run of 1.5M steps has 20–160 episodes per environment, so its first reset (``env_reset_s`` per
+  environment) weighs little. With them the share of each run's time spent in the environments
+  (``ppo_*_env_time_share``) and the microseconds per environment step in each part of the run
+  (``ppo_*_{env,forward,update,rest}_us_per_step``: the environments' ``step_wait``, the policy's
+  forward pass in the rollouts, the updates, the rest — rollout buffer, normalisation, SB3's loop);
+  ``ppo_free_*``: PPO on :func:`free_vec_env`, PPO's own cost alone; ``ppo_batched_ratio_min`` /
+  ``_max``: the range over the repeats of the batched variant's ratio to ``DummyVecEnv`` in the same
+  repeat. ``ppo64_*``: the same with 64 environments.
 * ``ppo_env_share`` — the environment's share of PPO's wall time with the batched training
   environments, ``1 − batched / free`` (steps per second with prefetching against the
   zero-cost environment of the same spaces, episode length in steps and PPO settings), from
@@ -84,13 +82,15 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-import aeromag_env  # noqa: F401  (registers the environment)
 from aeromag_env.compensation.arrays import CORE_ARRAYS, filter_arrays, packed
 from aeromag_env.compensation.kalman_batch import BatchFilterState, advance_batch
 from aeromag_env.compensation.kalman_reference import run_reference
 from aeromag_env.compensation.kernel_layout import INTS
 from aeromag_env.compensation.model import FilterConfig
+from aeromag_env.environment.ids import register_all
 from aeromag_env.environment.spaces import BASE_ACTIONS
+
+register_all()  # the environment ids gym.make reads (a second call does nothing)
 
 #: Environments of the batched-environment figure.
 VEC_ENVS = 64
@@ -263,7 +263,7 @@ def filter_figures(prefix: str, parts: Seconds, timesteps: int, window: int) -> 
     env = [1e6 * s / timesteps for s in parts["batched"]["env"]]
     figures: dict[str, Any] = {f"{prefix}_decision_window": window}
     for name in ("filter", IN_PPO):
-        if name not in parts:  # (IN_PPO: from 2026-11-28 on)
+        if name not in parts:  # older bench.json files have no IN_PPO part
             continue
         kernel = [1e6 * s / timesteps for s in parts[name]["kernel"]]
         paired = [e / k for e, k in zip(env, kernel, strict=True)]

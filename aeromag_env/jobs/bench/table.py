@@ -19,6 +19,27 @@ ENV_TO_FILTER_TARGETS = {8: 1.5}
 
 def rows(f: dict[str, Any]) -> list[Row]:
     """(benchmark, median, ratio to its reference in this run, target, target met)."""
+    peak, base = f.get("compensate_10h_peak_mb"), f.get("compensate_baseline_mb")
+    return [
+        *_simulate_and_filter_rows(f),
+        *_env_rows(f),
+        *ppo_rows(f, "ppo"),
+        *ppo_rows(f, "ppo64"),
+        discover_row(f),
+        (
+            "compensate 10-hour flight, peak RSS",
+            _num(peak, "MB"),
+            "n/a (not measured: --quick)"
+            if peak is None or base is None
+            else f"{peak / base:.1f}× the process after imports ({base:.0f} MB)",
+            "< 1024 MB",
+            None if peak is None else peak < 1024,
+        ),
+    ]
+
+
+def _simulate_and_filter_rows(f: dict[str, Any]) -> list[Row]:
+    """The simulator's and the filters' rows of :func:`rows`."""
     sim, fp, comp = (
         f["simulate_s_per_flight_hour"],
         f["filterpy_samples_per_s"],
@@ -26,8 +47,6 @@ def rows(f: dict[str, Any]) -> list[Row]:
     )
     batched, numpy_ref = f["filter_batched_samples_per_s"], f["filter_numpy_samples_per_s"]
     warm = f.get("simulate_warm_s_per_flight_hour")  # older bench.json files lack it
-    env1, envn = f["env_single_steps_per_s"], f["env_batched_steps_per_s"]
-    peak, base = f.get("compensate_10h_peak_mb"), f.get("compensate_baseline_mb")
     return [
         (
             "simulate 1 flight-hour (grid IGRF)",
@@ -66,6 +85,13 @@ def rows(f: dict[str, Any]) -> list[Row]:
             None,
         ),
         ("filterpy KalmanFilter (reference)", _num(fp, "samples/s"), "1×", "", None),
+    ]
+
+
+def _env_rows(f: dict[str, Any]) -> list[Row]:
+    """The environments' rows of :func:`rows` (stepping and resetting, PPO aside)."""
+    env1, envn = f["env_single_steps_per_s"], f["env_batched_steps_per_s"]
+    return [
         (
             "env steps, 1 env, K = 10",
             f"{env1:,.0f} /s",
@@ -86,18 +112,6 @@ def rows(f: dict[str, Any]) -> list[Row]:
             f"= {f['env_reset_s'] * env1:.0f} steps of 1 env",
             "",
             None,
-        ),
-        *ppo_rows(f, "ppo"),
-        *ppo_rows(f, "ppo64"),
-        discover_row(f),
-        (
-            "compensate 10-hour flight, peak RSS",
-            _num(peak, "MB"),
-            "n/a (not measured: --quick)"
-            if peak is None or base is None
-            else f"{peak / base:.1f}× the process after imports ({base:.0f} MB)",
-            "< 1024 MB",
-            None if peak is None else peak < 1024,
         ),
     ]
 

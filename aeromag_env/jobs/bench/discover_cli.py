@@ -162,3 +162,41 @@ def _load() -> float | None:
         return float(os.getloadavg()[0])
     except (AttributeError, OSError):
         return None
+
+
+def discover_cli_rows(f: dict[str, Any]) -> list[tuple[str, str, str, str, bool | None]]:
+    """The table's rows of :func:`bench_discover_cli`'s figures: per flight length the wall
+    seconds per flight-hour (target :data:`TARGET_S_PER_FLIGHT_HOUR`) and the peak memory
+    (target :data:`TARGET_PEAK_MB_1H` for the 1-hour flight; the others against its growth)."""
+    out: list[tuple[str, str, str, str, bool | None]] = []
+    lengths = sorted(
+        float(k.removeprefix("discover_cli_").removesuffix("h_s_per_flight_hour"))
+        for k in f
+        if k.startswith("discover_cli_") and k.endswith("h_s_per_flight_hour")
+    )
+    for h in lengths:
+        label = f"discover_cli_{h:g}h"
+        wall, cpu = f[f"{label}_s_per_flight_hour"], f[f"{label}_cpu_s_per_flight_hour"]
+        peak = f[f"{label}_peak_mb"]
+        out.append(
+            (
+                f"aeromag discover, fresh process, {h:g} flight-hour file",
+                f"{wall:.2f} s per flight-hour",
+                f"CPU {cpu:.2f} s per flight-hour",
+                f"≤ {TARGET_S_PER_FLIGHT_HOUR:g} s",
+                wall <= TARGET_S_PER_FLIGHT_HOUR,
+            )
+        )
+        out.append(
+            (
+                f"aeromag discover, {h:g} flight-hour file, peak RSS",
+                "n/a" if peak is None else f"{peak:.0f} MB",
+                "n/a"
+                if f.get("discover_cli_peak_growth_mb_per_flight_hour") is None
+                else f"grows {f['discover_cli_peak_growth_mb_per_flight_hour']:.0f} MB per "
+                "flight-hour",
+                f"≤ {TARGET_PEAK_MB_1H:g} MB" if h == 1.0 else "",
+                None if peak is None or h != 1.0 else peak <= TARGET_PEAK_MB_1H,
+            )
+        )
+    return out

@@ -15,11 +15,12 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.jobs.bench import bench
+from aeromag_env.quick import add_quick_option
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="small sizes (about a minute)")
+    add_quick_option(parser, "small sizes (about a minute)")
     parser.add_argument("--out", type=Path, default=Path("results/bench"), help="output folder")
     args = parser.parse_args(argv)
     print(bench(args.out, quick=args.quick).table)

@@ -18,11 +18,12 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 from aeromag_env.jobs.bench import FILTER_SAMPLES
 from aeromag_env.jobs.bench.filters import bench_filter_figures
 from aeromag_env.jobs.bench.workflows import hour_flight
+from aeromag_env.quick import add_quick_option
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="1000 samples, 3 repeats")
+    add_quick_option(parser, "1000 samples, 3 repeats")
     args = parser.parse_args(argv)
     samples, repeats = (1000, 3) if args.quick else (FILTER_SAMPLES, 7)
     print(json.dumps(bench_filter_figures(hour_flight(), samples, repeats), indent=2))

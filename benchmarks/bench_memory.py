@@ -16,12 +16,13 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.jobs.bench.workflows import bench_memory
+from aeromag_env.quick import add_quick_option
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=10.0, help="the flight's length [h]")
-    parser.add_argument("--quick", action="store_true", help="a 1-hour flight")
+    add_quick_option(parser, "a 1-hour flight")
     args = parser.parse_args(argv)
     print(json.dumps(bench_memory(1.0 if args.quick else args.hours), indent=2))
     return 0

@@ -19,11 +19,12 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.jobs.bench.envs import bench_ppo
+from aeromag_env.quick import add_quick_option
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer steps, one repeat")
+    add_quick_option(parser, "fewer steps, one repeat")
     args = parser.parse_args(argv)
     repeats = 1 if args.quick else 3
     figures = bench_ppo(16384 if args.quick else 49152, repeats)

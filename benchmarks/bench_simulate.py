@@ -15,11 +15,12 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.jobs.bench.workflows import bench_simulate
+from aeromag_env.quick import add_quick_option
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="3 repeats instead of 7")
+    add_quick_option(parser, "3 repeats instead of 7")
     args = parser.parse_args(argv)
     print(json.dumps(bench_simulate(3 if args.quick else 7), indent=2))
     return 0

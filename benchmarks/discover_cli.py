@@ -19,11 +19,12 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.atomic import write_text
 from aeromag_env.jobs.bench.discover_cli import HOURS, QUICK_HOURS, REPEATS, bench_discover_cli
+from aeromag_env.quick import add_quick_option
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="one 30-min flight, one run")
+    add_quick_option(parser, "one 30-min flight, one run")
     parser.add_argument("--hours", type=float, nargs="+", help=f"flight lengths (default {HOURS})")
     parser.add_argument("--repeats", type=int, help=f"measured runs per length (default {REPEATS})")
     parser.add_argument("--out", type=Path, help="also write the figures to this JSON file")

@@ -29,6 +29,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.environment import vec_env
 from aeromag_env.jobs.bench.envs import BareFilter, timed
+from aeromag_env.quick import add_quick_option
 
 STEPS = 3000
 #: Environment steps of the bare filter per turn (it takes its turn every this many steps).
@@ -80,7 +81,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("num_envs", type=int, nargs="?", default=8, help="batched environments")
     parser.add_argument("repeats", type=int, nargs="?", default=5, help="repeats (medians)")
-    parser.add_argument("--quick", action="store_true", help=f"{TURN} steps per repeat")
+    add_quick_option(parser, f"{TURN} steps per repeat")
     args = parser.parse_args(argv)
     for name, value in split(args.num_envs, args.repeats, TURN if args.quick else STEPS).items():
         print(f"{name:32s} {value:6.1f}")

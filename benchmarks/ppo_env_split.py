@@ -31,6 +31,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.environment import kernels
 from aeromag_env.jobs.bench.envs import timed
+from aeromag_env.quick import add_quick_option
 
 TIMESTEPS = 49_152
 
@@ -76,7 +77,7 @@ def split(repeats: int, timesteps: int = TIMESTEPS) -> dict[str, float]:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("repeats", type=int, nargs="?", default=3, help="repeats (medians)")
-    parser.add_argument("--quick", action="store_true", help="one repeat of 4 096 steps")
+    add_quick_option(parser, "one repeat of 4 096 steps")
     args = parser.parse_args(argv)
     repeats, steps = (1, 4096) if args.quick else (args.repeats, TIMESTEPS)
     for name, value in split(repeats, steps).items():

@@ -59,6 +59,7 @@ from aeromag_env.compensation.model_drift import drift_warning
 from aeromag_env.compensation.model_fit import fit_model
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.flight.data import vector_names
+from aeromag_env.quick import add_quick_option
 from aeromag_env.simulation.config import AircraftConfig, GeologyConfig, preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
 from aeromag_env.simulation.tolles_lawson_terms import design_matrix
@@ -309,7 +310,7 @@ def markdown_table(summary: dict[str, Any]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="3 pairs, 5-minute surveys (tests)")
+    add_quick_option(parser, "3 pairs, 5-minute surveys (tests)")
     parser.add_argument("--pairs", type=int, default=12)
     parser.add_argument("--survey-s", type=float, default=1200.0, help="survey length [s]")
     parser.add_argument("--out", type=Path, default=Path("results/calibrate_then_apply"))

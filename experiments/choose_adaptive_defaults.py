@@ -50,6 +50,7 @@ from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.configs import to_dict
 from aeromag_env.environment.ids import SCENARIOS
 from aeromag_env.environment.scenarios import Episode, make_episode
+from aeromag_env.quick import add_quick_option
 
 #: The first training seed of the search, and of the check of its choice on flights it did not
 #: see (agents.evaluate.TEST_SEED_START is 100 000; training seeds are below it).
@@ -237,7 +238,7 @@ def run(
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="two scenarios, 200 s, one seed")
+    add_quick_option(parser, "two scenarios, 200 s, one seed")
     parser.add_argument("--seeds", type=int, default=4, help="training seeds per scenario")
     parser.add_argument("--out", default=None, help="the JSON written")
     args = parser.parse_args(argv)

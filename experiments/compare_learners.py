@@ -30,6 +30,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.errors import AeromagError
 from aeromag_env.parallel import Outcome, runner
+from aeromag_env.quick import add_quick_option
 from agents.comparison import pipeline
 from agents.training import LEARNERS
 from agents.training.quick import QUICK
@@ -67,7 +68,7 @@ def _parser() -> argparse.ArgumentParser:
     for p in (t, e, c, h):
         p.add_argument("--runs", type=Path, default=RUNS, help="the runs' folder")
     for p in (t, e, c):
-        p.add_argument("--quick", action="store_true", help="test-sized (about a minute a step)")
+        add_quick_option(p, "test-sized (about a minute a step)")
         p.add_argument("--ray", nargs="?", const="local", metavar="ADDRESS", help="on Ray")
     for p in (e, c, h):
         p.add_argument("--data", type=Path, help="the data folder (default RUNS/data)")

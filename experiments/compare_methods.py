@@ -29,6 +29,7 @@ from aeromag_env.compensation.compensate import (
 )
 from aeromag_env.compensation.model import FilterConfig
 from aeromag_env.compensation.tolles_lawson import TollesLawson
+from aeromag_env.quick import add_quick_option
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
 from agents.training.quick import QUICK
@@ -79,7 +80,7 @@ def _mean_ci(v: list[float]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="2 seeds of one box (for tests)")
+    add_quick_option(parser, "2 seeds of one box (for tests)")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--out", default="results/methods")
     args = parser.parse_args(argv)

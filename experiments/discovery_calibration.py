@@ -25,6 +25,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.discovery.suite import COLOURED_NOISE, Case, build_case
 from aeromag_env.discovery.workflow import discover
+from aeromag_env.quick import add_quick_option
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
 
@@ -76,7 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--jobs", type=int, default=2, help="processes")
-    ap.add_argument("--quick", action="store_true", help=f"{len(QUICK)} flights")
+    add_quick_option(ap, f"{len(QUICK)} flights")
     args = ap.parse_args(argv)
     with Pool(args.jobs) as pool:
         rows = pool.map(run, QUICK if args.quick else FLIGHTS, chunksize=1)

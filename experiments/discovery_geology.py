@@ -27,6 +27,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.discovery.suite import SINGLE, Case, base_config, build_case
 from aeromag_env.discovery.workflow import discover
+from aeromag_env.quick import add_quick_option
 from aeromag_env.simulation.config import GeologyConfig, SimulationConfig
 from aeromag_env.simulation.simulate import simulate_flight
 
@@ -78,7 +79,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--quick", action="store_true", help="3 flights")
+    add_quick_option(parser, "3 flights")
     args = parser.parse_args(argv)
     if args.quick:
         tables = [*plain_flights((0.0, 50.0), SEEDS[:1]), "", *single_effects(effects=SINGLE[:1])]

@@ -39,6 +39,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.discovery.suite import SINGLE, Case, base_config, build_case
 from aeromag_env.discovery.workflow import discover
+from aeromag_env.quick import add_quick_option
 from aeromag_env.simulation.config import GeologyConfig, SimulationConfig
 from aeromag_env.simulation.simulate import simulate_flight
 
@@ -198,7 +199,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--low", action="store_true", help="lines at 150 m, separate only")
-    parser.add_argument("--quick", action="store_true", help="3 flights (2 with --low)")
+    add_quick_option(parser, "3 flights (2 with --low)")
     args = parser.parse_args(argv)
     if args.low:
         low = low_table((50.0,), LOW_EFFECTS[:2], 1) if args.quick else low_table()

@@ -27,6 +27,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.atomic import output_set
 from aeromag_env.discovery.plain_flights import plain_cases, plain_summary, run_plain_flight
+from aeromag_env.quick import add_quick_option
 
 #: ``--quick``'s flights: one round of the presets at the shortest duration.
 QUICK_FLIGHTS = 4
@@ -39,7 +40,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--flights", type=int, default=48, help="flights (presets in turn)")
     ap.add_argument("--jobs", type=int, default=2, help="processes (1: in this one)")
     ap.add_argument("--out", type=Path, default=Path("results/discovery"), help="output folder")
-    ap.add_argument("--quick", action="store_true", help=f"{QUICK_FLIGHTS} flights")
+    add_quick_option(ap, f"{QUICK_FLIGHTS} flights")
     args = ap.parse_args(argv)
     cases = plain_cases(QUICK_FLIGHTS if args.quick else args.flights)
     t0 = time.perf_counter()

@@ -22,6 +22,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 from aeromag_env.atomic import write_text
 from aeromag_env.environment.scenarios import SCENARIOS
 from aeromag_env.jobs.evaluate import evaluate, evaluation_table
+from aeromag_env.quick import add_quick_option
 from agents.policies import available_policies
 from agents.training.quick import QUICK
 
@@ -29,7 +30,7 @@ from agents.training.quick import QUICK
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=30)
-    parser.add_argument("--quick", action="store_true", help="2 episodes of 2 scenarios (tests)")
+    add_quick_option(parser, "2 episodes of 2 scenarios (tests)")
     parser.add_argument("--out", default="results/evaluate_all")
     args = parser.parse_args(argv)
     scenarios = SCENARIOS[: QUICK.scenarios] if args.quick else SCENARIOS

@@ -29,6 +29,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 from aeromag_env.compensation.compensate import compensate_scalar, compensate_vector, score
 from aeromag_env.compensation.tolles_lawson import TollesLawson
 from aeromag_env.flight.data import Flight
+from aeromag_env.quick import add_quick_option
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
 
@@ -77,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration-s", type=float, default=900.0, help="box length [s]")
     parser.add_argument("--methods", default="tl,lsq,kf,fakf", help="comma-separated methods")
-    parser.add_argument("--quick", action="store_true", help="the methods tl and kf only")
+    add_quick_option(parser, "the methods tl and kf only")
     args = parser.parse_args(argv)
     methods = "tl,kf" if args.quick else args.methods
     flights = variants(args.duration_s)

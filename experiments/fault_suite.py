@@ -21,6 +21,7 @@ from pathlib import Path
 if __package__ in (None, ""):  # run by its path, from anywhere: this checkout (``tests.faults``)
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from aeromag_env.quick import add_quick_option
 from tests.faults.suite import failure_groups, generate, run_case, table
 
 
@@ -29,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run only the cases whose id contains this")
     parser.add_argument("--list", action="store_true", help="list the cases, run none")
-    parser.add_argument("--quick", action="store_true", help="one case per class and command")
+    add_quick_option(parser, "one case per class and command")
     args = parser.parse_args(argv)
     cases = [c for c in generate() if args.only in c.id]
     if args.quick:

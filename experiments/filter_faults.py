@@ -33,6 +33,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 from aeromag_env.compensation.compensate import earth_model
 from aeromag_env.compensation.kalman import run_filter
 from aeromag_env.compensation.model import METHODS, FilterConfig
+from aeromag_env.quick import add_quick_option
 from aeromag_env.simulation.config import preset, with_overrides
 from aeromag_env.simulation.simulate import simulate_flight
 
@@ -70,7 +71,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--quick", action="store_true", help="a 300-s flight, kf and fakf")
+    add_quick_option(parser, "a 300-s flight, kf and fakf")
     args = parser.parse_args(argv)
     duration_s, methods = (QUICK_DURATION_S, QUICK_METHODS) if args.quick else (DURATION_S, METHODS)
     cfg = with_overrides(preset("nominal"), {"trajectory.duration_s": duration_s})

@@ -38,6 +38,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 import aeromag_env  # noqa: F401  (registers the environment ids)
 from aeromag_env.atomic import write_text
 from aeromag_env.environment.scenarios import SCENARIOS
+from aeromag_env.quick import add_quick_option
 from agents.evaluation.episodes import run_episode
 from agents.evaluation.seeds import VALIDATION_SEEDS
 from agents.policies import make_policy, policy_env_kwargs
@@ -135,7 +136,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--out", type=Path, default=Path("results/general_tuner_bounds.json"), help="results"
     )
-    parser.add_argument("--quick", action="store_true", help="2 flights of 2 scenarios")
+    add_quick_option(parser, "2 flights of 2 scenarios")
     args = parser.parse_args(argv)
     if args.flights < 2:
         parser.error("--flights must be at least 2")

@@ -30,6 +30,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.discovery.power_report import in_subset, run_cases, write_suite
 from aeromag_env.discovery.suite import Case, suite_cases
+from aeromag_env.quick import add_quick_option
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -44,7 +45,7 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--durations", type=int, default=5, help="flights per effect, duration and SNR")
     ap.add_argument("--jobs", type=int, default=2, help="processes")
     ap.add_argument("--out", type=Path, default=Path("results/discovery"), help="output folder")
-    ap.add_argument("--quick", action="store_true", help="a handful of cases (about a minute)")
+    add_quick_option(ap, "a handful of cases (about a minute)")
     ap.add_argument(
         "--only",
         nargs="+",

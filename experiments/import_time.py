@@ -19,6 +19,7 @@ from pathlib import Path
 if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from aeromag_env.quick import add_quick_option
 from agents.training.quick import QUICK
 
 STATEMENTS = {
@@ -41,7 +42,7 @@ def time_statement(statement: str) -> float:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=15)
-    parser.add_argument("--quick", action="store_true", help="3 repeats (tests)")
+    add_quick_option(parser, "3 repeats (tests)")
     args = parser.parse_args(argv)
     repeats = QUICK.bench_repeats if args.quick else args.repeats
     print(f"median of {repeats} fresh interpreters (interleaved)")

@@ -29,6 +29,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.environment.observations import PAPER_OBSERVATIONS
 from aeromag_env.environment.spaces import ACT_R
+from aeromag_env.quick import add_quick_option
 from agents.evaluation.episodes import run_episode
 from agents.policies.baselines import PrivilegedPolicy
 from agents.training.quick import QUICK
@@ -120,7 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--windows", default="10,5", help="decision windows K [samples]")
     parser.add_argument("--episodes", type=int, default=12, help="validation flights")
     parser.add_argument("--floors", default="", help="log10 R floors f for the late policy")
-    parser.add_argument("--quick", action="store_true", help="K = 10 on 2 flights")
+    add_quick_option(parser, "K = 10 on 2 flights")
     args = parser.parse_args(argv)
     try:
         floors = [float(f) for f in args.floors.split(",") if f.strip()]

@@ -1,7 +1,8 @@
 """The README's "Your own flight files" walkthrough, from a raw Geosoft XYZ file to a report.
 
 No real survey file may be shipped (the public SGL flights are under an acceptable-use agreement),
-so this script writes one the way a contractor delivers it: a simulated calibration box and
+so this script writes one the way a contractor delivers it (the file of ``aeromag example``,
+:mod:`aeromag_env.jobs.example`): a simulated calibration box and
 survey lines (nominal preset, seed 11) with Geosoft column names (``UNCOMPMAG1``, ``FLUXA_X``,
 ``ROLL``, ``AZIMUTH``…), ``*`` for missing values, no simulator truth and no attributes, and with
 what real files bring: the fluxgate mounted as an axis swap (sensor x, y, z = body right, down,
@@ -25,56 +26,11 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's packages first
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aeromag_env.cli.main import main as aeromag
-from aeromag_env.flight.data import Flight, vector_names
-from aeromag_env.flight.files import write_flight
-from aeromag_env.simulation.config import preset, with_overrides
-from aeromag_env.simulation.simulate import simulate_flight
-
-#: Our names → the Geosoft column names of an SGL-style delivery (the alias table reverses it).
-GEOSOFT = {
-    "tt": "TIME",
-    "line": "LINE",
-    "lat": "LAT",
-    "lon": "LONG",
-    "alt": "UTM-Z",
-    "year": "YEAR",
-    "doy": "DOY",
-    "ins_roll": "ROLL",
-    "ins_pitch": "PITCH",
-    "ins_yaw": "AZIMUTH",
-    "flux_a_x": "FLUXA_X",
-    "flux_a_y": "FLUXA_Y",
-    "flux_a_z": "FLUXA_Z",
-    "mag_1_uc": "UNCOMPMAG1",
-    "mag_1_c": "COMPMAG1",
-    "diurnal": "DIURNAL",
-}
-#: Sensor axes = body right, down, forward: m_sensor = AXIS_SWAP @ m_body.
-AXIS_SWAP = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
-SEED = 11
-
-
-def raw_flight(seed: int = SEED) -> Flight:
-    """The simulated flight as a contractor would deliver it (module docstring)."""
-    cfg = with_overrides(preset("nominal"), {"trajectory.pattern": "calibration+survey"})
-    sim = simulate_flight(cfg, rng=seed)
-    rng = np.random.default_rng(seed)
-    fields = {name: sim[name].copy() for name in GEOSOFT if name in sim}
-    swapped = sim.vector("flux_a") @ AXIS_SWAP.T
-    fields.update(zip(vector_names("flux_a"), swapped.T, strict=True))
-    fields["mag_1_c"] = sim["mag_1_uc"] - sim["truth_interf_mag_1"] + rng.normal(0, 0.05, sim.n)
-    tt = sim.tt
-    keep = ~((tt >= 1500.0) & (tt < 1530.0))  # a 30 s logger gap on a survey line
-    spike = int(np.searchsorted(tt, 1700.0))
-    fields["mag_1_uc"][spike] += 1e6  # one wild sample
-    fields["ins_pitch"][np.searchsorted(tt, 1800.0) + np.arange(3)] = np.nan  # INS dropout
-    return Flight({GEOSOFT[k]: v[keep] for k, v in fields.items()}, {})
+from aeromag_env.jobs.example import example
 
 
 def run(argv: list[str]) -> tuple[int, str]:
@@ -88,8 +44,7 @@ def run(argv: list[str]) -> tuple[int, str]:
 def walkthrough(out: Path) -> dict[str, object]:
     """Write the raw file, run the commands, return their outputs and the key figures."""
     out.mkdir(parents=True, exist_ok=True)
-    raw = out / "survey_raw.xyz"
-    write_flight(raw_flight(), raw)
+    raw = example(out / "survey_raw.xyz").path  # the file of aeromag example
     steps = {
         "info": ["info", str(raw)],
         "tl": [

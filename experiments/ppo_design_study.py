@@ -50,6 +50,7 @@ import aeromag_env  # noqa: F401
 from aeromag_env.environment.config import env_config
 from aeromag_env.environment.observations import PAPER_OBSERVATIONS
 from aeromag_env.environment.spaces import BASE_ACTIONS, observation_index
+from aeromag_env.quick import add_quick_option
 from aeromag_env.simulation.interference import STATE_SLICES
 from agents.evaluation.episodes import run_episode
 from agents.evaluation.seeds import TEST_SEED_START, VALIDATION_SEEDS
@@ -341,7 +342,7 @@ def _parser() -> argparse.ArgumentParser:
     h.add_argument("--policy", default=str(DEFAULT_PPO), help="an exported policy (.npz)")
     h.add_argument("--episodes", type=int, default=40, help="validation flights")
     for p in (t, d, h, sub.choices["headroom"]):
-        p.add_argument("--quick", action="store_true", help="2 flights (and a tiny training)")
+        add_quick_option(p, "2 flights (and a tiny training)")
     return parser
 
 

@@ -19,6 +19,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.cli.main import main as aeromag
 from aeromag_env.compensation.paper import seed_sweep
+from aeromag_env.quick import add_quick_option
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -26,7 +27,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--sweep", type=int, metavar="N", help="run seeds 1…N, print the spread")
-    parser.add_argument("--quick", action="store_true", help="one calibration box, not 30 min")
+    add_quick_option(parser, "one calibration box, not 30 min")
     parser.add_argument("--out", default="results/paper", help="output folder")
     parser.add_argument("--seed", type=int, help="random seed (aeromag reproduce-paper's default)")
     args = parser.parse_args(argv)

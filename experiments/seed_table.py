@@ -28,6 +28,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.atomic import write_text
 from aeromag_env.parallel import runner
+from aeromag_env.quick import add_quick_option
 from agents.evaluation.episodes import evaluate_scenarios
 from agents.evaluation.seeds import TEST_SEED_START
 from agents.evaluation.statistics import BOOTSTRAP_RESAMPLES, ci95, iqm_interval
@@ -135,7 +136,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--scenarios", default="nonstationary")
     parser.add_argument("--episodes", type=int, default=30, help="test flights per scenario")
     parser.add_argument("--out", default="results/seed_table", help="output folder")
-    parser.add_argument("--quick", action="store_true", help="2 test flights per scenario")
+    add_quick_option(parser, "2 test flights per scenario")
     parser.add_argument(
         "--ray",
         nargs="?",

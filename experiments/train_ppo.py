@@ -26,6 +26,7 @@ if __package__ in (None, ""):  # run by its path, from anywhere: this checkout's
 
 from aeromag_env.atomic import write_text
 from aeromag_env.jobs.evaluate import evaluate, evaluation_table
+from aeromag_env.quick import add_quick_option
 from agents.policies import DEFAULT_PPO, POLICIES
 from agents.training.quick import QUICK
 
@@ -40,7 +41,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--ship", action="store_true", help="copy the policy into agents/policies/trained"
     )
-    parser.add_argument("--quick", action="store_true", help="tiny run (tests)")
+    add_quick_option(parser, "tiny run (tests)")
     parser.add_argument(
         "--policy", help="evaluate this exported policy (default OUT/train/policy.npz)"
     )

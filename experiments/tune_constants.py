@@ -43,6 +43,7 @@ import aeromag_env
 from aeromag_env.atomic import write_text
 from aeromag_env.environment.ids import SUITE
 from aeromag_env.environment.scenarios import SCENARIOS
+from aeromag_env.quick import add_quick_option
 from agents.policies.tuned_table import TABLE
 from agents.search.tuned_constant import (
     LOG10_Q_GRID,
@@ -70,7 +71,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--choose-from", type=Path, default=None, help="--suite: choose from this file's grids"
     )
-    parser.add_argument("--quick", action="store_true", help="one scenario, 2 seeds, coarse")
+    add_quick_option(parser, "one scenario, 2 seeds, coarse")
     args = parser.parse_args(argv)
     default = SUITE if args.suite else SCENARIOS
     scenarios = args.scenarios.split(",") if args.scenarios else list(default)

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from aeromag_env.cli import options
-from aeromag_env.cli.stderr import warnings_on_stderr
+from aeromag_env.cli.stderr import warn_stderr, warnings_on_stderr
 
 
 def _progress_bar(args: argparse.Namespace, total: int, desc: str, unit: str) -> Any:
@@ -81,6 +81,14 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_example(args: argparse.Namespace) -> int:
+    """``aeromag example``: write the sample survey file of the guides."""
+    from aeromag_env.jobs.example import example
+
+    print(example(args.output).summary())
+    return 0
+
+
 def _fit_options(args: argparse.Namespace) -> dict[str, Any]:
     """The channel, mount, Tolles–Lawson and filter options as the jobs' keyword arguments."""
     return {
@@ -118,6 +126,8 @@ def cmd_compensate(args: argparse.Namespace) -> int:
     note_single_file("compensate", args.ray)
     with warnings_on_stderr("compensate"):
         result = compensate(args.file, args.method, out, **kwargs)
+    for problem in result.input_problems:
+        warn_stderr("compensate", problem)
     print(compensate_line(result.report, out, html=not args.no_html))
     return 0
 
@@ -134,6 +144,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     }
     with warnings_on_stderr("calibrate"):
         result = calibrate(args.file, args.method, out, **kwargs)
+    for problem in result.report["input_problems"]:
+        warn_stderr("calibrate", problem)
     print(calibrate_line(result.report, out, html=not args.no_html))
     return 0
 
@@ -175,6 +187,8 @@ def cmd_discover(args: argparse.Namespace) -> int:
 
     with warnings_on_stderr("discover"):
         result = discover(args.file, out, say, **kwargs)
+    for problem in result.report["input_problems"]:
+        warn_stderr("discover", problem)
     print(discover_line(result.report, out, html=not args.no_html))
     return 0
 
@@ -240,12 +254,22 @@ def cmd_train(args: argparse.Namespace) -> int:
         )
     if seeds is None:
         s = result.summary
+        if result.finished:
+            print(
+                f"already trained: {s['timesteps']} steps in {args.out} (the request's total); "
+                f"nothing to do; best validation RMSE {s['best_validation_rmse_nt']:.3g} nT; "
+                f"policy: {args.out}/policy.npz"
+            )
+            return 0
         print(
             f"trained {s['timesteps']} steps in {s['train_seconds_this_run']:.0f} s; "
             f"best validation RMSE {s['best_validation_rmse_nt']:.3g} nT; "
             f"policy: {args.out}/policy.npz"
         )
         return 0
+    if result.finished:
+        done = ", ".join(map(str, result.finished))
+        print(f"already trained to the request's total: seed(s) {done}; not trained again")
     print(seed_table(result.summary))
     if result.failed:
         first = result.failed[0]
@@ -274,6 +298,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
         ray=args.ray,
         hyperparams=args.hyperparams,
     )
+    if result.finished:
+        print(f"already searched: {args.out}/tune.json records this request; nothing to do")
     print(tune_summary(result.summary, args.out))
     return 0
 

@@ -14,9 +14,10 @@ import os
 import sys
 from collections.abc import Sequence
 
-from aeromag_env.cli.options import option_for
+from aeromag_env.cli.options import option_for, reduced
 from aeromag_env.cli.parser import EXIT_STATUS, build_parser
 from aeromag_env.jobs import AeromagError, ArgumentError
+from aeromag_env.quick import quick_requested
 
 __all__ = ["EXIT_STATUS", "build_parser", "main"]
 
@@ -45,11 +46,18 @@ def main(argv: Sequence[str] | None = None) -> int:
           error: TYPE: message (...)`` on stderr, or, with the environment variable
           ``AEROMAG_DEBUG=1``, the exception itself with its traceback;
         * 130 — interrupted (Ctrl-C); no output is left half-written.
+
+    With ``AEROMAG_QUICK=1`` in the environment every command runs at its quick size
+    (:mod:`aeromag_env.quick`), and says so on stderr.
     """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         _check_paths(args)
+        if quick_requested():  # the reduced mode (aeromag_env.quick)
+            note = reduced(args)
+            if note is not None:
+                print(f"aeromag {args.command}: {note}", file=sys.stderr)
         return int(args.func(args))
     except ArgumentError as e:  # the job's argument, spelled as this command's option
         said = e.spelled(option_for(_subparser(parser, args.command), e.argument))

@@ -120,3 +120,26 @@ def triple(values: list[float] | None) -> tuple[float, float, float] | None:
 def window(values: list[float] | None) -> tuple[float, float] | None:
     """``--calibration-window T0 T1`` as a tuple (None when not given)."""
     return None if values is None else (values[0], values[1])
+
+
+def reduced(args: argparse.Namespace) -> str | None:
+    """``args`` at the reduced mode's sizes (``AEROMAG_QUICK=1``, :mod:`aeromag_env.quick`):
+    ``--quick`` on, a ``--timesteps`` or ``--samples`` given dropped, ``--episodes`` capped; what
+    the command says of it on stderr (None for a command with no size to reduce)."""
+    from aeromag_env.jobs.evaluate import QUICK_EPISODES
+    from aeromag_env.quick import QUICK_VARIABLE
+
+    if not hasattr(args, "quick") and not hasattr(args, "episodes"):
+        return None
+    dropped = []
+    for name in ("timesteps", "samples"):
+        if getattr(args, name, None) is not None:
+            dropped.append(f"--{name} {getattr(args, name)}")
+            setattr(args, name, None)
+    if hasattr(args, "quick"):
+        args.quick = True
+    if getattr(args, "episodes", 0) > QUICK_EPISODES:
+        dropped.append(f"--episodes {args.episodes}")
+        args.episodes = QUICK_EPISODES
+    unused = f" (not {', '.join(dropped)})" if dropped else ""
+    return f"{QUICK_VARIABLE}=1: the --quick sizes{unused}"

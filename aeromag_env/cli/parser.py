@@ -16,6 +16,7 @@ from aeromag_env.cli.commands import (
     cmd_demo,
     cmd_discover,
     cmd_evaluate,
+    cmd_example,
     cmd_info,
     cmd_reproduce,
     cmd_simulate,
@@ -412,9 +413,11 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "train",
         help="train a tuner: PPO, or another learner (needs the rl extra)",
         description="Train stable-baselines3 PPO on a scenario (hyperparameters in "
-        "agents/training/hyperparams/ppo.json; resumes from --out's checkpoint), or with --learner "
-        "another learner on the suite (agents/training/hyperparams/learners.json; a rerun starts "
-        "afresh); keeps the best validated policy as --out/policy.npz.",
+        "agents/training/hyperparams/ppo.json), or with --learner another learner on the suite "
+        "(agents/training/hyperparams/learners.json); keeps the best validated policy as "
+        "--out/policy.npz. Run the same command again to finish an interrupted run: PPO resumes "
+        "from --out's checkpoint and trains up to --timesteps in all, another learner starts "
+        "again; a run that already reached --timesteps says so and trains nothing.",
     )
     p.add_argument(
         "--learner",
@@ -427,14 +430,18 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "--scenario",
         help="scenario (default nonstationary; the other learners train on suite only)",
     )
-    p.add_argument("--timesteps", type=int, help="environment steps (3e6; --quick: 2048)")
+    p.add_argument(
+        "--timesteps",
+        type=int,
+        help="environment steps in all, a resumed run's included (3e6; --quick: 2048)",
+    )
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     seeds.add_argument(
         "--seeds",
         metavar="0-4",
         help="one training run per seed (e.g. 0-4 or 0,2,5), each in --out/seed_<k>/ with its "
-        "own checkpoint (a rerun resumes them); side by side with --ray; writes "
+        "own checkpoint (a rerun finishes the unfinished ones); side by side with --ray; writes "
         "--out/seeds.json",
     )
     p.add_argument("--out", default="results/ppo", help="output folder (default results/ppo)")
@@ -459,7 +466,10 @@ def _add_tune(sub: argparse._SubParsersAction) -> None:
         "file with the best trial's values, for aeromag train --hyperparams); --learner sac, "
         "tqc or recurrent_ppo trains on the suite and writes --out/learners.json (for aeromag "
         "train --learner L --hyperparams). Both write --out/tune.json (every trial). Always "
-        "runs on Ray: on this machine's cores, or on a cluster with --ray ADDRESS.",
+        "runs on Ray: on this machine's cores, or on a cluster with --ray ADDRESS. Run the "
+        "same command again to finish an interrupted search (it starts again from its first "
+        "trial); a search already run to its end with the same request says so and runs "
+        "nothing.",
     )
     p.add_argument(
         "--learner",
@@ -533,6 +543,20 @@ def _add_convert(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_convert)
 
 
+def _add_example(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "example",
+        help="write a sample survey file, as a contractor delivers it",
+        description="Write the sample survey file the guides use: a simulated calibration box "
+        "and six survey lines (nominal preset, seed 11) with Geosoft column names, the fluxgate "
+        "mounted as an axis swap, a 30 s logger gap, one 1e6 nT spike in the scalar, three "
+        "missing pitch samples and the vendor's compensated channel COMPMAG1 (no real survey "
+        "file may be shipped). The output's suffix picks the format; written atomically.",
+    )
+    p.add_argument("output", help="file to write (.xyz as delivered, or .h5, .csv, .mat)")
+    p.set_defaults(func=cmd_example)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full ``aeromag`` parser.
 
@@ -563,6 +587,7 @@ def build_parser() -> argparse.ArgumentParser:
         _add_discover,
         _add_demo,
         _add_convert,
+        _add_example,
         _add_bench,
     )
     for add in adders:

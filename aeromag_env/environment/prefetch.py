@@ -20,6 +20,9 @@ per environment step with the worker at ``nice`` +10 and 1.8 µs at the parent's
 The worker is a plain Python child (:func:`worker_main`) exchanging pickles over its stdin and
 stdout: unlike ``multiprocessing``'s spawn it never re-imports the caller's main script, so a
 script without an ``if __name__ == "__main__"`` guard is safe. It exits when its stdin closes.
+It runs in a session of its own, so a Ctrl-C at the terminal (SIGINT to the foreground process
+group) interrupts the caller only, which then closes the worker's stdin: the worker never prints
+a ``KeyboardInterrupt`` traceback of its own.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import os
 import pickle
+import signal
 import subprocess
 import sys
 import threading
@@ -77,6 +81,7 @@ class FlightPrefetcher:
             [sys.executable, "-c", f"from {__name__} import worker_main; worker_main()"],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
+            start_new_session=True,  # out of the terminal's process group: Ctrl-C is the caller's
         )
         self._lock = threading.Lock()
         self._queue: list[Future[FlightArrays]] = []  # requests sent, results not yet read
@@ -151,7 +156,10 @@ def _stop(proc: subprocess.Popen) -> None:
 
 def worker_main() -> None:
     """The worker: simulate each flight key read from stdin, write the flight (or the
-    exception) to stdout; anything printed on the way goes to stderr."""
+    exception) to stdout; anything printed on the way goes to stderr. It ends quietly when its
+    caller is gone (stdin closed, or its answer's pipe broken) and ignores SIGINT: an interrupt
+    is the caller's to handle."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     results = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)
     requests = sys.stdin.buffer
@@ -161,11 +169,14 @@ def worker_main() -> None:
     while True:
         try:
             key = pickle.load(requests)
-        except EOFError:
+        except (EOFError, pickle.UnpicklingError):  # stdin closed (or cut short): the end
             return
         try:
             out: object = simulate(key)
         except Exception as e:  # reported to the caller, which simulates it itself
             out = e
-        pickle.dump(out, results)
-        results.flush()
+        try:
+            pickle.dump(out, results)
+            results.flush()
+        except (BrokenPipeError, ValueError):  # the caller is gone: no one to answer
+            os._exit(0)  # not exit(): its final flush of the broken pipe would print an error

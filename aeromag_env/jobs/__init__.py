@@ -4,6 +4,7 @@ line (:mod:`aeromag_env.cli`) parses its arguments, calls one of them and prints
 * simulate a flight: :func:`~aeromag_env.jobs.simulate.simulate` (``aeromag simulate``)
 * inspect a file: :func:`~aeromag_env.jobs.info.info` (``aeromag info``)
 * convert a file: :func:`~aeromag_env.jobs.convert.convert` (``aeromag convert``)
+* a sample survey file: :func:`~aeromag_env.jobs.example.example` (``aeromag example``)
 * fit a model on a calibration flight: :func:`~aeromag_env.jobs.calibrate.calibrate`
   (``aeromag calibrate``)
 * compensate a flight, or apply a model: :func:`~aeromag_env.jobs.compensate.compensate`

@@ -25,9 +25,13 @@ from aeromag_env.parallel import retry_note, runner
 from agents.evaluation.episodes import action_traces, evaluate_scenarios
 from agents.evaluation.seeds import TEST_SEED_START
 from agents.policies import POLICIES
+from agents.training.quick import QUICK
 
 #: The output set of an evaluation, per scenario.
 OUTPUTS = ("results.json", "evaluation.png", reports.PAGE)
+#: Flights per scenario, at most, in the reduced mode (``AEROMAG_QUICK=1``,
+#: :mod:`aeromag_env.quick`): the experiments' quick evaluations'.
+QUICK_EPISODES = QUICK.episodes
 
 
 @dataclass(frozen=True, kw_only=True)

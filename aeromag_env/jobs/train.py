@@ -4,7 +4,13 @@ One run (:func:`agents.training.ppo.train_ppo` for PPO, :func:`agents.training.l
 train_learner` for the other learners) into ``out``, keeping the best validated policy as
 ``out/policy.npz`` with its learning curve (``report.html``); or one run per seed, each in
 ``out/seed_<k>/`` (here one after another, or side by side on Ray), and the seeds' summary
-``seeds.json`` with ``report.html``. A PPO run resumes from the checkpoint in its folder.
+``seeds.json`` with ``report.html``.
+
+Rerunning a request finishes it: a PPO run resumes from the checkpoint in its folder and trains
+up to the requested total of environment steps (not that many more), another learner's run
+(which keeps no checkpoint) starts again; a run whose ``training.json`` already reached the total
+is not trained again (:func:`finished_run`), and a folder holding another run (another learner,
+scenario or seed) is refused.
 """
 
 from __future__ import annotations
@@ -101,6 +107,19 @@ class TrainRequest:
 
         return ppo.HYPERPARAMS if self.learner == "ppo" else learners.HYPERPARAMS
 
+    def total_timesteps(self) -> int:
+        """The environment steps each run ends at: ``timesteps``, else the quick preset's with
+        ``quick``, else the hyperparameters' (PPO: :data:`agents.training.ppo.TIMESTEPS`)."""
+        from agents.training import learners, ppo
+        from agents.training.quick import QUICK, sized
+
+        if self.learner == "ppo":
+            return sized(self.timesteps, ppo.TIMESTEPS, self.quick, QUICK.train_timesteps)
+        settings = learners.learner_settings(
+            self.learner, self.hyperparams_file(), quick=self.quick, timesteps=self.timesteps
+        )
+        return int(settings.timesteps)
+
     def run_outputs(self) -> tuple[str, ...]:
         """The files one run writes in its folder."""
         from agents.training import learners, ppo
@@ -126,6 +145,9 @@ class TrainResult:
         The summary files written (a seed's own files are in ``out/seed_<k>/``).
     failed : tuple of Outcome
         The seeds whose run failed (the others completed); empty for a single run.
+    finished : tuple of int
+        The seeds whose run had already reached the requested total: not trained again (a
+        single run: its seed, and ``paths`` is empty: nothing was written).
     """
 
     learner: str
@@ -133,6 +155,7 @@ class TrainResult:
     summary: dict[str, Any]
     paths: tuple[Path, ...]
     failed: tuple[Outcome, ...] = ()
+    finished: tuple[int, ...] = ()
 
 
 def train(
@@ -209,10 +232,47 @@ def _require_rl_extra() -> None:
         ) from None
 
 
+def finished_run(folder: Path, req: TrainRequest, seed: int) -> dict[str, Any] | None:
+    """The ``training.json`` summary of the run of ``req`` with ``seed`` in ``folder`` when it
+    has reached the requested total (:meth:`TrainRequest.total_timesteps`), else None (no run
+    there, or one to resume or start again).
+
+    Raises
+    ------
+    AeromagError
+        ``folder`` holds another run (its learner, scenario or seed differ), or an unreadable
+        ``training.json``: one line, before anything is trained.
+    """
+    path = folder / "training.json"
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as e:
+        raise AeromagError(
+            f"cannot read {path} ({type(e).__name__}: {e}); remove it to train afresh, or "
+            "choose another --out"
+        ) from None
+    if not isinstance(summary, dict) or not isinstance(summary.get("timesteps"), int):
+        raise AeromagError(f"{path} is no training summary; remove it or choose another --out")
+    held = (summary.get("learner", "ppo"), summary.get("scenario"), summary.get("seed"))
+    if held != (req.learner, req.scenario, seed):
+        learner, scenario, other = held
+        raise AeromagError(
+            f"{folder} holds a training run of {learner} on {scenario}, seed {other} "
+            f"({path.name}): rerun that command to finish it, or choose another --out"
+        )
+    return summary if summary["timesteps"] >= req.total_timesteps() else None
+
+
 def train_one(req: TrainRequest, show_progress: bool = False) -> TrainResult:
-    """One run of a checked request into ``req.out``, with ``report.html`` beside it."""
+    """One run of a checked request into ``req.out``, with ``report.html`` beside it; nothing
+    when the folder's run already reached the requested total."""
     from agents.training import learners, ppo
 
+    done = finished_run(req.out, req, req.seed)
+    if done is not None:
+        return TrainResult(req.learner, req.scenario, done, (), finished=(req.seed,))
     if req.learner == "ppo":
         summary = ppo.train_ppo(
             req.scenario,
@@ -222,6 +282,7 @@ def train_one(req: TrainRequest, show_progress: bool = False) -> TrainResult:
             req.quick,
             progress=show_progress,
             hyperparams=req.hyperparams_file(),
+            total=True,
         )
     else:
         summary = learners.train_learner(
@@ -250,6 +311,11 @@ def train_seeds(req: TrainRequest, on_seed: Callable[[Outcome], Any] | None = No
         check_output_set(folder / f"seed_{seed}", req.run_outputs(), [hp])
     outputs = ("seeds.json", reports.PAGE) if req.html else ("seeds.json",)
     check_output_set(folder, outputs, [hp])
+    done = {seed: finished_run(folder / f"seed_{seed}", req, seed) for seed in req.seeds}
+    finished = tuple(seed for seed, summary in done.items() if summary is not None)
+    if len(finished) == len(req.seeds) and (folder / "seeds.json").exists():
+        stored = json.loads((folder / "seeds.json").read_text(encoding="utf-8"))
+        return TrainResult(req.learner, req.scenario, stored, (), finished=finished)
 
     def task(seed: int) -> Task:
         where = folder / f"seed_{seed}"
@@ -259,8 +325,13 @@ def train_seeds(req: TrainRequest, on_seed: Callable[[Outcome], Any] | None = No
         args = (req.learner, seed, where, req.timesteps, req.quick, False, hp)
         return Task(f"{req.learner} seed {seed} ({where})", learners.train_learner, args)
 
-    with runner(req.ray) as r:
-        outcomes = r.run([task(seed) for seed in req.seeds], on_seed)
+    todo = [seed for seed in req.seeds if seed not in finished]
+    with runner(req.ray if todo else None) as r:
+        ran = dict(zip(todo, r.run([task(seed) for seed in todo], on_seed), strict=True))
+    outcomes = [
+        ran[seed] if seed in ran else Outcome(f"seed {seed}", done[seed], attempts=0)
+        for seed in req.seeds
+    ]
     summary = {
         "scenario": req.scenario,
         "learner": req.learner,
@@ -275,7 +346,8 @@ def train_seeds(req: TrainRequest, on_seed: Callable[[Outcome], Any] | None = No
             title = f"Training: {req.learner} on {req.scenario}"
             write_text(stage / reports.PAGE, reports.train_page(runs, title))
     paths = tuple(folder / name for name in outputs)
-    return TrainResult(req.learner, req.scenario, summary, paths, tuple(failures(outcomes)))
+    failed = tuple(failures(outcomes))
+    return TrainResult(req.learner, req.scenario, summary, paths, failed, finished)
 
 
 def _seed_row(folder: Path, seed: int, o: Outcome) -> dict[str, Any]:

@@ -4,10 +4,15 @@ PPO (:func:`agents.search.ppo.tune_ppo`) trains each trial on a scenario and wri
 ``out/ppo.json``; the other learners (:func:`agents.search.learners.tune_learner`) train on the
 suite and write ``out/learners.json``; both write every trial to ``out/tune.json``. Trials
 validate on the validation seeds only, and ASHA stops those that validate badly.
+
+Rerunning a request finishes it: a search that was interrupted runs again from its first
+trial (Tune's trials keep no checkpoint), and one whose ``tune.json`` in ``out`` records the same
+request is not run again (:func:`finished_search`).
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -94,10 +99,14 @@ class TuneResult:
         stopped it, its error) and the best.
     hyperparams : Path
         The best trial's hyperparameter file (``ppo.json`` or ``learners.json``).
+    finished : bool
+        The search had already been run to the end with the same request (``out/tune.json``
+        records it): nothing was run or written.
     """
 
     summary: dict[str, Any]
     hyperparams: Path
+    finished: bool = False
 
 
 def tune(
@@ -159,6 +168,10 @@ def run_tune(req: TuneRequest) -> TuneResult:
             f"aeromag tune needs the rl and ray extras (pip install 'aeromag-env[rl,ray]'): {e}"
         ) from None
     address = None if req.ray in (None, "local") else req.ray
+    written = req.out / ("ppo.json" if req.learner == "ppo" else "learners.json")
+    done = finished_search(req)
+    if done is not None:
+        return TuneResult(done, written, finished=True)
     if req.learner != "ppo":
         summary = tune_learner(
             req.learner,
@@ -184,3 +197,41 @@ def run_tune(req: TuneRequest) -> TuneResult:
         hyperparams=req.hyperparams or ppo.HYPERPARAMS,
     )
     return TuneResult(summary, req.out / "ppo.json")
+
+
+def finished_search(req: TuneRequest) -> dict[str, Any] | None:
+    """The ``tune.json`` of a search in ``req.out`` that ran to its end with the same request
+    (learner, scenario, trials, steps per trial when given, seed, quick, space and base files),
+    with the hyperparameter file it wrote; else None (no search there, or another one: it is
+    run, and its outputs replace the old ones)."""
+    from agents.search.ppo import SAMPLES
+    from agents.search.space import LEARNER_SPACES, SPACE, recorded_path
+    from agents.training import PPO_SCENARIO, learners, ppo
+    from agents.training.quick import QUICK, sized
+
+    path = req.out / "tune.json"
+    written = req.out / ("ppo.json" if req.learner == "ppo" else "learners.json")
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(summary, dict) or not written.exists():
+        return None
+    ppo_search = req.learner == "ppo"
+    space = req.space or (SPACE if ppo_search else LEARNER_SPACES)
+    base = req.hyperparams or (ppo.HYPERPARAMS if ppo_search else learners.HYPERPARAMS)
+    asked = {
+        "learner": req.learner,
+        "scenario": (req.scenario or PPO_SCENARIO) if ppo_search else None,
+        "samples": sized(req.samples, SAMPLES, req.quick, QUICK.tune_samples),
+        "seed": req.seed,
+        "quick": req.quick,
+        "space_file": recorded_path(space),
+        "hyperparams": recorded_path(base),
+    }
+    held = {**summary, "learner": summary.get("learner", "ppo")}
+    held.setdefault("scenario", None)
+    same = all(held.get(key) == value for key, value in asked.items())
+    if req.timesteps is not None:
+        same = same and held.get("timesteps") == req.timesteps
+    return summary if same and len(summary.get("trials", ())) == asked["samples"] else None

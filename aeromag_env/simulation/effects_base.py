@@ -203,6 +203,11 @@ def vector_parameter(params: dict[str, Any], key: str, size: int) -> np.ndarray 
     return None if v is None else np.asarray(v, float).reshape(size)
 
 
+def _nonzero(value: Any) -> bool:
+    """Whether a checked parameter value (a number or numbers; None: not given) has a non-zero."""
+    return value is not None and bool(np.any(np.asarray(value, float) != 0))
+
+
 class Effect:
     """Base class: name, parameters by name and size, and the channels it needs."""
 
@@ -216,6 +221,9 @@ class Effect:
     channel_prefixes: tuple[str, ...] = ()
     #: A channel is optional (the effect also has a channel-less form).
     channel_optional = False
+    #: The parameters that set the size of the field: without one of them non-zero the effect
+    #: adds nothing, and an entry is refused.
+    strength: tuple[str, ...] = ()
 
     def check(self, channel: str | None, params: dict[str, Any]) -> None:
         unknown = sorted(set(params) - set(self.parameter_sizes))
@@ -248,6 +256,11 @@ class Effect:
             raise ConfigError(
                 f"effect {self.name} cannot follow channel {channel!r}"
                 + (f" (needs {'/'.join(self.channel_prefixes)}*)" if self.channel_prefixes else "")
+            )
+        if self.strength and not any(_nonzero(params.get(key)) for key in self.strength):
+            raise ConfigError(
+                f"effect {self.name} adds nothing: give {' or '.join(self.strength)} "
+                f"(non-zero) among its parameters ({', '.join(self.parameter_sizes)})"
             )
 
     def simulate(

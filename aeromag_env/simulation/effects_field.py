@@ -39,6 +39,7 @@ class ExternalFieldVariation(Effect):
             "spline_knots_s": -1,
         }
     )
+    strength = ("offset_ned_nt", "daily_amplitude_nt", "fogm_std_nt", "spline_ned_nt")
 
     def simulate(
         self, ctx: EffectContext, channel: str | None, params: dict[str, Any]
@@ -86,6 +87,7 @@ class AltitudeGradient(Effect):
     name = "altitude_gradient"
     description = "field changing linearly with altitude, fixed in the navigation frame: g (h − h0)"
     parameter_sizes = MappingProxyType({"gradient_ned_nt_per_m": 3, "reference_alt_m": 0})
+    strength = ("gradient_ned_nt_per_m",)
 
     def simulate(
         self, ctx: EffectContext, channel: str | None, params: dict[str, Any]

@@ -28,6 +28,7 @@ class InducedSecondOrder(Effect):
     name = "induced_second_order"
     description = "field quadratic in the body-frame Earth field: Σ c_ijk T_j T_k / 50 000 nT"
     parameter_sizes = MappingProxyType({"coefficients": 18})
+    strength = ("coefficients",)
 
     @staticmethod
     def _quadratic(t_b: np.ndarray) -> np.ndarray:
@@ -66,6 +67,7 @@ class EddyTimeConstant(Effect):
         "(the instantaneous part B_e Ṫ is the base model's)"
     )
     parameter_sizes = MappingProxyType({"tau_s": 0, "eddy_s": 9})
+    strength = ("eddy_s",)
 
     @staticmethod
     def _lagged_rate(ctx: EffectContext, tau: float) -> np.ndarray:

@@ -25,6 +25,7 @@ class OnboardCurrent(Effect):
     name = "onboard_current"
     description = "field proportional to an auxiliary current/voltage channel: k · I(t)"
     parameter_sizes = MappingProxyType({"k_nt_per_unit": 3})
+    strength = ("k_nt_per_unit",)
     channel_prefixes = ("cur_", "vol_")
 
     def simulate(
@@ -61,6 +62,7 @@ class PermanentFieldDrift(Effect):
             "time_span_s": 2,
         }
     )
+    strength = ("k_nt_per_unit", "legendre_body_nt")
     channel_prefixes = ("temp_",)
     channel_optional = True
 

@@ -29,6 +29,7 @@ class SensorLag(Effect):
         "absorbed by the eddy matrix, τ²/2 T̈ and the shifted aircraft eddy field −τ B T̈ are not"
     )
     parameter_sizes = MappingProxyType({"lag_s": 0, "field_gain": 0, "signal_gain": 0})
+    strength = ("lag_s",)
 
     @staticmethod
     def _shift(ctx: EffectContext, x: np.ndarray, lag: float) -> np.ndarray:
@@ -101,6 +102,7 @@ class FluxgateOffset(Effect):
     description = "constant fluxgate offset b"
     absorbed_by = "T_p (permanent field)"
     parameter_sizes = MappingProxyType({"offset_nt": 3})
+    strength = ("offset_nt",)
 
     def simulate(
         self, ctx: EffectContext, channel: str | None, params: dict[str, Any]
@@ -118,6 +120,7 @@ class FluxgateScale(_SensorError):
     description = "per-axis scale-factor error: S_i ← (1 + s_i) S_i"
     absorbed_by = "A (induced matrix)"
     parameter_sizes = MappingProxyType({"scale": 3})
+    strength = ("scale",)
 
     def matrix(self, params: dict[str, Any]) -> np.ndarray:
         v = vector_parameter(params, "scale", 3)
@@ -129,6 +132,7 @@ class FluxgateNonorthogonality(_SensorError):
     description = "non-orthogonal axes: y and z axes tilted by small angles towards x and y"
     absorbed_by = "A (induced matrix)"
     parameter_sizes = MappingProxyType({"angles_rad": 3})
+    strength = ("angles_rad",)
 
     def matrix(self, params: dict[str, Any]) -> np.ndarray:
         v = vector_parameter(params, "angles_rad", 3)
@@ -143,6 +147,7 @@ class Misalignment(_SensorError):
     description = "constant rotation between the fluxgate and the INS body axes (small angles)"
     absorbed_by = "A (induced matrix)"
     parameter_sizes = MappingProxyType({"angles_rad": 3})
+    strength = ("angles_rad",)
 
     def matrix(self, params: dict[str, Any]) -> np.ndarray:
         from scipy.spatial.transform import Rotation

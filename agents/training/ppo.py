@@ -145,14 +145,15 @@ def train_ppo(
     quick: bool = False,
     progress: bool = True,
     hyperparams: Path = HYPERPARAMS,
-    total: bool = False,
+    total: bool = True,
 ) -> dict[str, Any]:
     """Train (or resume) PPO; keep the best validated policy as ``out/policy.npz``.
 
     ``timesteps`` None: :data:`TIMESTEPS`, or with ``quick`` ``QUICK.train_timesteps``;
     ``quick``: the sizes of :data:`agents.training.quick.QUICK` (about a minute). A resumed run
-    trains ``timesteps`` more steps, or with ``total`` up to ``timesteps`` in all
-    (what a retried task wants: a run killed and restarted ends where an unbroken one would).
+    trains up to ``timesteps`` in all (a run interrupted and rerun, or a retried task, ends where
+    an unbroken one would: at the first rollout's end at or past ``timesteps``); with ``total``
+    False, ``timesteps`` more.
     The checkpoint (:data:`CHECKPOINT`) is written as a set, so a kill leaves the previous
     checkpoint or the new one; the run is refused before training if a file it writes is an
     input."""

@@ -31,7 +31,9 @@ class QuickPreset:
     ----------
     ppo : PPO hyperparameters (train, tune, bench): two environments, tiny rollouts, two
         validation flights, no prefetching worker
-    pretrain : the pretraining's (one round of 256 demonstration steps, one epoch)
+    pretrain : the pretraining's (one round of 256 demonstration steps, one epoch), its cloning
+        term on the demonstrations of every scenario: 256 steps fly parts of two flights, which
+        may miss every scenario an entry's ``bc_scenarios`` names
     learners : every other learner's (train, tune): a few thousand steps of two environments,
         one validation flight per scenario of the suite, no prefetching worker
     cmaes : CMA-ES's search (``algo``): three candidates per generation, one flight of each
@@ -57,7 +59,7 @@ class QuickPreset:
     ppo: Mapping[str, Any] = _frozen(
         n_envs=2, n_steps=64, batch_size=64, eval_every=512, eval_episodes=2, prefetch=False
     )
-    pretrain: Mapping[str, Any] = _frozen(steps=256, epochs=1, dagger_rounds=1)
+    pretrain: Mapping[str, Any] = _frozen(steps=256, epochs=1, dagger_rounds=1, bc_scenarios=None)
     learners: Mapping[str, Any] = _frozen(
         timesteps=2048, n_envs=2, eval_every=1024, eval_episodes=7, prefetch=False
     )

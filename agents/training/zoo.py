@@ -30,6 +30,7 @@ from typing import Any, cast
 import gymnasium as gym
 
 from aeromag_env.environment.ids import env_id
+from aeromag_env.quick import quick_requested
 
 HYPERPARAMS = Path(__file__).parent / "hyperparams"
 #: Timesteps of the shipped policy's training run (``aeromag train --timesteps``).
@@ -190,14 +191,69 @@ def write_learner_zoo_files(source: Path, folder: Path) -> list[Path]:
 def main(argv: list[str] | None = None) -> int:
     about = (__doc__ or "").split("\n")[0]
     parser = argparse.ArgumentParser(prog="python -m agents.training.zoo", description=about)
-    parser.add_argument("target", nargs="?", default=str(HYPERPARAMS / "ppo_zoo.yml"))
+    parser.add_argument(
+        "target",
+        nargs="?",
+        help="write only this recipe, to this file: PPO's (of --source), or with --learner that "
+        "learner's; without it, every shipped recipe is rewritten in agents/training/hyperparams/ "
+        f"(ppo_zoo.yml from ppo.json, {', '.join(f'{a}.yml' for a in ZOO_ALGOS.values())} from "
+        "learners.json)",
+    )
     parser.add_argument("--source", default=str(HYPERPARAMS / "ppo.json"))
+    parser.add_argument(
+        "--learner", choices=list(ZOO_ALGOS), help="the recipe of this learner (learners.json)"
+    )
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="a recipe to try, at the --quick sizes of aeromag train (also with AEROMAG_QUICK=1)",
+    )
     args = parser.parse_args(argv)
-    print(f"wrote {write_zoo_file(Path(args.source), Path(args.target))}")
-    folder = Path(args.target).parent
-    for path in write_learner_zoo_files(HYPERPARAMS / "learners.json", folder):
-        print(f"wrote {path}")
+    if args.target is None:
+        if args.learner or args.quick:
+            parser.error("--learner and --quick write a recipe to TARGET, never the shipped ones")
+        print(f"wrote {write_zoo_file(Path(args.source), HYPERPARAMS / 'ppo_zoo.yml')}")
+        for path in write_learner_zoo_files(HYPERPARAMS / "learners.json", HYPERPARAMS):
+            print(f"wrote {path}")
+        return 0
+    target = Path(args.target)
+    if args.learner is None:
+        write_zoo_file(Path(args.source), target)
+    else:
+        recipe = learner_zoo_hyperparams(args.learner, HYPERPARAMS / "learners.json")
+        _write_recipe(target, recipe, f"# The {args.learner} recipe of learners.json\n")
+    if args.quick or quick_requested():
+        _write_recipe(target, _quick_recipe(target), QUICK_NOTE)
+    print(f"wrote {target}")
     return 0
+
+
+#: The first line of a quick recipe.
+QUICK_NOTE = (
+    "# A recipe to try, at the --quick sizes of aeromag train (agents/training/quick.py): not "
+    "for training a policy.\n"
+)
+
+
+def _write_recipe(target: Path, recipe: dict[str, Any], head: str) -> None:
+    import yaml
+
+    body = yaml.safe_dump(recipe, sort_keys=False, default_flow_style=None)
+    target.write_text(head + body, encoding="utf-8")
+
+
+def _quick_recipe(path: Path) -> dict[str, Any]:
+    """The recipes of the file ``path`` at the quick sizes (:data:`agents.training.quick.QUICK`):
+    its steps, environments and rollouts."""
+    import yaml
+
+    from agents.training.quick import QUICK
+
+    recipes = yaml.safe_load(path.read_text(encoding="utf-8"))
+    for entry in recipes.values():
+        entry["n_timesteps"] = float(QUICK.train_timesteps)
+        entry.update({k: QUICK.ppo[k] for k in ("n_envs", "n_steps", "batch_size") if k in entry})
+    return dict(recipes)
 
 
 if __name__ == "__main__":

@@ -179,3 +179,20 @@ def test_quick_is_one_table_for_every_learner():
 
     quick_ppo = quick_hyperparams(load_hyperparams("suite"))
     assert {k: getattr(quick_ppo, k) for k in QUICK.ppo} == dict(QUICK.ppo)
+
+
+def test_a_quick_run_clones_on_every_scenario_it_flew() -> None:
+    """The suite entry clones only on some scenarios; a quick run's 256 demonstration steps fly
+    parts of two flights, which may be of none of them (seed 2 of the suite was): quick clones
+    on every scenario flown."""
+    from agents.training import ppo
+    from agents.training.hyperparams_file import read_ppo
+
+    suite = read_ppo(ppo.HYPERPARAMS).scenarios["suite"]
+    assert suite.pretrain is not None and suite.pretrain.bc_scenarios is not None
+    quick = quick_hyperparams(suite).pretrain
+    assert quick is not None and quick.bc_scenarios is None
+    assert (quick.steps, quick.bc_minibatches) == (
+        QUICK.pretrain["steps"],
+        suite.pretrain.bc_minibatches,
+    )

@@ -91,12 +91,14 @@ def test_loading_is_pickle_free_and_errors_are_one_line(tmp_path):
 
 def test_train_quick_then_resume_then_evaluate(tmp_path):
     out = tmp_path / "ppo"
-    args = ["train", "--quick", "--timesteps", "512", "--out", str(out), "--quiet"]
-    assert main(args) == 0
-    first = json.loads((out / "training.json").read_text())["timesteps"]
-    assert main(args) == 0  # resumes from the checkpoint
+    args = ["train", "--quick", "--out", str(out), "--quiet", "--timesteps"]
+    assert main([*args, "512"]) == 0
+    first = (out / "training.json").read_bytes()
+    assert main([*args, "512"]) == 0  # the request's total reached: nothing trained
+    assert (out / "training.json").read_bytes() == first
+    assert main([*args, "1024"]) == 0  # resumes from the checkpoint up to the new total
     summary = json.loads((out / "training.json").read_text())
-    assert summary["timesteps"] > first
+    assert json.loads(first)["timesteps"] < 1024 <= summary["timesteps"]
     steps = [c["timesteps"] for c in summary["curve"]]
     assert steps == sorted(set(steps))  # one validation per point of the learning curve
     name = f"ppo:{out / 'policy.npz'}"

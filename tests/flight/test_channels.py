@@ -181,12 +181,15 @@ def test_compensate_falls_back_to_flux_b_and_reports_it(
     path = write_flight(flight, tmp_path / "nan_flux_a.h5")
     assert main(["compensate", str(path), "--method", "lsq", "--out", str(tmp_path / "o")]) == 0
     err = capsys.readouterr().err.splitlines()
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
     assert err == [
         "aeromag compensate: warning: fluxgate: using flux_b, not flux_a (flux_a: all non-finite)",
         "aeromag compensate: warning: altitude channels disagree: alt and utm_z differ by a median "
         "300 m (> 100 m); using alt (IGRF changes by ~0.03 nT/m with height)",
+        # the reader's input problems follow, each one line (the empty flux_a among them)
+        *(f"aeromag compensate: warning: {p}" for p in report["input_problems"]),
     ]
-    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert any(p.startswith("non-finite samples") for p in report["input_problems"])
     assert report["channels"]["altitude"]["name"] == "alt"
     assert report["channels"]["fluxgate"]["name"] == "flux_b"
     assert "flux_a: all non-finite" in report["channels"]["fluxgate"]["reason"]

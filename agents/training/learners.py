@@ -59,9 +59,10 @@ OUTPUTS = ("policy.npz", "candidate.npz", "training.json")
 
 def learner_hyperparams(learner: str, path: Path = HYPERPARAMS) -> LearnerHyperparams:
     """The hyperparameters of ``learner`` in ``path``: its entry under the file's ``common``
-    settings, a model of :data:`~agents.training.learner_hyperparameters.LEARNER_MODELS` (every learner
-    of the file checked); a one-line :class:`~aeromag_env.errors.HyperparameterError` naming
-    the file and the field otherwise."""
+    settings, a model of
+    :data:`~agents.training.learner_hyperparameters.LEARNER_MODELS` (every learner of the file
+    checked); a one-line :class:`~aeromag_env.errors.HyperparameterError` naming the file and
+    the field otherwise."""
     learners = read_learners(path)
     if learner not in learners:
         raise HyperparameterError(

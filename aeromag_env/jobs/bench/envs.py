@@ -232,8 +232,19 @@ def bench_ppo(
         finally:
             for model in models.values():
                 model.get_env().close()
+    figures = _ppo_figures(prefix, timesteps, seconds, parts)
+    figures |= {f"{prefix}_n_envs": hp.n_envs, f"{prefix}_timesteps": timesteps}
+    return figures | filter_figures(prefix, parts, timesteps, bare.window)
+
+
+def _ppo_figures(
+    prefix: str, timesteps: int, seconds: dict[str, list[float]], parts: Seconds
+) -> dict[str, Any]:
+    """:func:`bench_ppo`'s figures of the PPO variants from each repeat's ``seconds`` and its
+    ``parts``: steps per second, time shares and parts per step, the batched variant's ratio
+    to ``DummyVecEnv`` and the environments' share of PPO's time."""
     rates = {name: [timesteps / s for s in seconds[name]] for name in PPO_VARIANTS}
-    figures: dict[str, Any] = {f"{prefix}_n_envs": hp.n_envs, f"{prefix}_timesteps": timesteps}
+    figures: dict[str, Any] = {}
     for name in PPO_VARIANTS:
         total, part = seconds[name], parts[name]
         shares = [e / s for e, s in zip(part["env"], total, strict=True)]
@@ -250,7 +261,7 @@ def bench_ppo(
     figures[f"{prefix}_env_share"] = statistics.median(env)
     figures[f"{prefix}_env_share_min"] = min(env)
     figures[f"{prefix}_env_share_max"] = max(env)
-    return figures | filter_figures(prefix, parts, timesteps, bare.window)
+    return figures
 
 
 def filter_figures(prefix: str, parts: Seconds, timesteps: int, window: int) -> dict[str, Any]:

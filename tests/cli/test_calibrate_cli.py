@@ -5,7 +5,8 @@ fleet, on Ray) and ``aeromag stream`` reading standard input."""
 from __future__ import annotations
 
 import json
-import selectors
+import os
+import select
 import subprocess
 import sys
 from pathlib import Path
@@ -102,17 +103,20 @@ def test_a_fleet_with_a_model_on_ray_equals_serial(local_ray: None, fleet: Path,
         np.testing.assert_array_equal(a["aeromag_flux_a_c_x"], b["aeromag_flux_a_c_x"])
 
 
-def _lines_within(proc: subprocess.Popen[str], count: int, timeout_s: float) -> list[str]:
-    """``count`` lines of the process's stdout, each within ``timeout_s`` [s] (a stream that does
-    not flush per line never delivers them while its input stays open)."""
-    sel = selectors.DefaultSelector()
+def _lines_within(proc: subprocess.Popen[str], count: int, timeout_s: float) -> str:
+    """What the process wrote to stdout until ``count`` whole lines came, each within
+    ``timeout_s`` [s] (a stream that does not flush per line never delivers them while its
+    input stays open). Read from the pipe's descriptor: a buffered ``readline`` may take several
+    lines into its buffer, where ``select`` no longer sees them."""
     assert proc.stdout is not None
-    sel.register(proc.stdout, selectors.EVENT_READ)
-    lines = []
-    for _ in range(count):
-        assert sel.select(timeout_s), f"no line within {timeout_s} s; got {lines}"
-        lines.append(proc.stdout.readline())
-    return lines
+    fd, got = proc.stdout.fileno(), b""
+    while got.count(b"\n") < count:
+        ready, _, _ = select.select([fd], [], [], timeout_s)
+        assert ready, f"no line within {timeout_s} s; got {got!r}"
+        chunk = os.read(fd, 1 << 16)
+        assert chunk, f"the stream ended; got {got!r}"
+        got += chunk
+    return got.decode()
 
 
 def test_stream_answers_each_line_as_it_comes_and_equals_compensate(fleet: Path, tmp_path: Path):
@@ -152,7 +156,7 @@ def test_stream_answers_each_line_as_it_comes_and_equals_compensate(fleet: Path,
     first = _lines_within(proc, 3, timeout_s=120.0)  # the header and two answers (kf: one back)
     out, err = proc.communicate("".join(lines[head + 4 :]), timeout=600)
     assert proc.returncode == 0, err
-    rows = [*first, *out.splitlines(keepends=True)]
+    rows = (first + out).splitlines(keepends=True)
     assert rows[0] == "tt,aeromag_flux_a_c_x,aeromag_flux_a_c_y,aeromag_flux_a_c_z\n"
     assert err.splitlines() == [
         f"aeromag stream: warning: line {head + 5}: 2 cells where the header has "

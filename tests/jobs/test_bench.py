@@ -252,6 +252,7 @@ def test_bench_table_joins_runs_and_counts_met_targets(tmp_path):
         load_runs([tmp_path / "bad.json"])
 
 
+@pytest.mark.slow  # two fresh processes running discover (tests/jobs/test_bench_discover.py)
 def test_bench_only_discover_measures_the_workflow_alone(tmp_path, capsys):
     from aeromag_env.cli.main import main
 

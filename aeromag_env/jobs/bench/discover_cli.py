@@ -1,13 +1,14 @@
 """``aeromag discover`` as a user runs it: a fresh process on a flight file, figures and page
 included (:func:`bench_discover_cli`).
 
-Each measured run is ``python -m aeromag_env.cli.main discover FILE --out DIR`` in a new
+Each measured run is ``aeromag discover FILE --out DIR`` (the command line's ``main``) in a new
 process, on a simulated 10 Hz ``nominal`` calibration+survey flight of ``hours`` flight-hours
 (seed 0, the flight of ``aeromag bench``); its wall time counts the interpreter's start, the
 imports, reading, the workflow, ``report.json``/``report.md``, both PNG figures and
-``report.html``. Peak memory is the child's own peak resident set (``ru_maxrss`` of
-``wait4``: the process and any it waited for). A first, unmeasured run per file warms the disk
-cache and numba's compiled-kernel cache, as any user's second run finds them.
+``report.html``. Peak memory is the child's own peak resident set (``VmHWM``, which the child
+reports as it ends; ``ru_maxrss`` would carry the benchmark's own memory across the ``exec``).
+A first, unmeasured run per file warms the disk cache and numba's compiled-kernel cache, as any
+user's second run finds them.
 
 The machines these run on are shared: every figure is a median of repeats, the CPU time (user
 + system) is reported beside the wall time, and the 1-minute load average before and after is
@@ -68,8 +69,8 @@ def bench_discover_cli(
         Per length, with ``L`` its label (``1h``, ``4h``, ``0.5h``):
         ``discover_cli_L_s_per_flight_hour`` (median wall time / hours),
         ``discover_cli_L_cpu_s_per_flight_hour`` (median user + system time / hours) and
-        ``discover_cli_L_peak_mb`` (median peak resident memory [MB], None where ``wait4`` is
-        missing); then ``discover_cli_peak_growth_mb_per_flight_hour`` (the peak's growth
+        ``discover_cli_L_peak_mb`` (median peak resident memory [MB], None where the child
+        could not say it); then ``discover_cli_peak_growth_mb_per_flight_hour`` (the peak's growth
         between the shortest and the longest flight, per flight-hour; None with one length),
         ``discover_cli_repeats``, ``discover_cli_load`` (1-minute load average before and
         after; None where unknown) and the targets ``discover_cli_target_s_per_flight_hour``
@@ -132,28 +133,45 @@ def write_hour_flight(path: Path, hours: float) -> Path:
     return write_flight(simulate_flight(cfg, 0), path)
 
 
+#: The tag of the child's last stderr line, its peak resident memory [MB].
+PEAK_TAG = "peak_mb"
+#: The child's program: ``aeromag discover`` as the console script runs it, then its own peak
+#: resident memory on stderr (``VmHWM``: ``ru_maxrss`` of a child keeps the memory of the
+#: process it was forked from, here the benchmark's, across ``exec``).
+_PROBE = (
+    "import sys\n"
+    "from aeromag_env.cli.main import main\n"
+    "from aeromag_env.jobs.bench.workflows import peak_rss_mb\n"
+    "code = main(sys.argv[1:])\n"
+    f"print('{PEAK_TAG}', peak_rss_mb(), file=sys.stderr)\n"
+    "sys.exit(code)\n"
+)
+
+
 def _run(path: Path, out: Path) -> Run:
     """``aeromag discover path --out out`` in a fresh process: its wall and CPU time and peak
-    resident memory."""
-    cmd = [sys.executable, "-m", "aeromag_env.cli.main", "discover", str(path), "--out", str(out)]
+    resident memory (its own, :data:`_PROBE`)."""
+    cmd = [sys.executable, "-c", _PROBE, "discover", str(path), "--out", str(out)]
     t0 = time.perf_counter()
     child = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    peak_mb: float | None = None
+    stderr = child.stderr.read() if child.stderr else ""
     if hasattr(os, "wait4"):
         _, status, usage = os.wait4(child.pid, 0)
         wall = time.perf_counter() - t0
         child.returncode = os.waitstatus_to_exitcode(status)
         cpu = usage.ru_utime + usage.ru_stime
-        peak_mb = usage.ru_maxrss / (2**20 if sys.platform == "darwin" else 2**10)  # B or KiB
-    else:  # no per-child resource usage: time only
+    else:  # no per-child resource usage
         child.wait()
         wall = time.perf_counter() - t0
         cpu = float("nan")
-    stderr = child.stderr.read() if child.stderr else ""
+    lines = stderr.strip().splitlines()
     if child.returncode != 0:
-        last = stderr.strip().splitlines()[-1] if stderr.strip() else f"exit {child.returncode}"
-        raise AeromagError(f"aeromag discover failed in the benchmark: {last}")
-    return Run(wall, cpu, peak_mb)
+        last = next((x for x in reversed(lines) if not x.startswith(PEAK_TAG)), None)
+        raise AeromagError(
+            f"aeromag discover failed in the benchmark: {last or f'exit {child.returncode}'}"
+        )
+    peaks = [float(x.split()[1]) for x in lines if x.startswith(PEAK_TAG + " ")]
+    return Run(wall, cpu, peaks[-1] if peaks else None)
 
 
 def _load() -> float | None:

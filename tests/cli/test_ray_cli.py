@@ -254,7 +254,10 @@ def test_bench_measures_evaluate_on_ray(local_ray: None, tmp_path: Path, capsys)
 
 def test_bench_only_ray_needs_ray(tmp_path: Path, capsys) -> None:
     assert main(["bench", "--only", "ray", "--out", str(tmp_path)]) == 2
-    assert "give --ray" in capsys.readouterr().err
+    assert (
+        capsys.readouterr().err
+        == "aeromag bench: error: --ray is needed to measure the Ray figures\n"
+    )
 
 
 def test_a_task_that_raises_is_reported_with_its_input(

@@ -91,7 +91,7 @@ class BenchRequest:
         if self.only is not None and self.only not in BENCH_ONLY:
             raise ArgumentError("only", f"must be one of {', '.join(BENCH_ONLY)}", self.only)
         if self.only == "ray" and self.ray is None:
-            raise ArgumentError("ray", "is needed to measure the Ray figures (only='ray')")
+            raise ArgumentError("ray", "is needed to measure the Ray figures")
 
 
 @dataclass(frozen=True)

@@ -69,9 +69,11 @@ def test_a_vector_environment_runs_the_method_it_is_reset_with(method):
     """``reset(options={"filter_method": m})`` of the vector environment: environment i is the
     single environment with that option, bitwise; the method holds after an autoreset."""
     vec: Any = gym.make_vec(
-        "AeroMagCompensation-v0", num_envs=2, vectorization_mode="vector_entry_point",
+        "AeroMagCompensation-v0",
+        num_envs=2,
+        vectorization_mode="vector_entry_point",
         scenario="nominal",
-    )  # fmt: skip
+    )
     vec.reset(seed=SEED, options={"filter_method": method})
     assert list(vec.unwrapped.filters.mode) == [MODE[method]] * 2
     done, rmse = np.zeros(2, bool), np.full(2, np.nan)
